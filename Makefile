@@ -1,0 +1,45 @@
+# Two commands for a fresh machine:
+#   make run    set up the venv, install, run the main job on the default scene
+#   make test   set up the venv, install, lint, type-check and pass the tests
+# Everything runs from the venv in $(VENV); versions are pinned in constraints.txt.
+
+VENV ?= .venv
+PY := $(VENV)/bin/python
+SCENE ?= default
+# DDS stays on this machine; each run picks its own domain so parallel runs never meet.
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+export ROS_DOMAIN_ID ?= $(shell python3 -c 'import random; print(random.randint(1, 100))')
+export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
+
+.PHONY: setup run demo test lint typecheck pytest bench clean
+
+setup: $(VENV)/.installed
+
+$(VENV)/.installed: setup.py setup.cfg package.xml constraints.txt
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[ros,plots,peers,test]'
+	touch $@
+
+run: setup
+	$(VENV)/bin/pendulum_node --scene $(SCENE)
+
+demo: setup
+	$(VENV)/bin/pendulum_demo
+
+test: setup lint typecheck pytest
+
+lint: setup
+	$(VENV)/bin/ruff check pendulum_sim test bench setup.py
+
+typecheck: setup
+	$(VENV)/bin/mypy
+
+pytest: setup
+	$(VENV)/bin/pytest -q
+
+bench: setup
+	$(PY) bench/bench_core.py
+
+clean:
+	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache

@@ -1,0 +1,52 @@
+"""Install pendulum_sim as a ROS 2 ament_python package or with pip into a plain venv."""
+from glob import glob
+import os
+
+from setuptools import find_packages, setup
+
+package_name = 'pendulum_sim'
+
+# Pinned ROS 2 Jazzy wheels from the package index, for machines without a ROS install.
+# In a colcon workspace these come from the ROS installation instead (package.xml).
+ROS_WHEELS = [
+    'ros-jazzy-rclpy==7.1.6',
+    'ros-jazzy-common-interfaces==5.3.6',
+    'ros-jazzy-rmw-fastrtps-cpp==8.4.3',
+]
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*', 'bench']),
+    package_data={package_name: ['py.typed']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        (os.path.join('share', package_name, 'config'), sorted(glob('config/*.yaml'))),
+        (os.path.join('share', package_name, 'urdf'), sorted(glob('urdf/*.urdf'))),
+    ],
+    python_requires='>=3.10',
+    install_requires=['setuptools', 'numpy>=1.24', 'pyyaml>=6', 'mcap>=1.2'],
+    extras_require={
+        'ros': ROS_WHEELS,
+        'plots': ['matplotlib>=3.7'],
+        'peers': ['scipy>=1.10'],
+        'test': [
+            'pytest>=8', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10', 'mcap-ros2-support>=0.5',
+            'colcon-core>=0.17', 'colcon-ros>=0.5', 'colcon-python-setup-py>=0.2',
+        ],
+    },
+    zip_safe=True,
+    maintainer='pendulum_sim developers',
+    maintainer_email='pendulum-sim@example.com',
+    description='Damped physical pendulum with power-law damping as a ROS 2 simulated joint.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'pendulum_node = pendulum_sim.node.pendulum_node:main',
+            'pendulum_replay = pendulum_sim.recording.replay:main',
+            'pendulum_report = pendulum_sim.reports.cli:main',
+            'pendulum_demo = pendulum_sim.demo:main',
+        ],
+    },
+)
