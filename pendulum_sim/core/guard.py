@@ -1,0 +1,194 @@
+"""The stability guard: keep every step inside the method's region of absolute stability.
+
+Before a step the guard linearises the pendulum at the current state. The Jacobian
+``[[0, 1], [−ω0² cos φ, −d]]`` with ``d = γ n |φ'|^(n−1)`` has the closed-form eigenvalues
+``λ = (−d ± sqrt(d² − 4 ω0² cos φ)) / 2`` (MODEL.md). Where ``h λ`` for an eigenvalue with
+negative real part lies outside the region ``|R(z)| ≤ 1`` of the method, the step is split into
+the fewest equal substeps that bring every ``h λ / m`` back inside; where that would take more
+than ``max_substeps``, the step falls back to the L-stable implicit method. An eigenvalue with
+non-negative real part (the pendulum above the horizontal) is physics, not numerical
+instability, and is left alone.
+
+A cheap sufficient test runs first: every eigenvalue has ``|λ| ≤ d + ω0``, so a step with
+``h (d + ω0) ≤ r`` is safe when the half-disk ``{|z| ≤ r, Re z ≤ 0}`` lies inside the region.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .model import _eigs, damping_derivative
+from .tableaus import Tableau
+
+FALLBACK = 0
+"""Returned by :meth:`StabilityGuard.substeps` when the implicit method must take the step."""
+
+MAX_ANGLE = 0.5
+"""The largest angle (rad) one step may sweep: a pendulum spinning over the top at 100 rad/s
+forces gravity at 100 rad/s, a frequency the Jacobian at one point does not show."""
+
+
+def terminal_speed(gamma: float, n: float, force: float) -> float:
+    """Return the speed at which damping balances an acceleration ``force``: (force/γ)^(1/n)."""
+    if gamma <= 0.0 or n == 0.0:
+        return math.inf
+    try:
+        return float((force / gamma) ** (1.0 / n))
+    except OverflowError:
+        return math.inf
+
+
+def max_speed(gamma: float, n: float, dphi: float, h: float, force: float) -> float:
+    """Return a bound on |φ'| over a step of h of the exact flow.
+
+    Damping only ever slows the pendulum, so |φ'| can grow by at most h · force, and never past
+    the terminal speed once it is above it.
+    """
+    return abs(dphi) + min(h * force, terminal_speed(gamma, n, force))
+
+
+def stiffness_speed(gamma: float, n: float, dphi: float, h: float, force: float) -> float:
+    """Return the speed at which to evaluate d = γ n |φ'|^(n−1) for the stiffest point of a step.
+
+    For n > 1 the damping is stiffest at the highest speed; for n < 1 at the lowest, where it is
+    not Lipschitz: there the speed the step can reach, or the terminal speed of a creeping
+    pendulum, sets the scale (reversals themselves are split off by the stepper).
+    """
+    if n >= 1.0:
+        return max_speed(gamma, n, dphi, h, force)
+    return max(abs(dphi), min(0.5 * h * force, terminal_speed(gamma, n, force)))
+
+
+@dataclass
+class GuardStats:
+    """Count what the integrator did beyond plain fixed steps."""
+
+    steps: int = 0
+    substeps: int = 0  # extra steps taken because of the guard (m − 1 per split step)
+    fallbacks: int = 0  # steps handed to the implicit method
+    reversals: int = 0  # steps split at a velocity reversal (non-smooth damping)
+    sticks: int = 0  # times the pendulum came to rest under static (Coulomb) friction
+    energy_rejections: int = 0  # explicit steps redone because energy rose without input
+    projections: int = 0  # steps projected onto the energy balance after the redo rose too
+
+    def as_dict(self) -> dict[str, int]:
+        """Return the counters as a plain dict."""
+        return asdict(self)
+
+    def add(self, other: GuardStats) -> None:
+        """Add another set of counters to this one."""
+        for k, v in other.as_dict().items():
+            setattr(self, k, getattr(self, k) + v)
+
+
+@functools.cache
+def half_disk_radius(tableau: Tableau, samples: int = 721) -> float:
+    """Return the largest r with ``{|z| ≤ r, Re z ≤ 0}`` inside ``|R(z)| ≤ 1`` (0 if none).
+
+    Sampled on a polar grid of the half-disk and bisected on r; explicit methods only.
+    """
+    coeffs = tableau.stability_poly[::-1]
+    theta = np.linspace(np.pi / 2, 3 * np.pi / 2, samples)
+    lo, hi = 0.0, 8.0
+    for _ in range(40):
+        r = 0.5 * (lo + hi)
+        zs = np.outer(np.linspace(r / 64, r, 64), np.exp(1j * theta))
+        if np.max(np.abs(np.polyval(coeffs, zs))) <= 1.0:
+            lo = r
+        else:
+            hi = r
+    return lo
+
+
+@functools.cache
+def real_axis_bound(tableau: Tableau) -> float:
+    """Return the length of the stability interval on the negative real axis (inf if A-stable)."""
+    x = 0.0
+    dx = 0.01
+    while x < 1e3:
+        if abs(tableau.stability_function(complex(-(x + dx), 0.0))) > 1.0:
+            lo, hi = x, x + dx
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                if abs(tableau.stability_function(complex(-mid, 0.0))) > 1.0:
+                    hi = mid
+                else:
+                    lo = mid
+            return lo
+        x += dx
+    return math.inf
+
+
+class StabilityGuard:
+    """Decide, per step, how many substeps keep an explicit method stable.
+
+    Parameters
+    ----------
+    tableau : Tableau
+        The explicit method to guard.
+    safety : float
+        Fraction of the region's extent to use (keeps a margin for the variation of λ within
+        the step, which grows with the velocity for n ≥ 2).
+    max_substeps : int
+        Above this, the step falls back to the implicit method.
+    """
+
+    def __init__(self, tableau: Tableau, safety: float = 0.8, max_substeps: int = 64) -> None:
+        self.tableau = tableau
+        self.safety = safety
+        self.max_substeps = max_substeps
+        self.disk = half_disk_radius(tableau) * safety
+        self.real = real_axis_bound(tableau) * safety
+        self.max_angle = MAX_ANGLE
+
+    def fast_ok(self, h: float, d: float, omega0: float, speed: float) -> bool:
+        """Return True when the cheap bound already proves the step stable and resolved."""
+        return h * (d + omega0) <= self.disk and h * speed <= self.max_angle
+
+    def substeps(self, h: float, omega0_sq: float, gamma: float, n: float, phi: float,
+                 dphi: float, force: float) -> int:
+        """Return m ≥ 1 substeps for a stable step, or FALLBACK for the implicit method.
+
+        ``force`` bounds the non-damping acceleration over the step (|τ/I| + ω0²); it bounds
+        how far the velocity, and with it the damping's stiffness, can move within the step.
+        """
+        d = damping_derivative(gamma, n, stiffness_speed(gamma, n, dphi, h, force))
+        if not math.isfinite(d):
+            return FALLBACK
+        m_angle = max(1, math.ceil(h * max_speed(gamma, n, dphi, h, force) / self.max_angle))
+        c = omega0_sq * math.cos(phi)
+        lams = [lam for lam in _eigs(d, c) if lam.real < 0.0]
+        if not lams:
+            m = 1
+        elif max(abs(lam) for lam in lams) * h <= self.disk:
+            m = 1
+        elif all(lam.imag == 0.0 for lam in lams) and math.isfinite(self.real):
+            m = max(1, math.ceil(max(abs(lam) for lam in lams) * h / self.real))
+        else:
+            m = self._search(h, lams)
+        m = max(m, m_angle)
+        return m if m <= self.max_substeps else FALLBACK
+
+    def _ok(self, h: float, lams: list[complex]) -> bool:
+        return all(abs(self.tableau.stability_function(h * lam)) <= 1.0 for lam in lams)
+
+    def _search(self, h: float, lams: list[complex]) -> int:
+        # The safety margin is applied through the disk bound: the smallest m that is stable
+        # for h / safety is used.
+        hs = h / self.safety
+        m = 1
+        while not self._ok(hs / m, lams):
+            m *= 2
+            if m > self.max_substeps:
+                return self.max_substeps + 1
+        lo = m // 2
+        while m - lo > 1:
+            mid = (lo + m) // 2
+            if self._ok(hs / mid, lams):
+                m = mid
+            else:
+                lo = mid
+        return m

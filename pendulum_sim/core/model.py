@@ -1,0 +1,191 @@
+"""The generalized damped physical pendulum (Quiroga and Ospina-Henao 2017, eq 11-26).
+
+    I φ'' = −m g l sin φ − γ I φ'|φ'|^(n−1) + τ
+
+State is ``(φ, φ')`` in rad and rad/s. ``γ`` has units s^(n−2); ``n = 0`` is dry (Coulomb)
+friction of magnitude ``γ I``, ``n = 1`` viscous, ``n = 2`` quadratic drag (eq 15-16).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import ModelError
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def _check_finite(name: str, value: float) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ModelError(f'{name} must be a real number, got {value!r}') from None
+    if not math.isfinite(x):
+        raise ModelError(f'{name} must be finite, got {x}')
+    return x
+
+
+def _check_positive(name: str, value: float, unit: str) -> float:
+    x = _check_finite(name, value)
+    if x <= 0.0:
+        raise ModelError(f'{name} must be > 0 {unit}, got {x}')
+    return x
+
+
+def _check_nonneg(name: str, value: float, unit: str) -> float:
+    x = _check_finite(name, value)
+    if x < 0.0:
+        raise ModelError(f'{name} must be >= 0{unit}, got {x}')
+    return x
+
+
+@dataclass(frozen=True)
+class PendulumParams:
+    """Validated physical parameters of the pendulum.
+
+    Parameters
+    ----------
+    m : float
+        Mass in kg (> 0).
+    l : float
+        Distance from the pivot to the centre of mass in m (> 0).
+    inertia : float
+        Moment of inertia about the pivot in kg m² (> 0).
+    g : float
+        Gravitational acceleration in m/s² (>= 0).
+    gamma : float
+        Damping coefficient γ in s^(n−2) (>= 0).
+    n : float
+        Damping exponent (>= 0, real): 0 Coulomb, 1 viscous, 2 quadratic drag.
+
+    The defaults are the paper's set-up: m = 0.2 kg, l = 1 m, I = 0.2 kg m², g = 9.8 m/s²,
+    so ω0² = 9.8 s⁻², with γ = 1 and n = 1.
+    """
+
+    m: float = 0.2
+    l: float = 1.0  # noqa: E741 - the paper's symbol
+    inertia: float = 0.2
+    g: float = 9.8
+    gamma: float = 1.0
+    n: float = 1.0
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, 'm', _check_positive('m', self.m, 'kg'))
+        set_(self, 'l', _check_positive('l', self.l, 'm'))
+        set_(self, 'inertia', _check_positive('inertia', self.inertia, 'kg m^2'))
+        set_(self, 'g', _check_nonneg('g', self.g, ' m/s^2'))
+        set_(self, 'gamma', _check_nonneg('gamma', self.gamma, ' s^(n-2)'))
+        set_(self, 'n', _check_nonneg('n', self.n, ''))
+
+    @classmethod
+    def from_omega0_sq(cls, omega0_sq: float, gamma: float, n: float) -> PendulumParams:
+        """Build parameters with m = I = 1 kg (m²) and l = 1 m, g = ω0², for dimensionless use."""
+        return cls(m=1.0, l=1.0, inertia=1.0, g=omega0_sq, gamma=gamma, n=n)
+
+    @property
+    def omega0_sq(self) -> float:
+        """Return ω0² = m g l / I (eq 11), in s⁻²."""
+        return self.m * self.g * self.l / self.inertia
+
+    @property
+    def mgl(self) -> float:
+        """Return the gravity torque scale m g l in N m."""
+        return self.m * self.g * self.l
+
+    def with_changes(self, **changes: Any) -> PendulumParams:
+        """Return a validated copy with some fields changed."""
+        return replace(self, **changes)
+
+    def damping(self, dphi: float) -> float:
+        """Return the damping acceleration γ φ'|φ'|^(n−1) (eq 15) at velocity ``dphi``.
+
+        For n = 0 this is γ sgn(φ'), zero at rest; sticking is handled by the integrators.
+        """
+        if dphi == 0.0:
+            return 0.0
+        return self.gamma * math.copysign(abs(dphi) ** self.n, dphi)
+
+    def acceleration(self, phi: float, dphi: float, torque: float = 0.0) -> float:
+        """Return φ'' = −γ φ'|φ'|^(n−1) − ω0² sin φ + τ/I (eq 16 with input torque)."""
+        return -self.damping(dphi) - self.omega0_sq * math.sin(phi) + torque / self.inertia
+
+    @property
+    def smooth_damping(self) -> bool:
+        """Return True where φ'|φ'|^(n−1) is infinitely differentiable (n = 1, 3, 5, ...)."""
+        return self.n >= 1.0 and self.n == int(self.n) and int(self.n) % 2 == 1
+
+    def jacobian_eigenvalues(self, phi: float, dphi: float) -> tuple[complex, complex]:
+        """Return the eigenvalues of the 2x2 Jacobian [[0, 1], [−ω0² cos φ, −d]] (MODEL.md).
+
+        ``d = γ n |φ'|^(n−1)``; for n < 1 at rest d is unbounded and ``inf`` is used.
+        """
+        d = damping_derivative(self.gamma, self.n, dphi)
+        c = self.omega0_sq * math.cos(phi)
+        return _eigs(d, c)
+
+
+def damping_derivative(gamma: float, n: float, dphi: float) -> float:
+    """Return d = ∂(γ φ'|φ'|^(n−1))/∂φ' = γ n |φ'|^(n−1) (inf for n < 1 at rest)."""
+    if n == 1.0:
+        return gamma
+    if n == 0.0 or gamma == 0.0:
+        return 0.0
+    a = abs(dphi)
+    if a == 0.0:
+        return math.inf if n < 1.0 else 0.0
+    return float(gamma * n * a ** (n - 1.0))
+
+
+def _eigs(d: float, c: float) -> tuple[complex, complex]:
+    if math.isinf(d):
+        return complex(-math.inf, 0.0), complex(0.0, 0.0)
+    disc = d * d - 4.0 * c
+    if disc >= 0.0:
+        s = math.sqrt(disc)
+        # Stable form: avoid cancellation in the slow root.
+        fast = -(d + s) / 2.0
+        slow = c / fast if fast != 0.0 else (-d + s) / 2.0
+        return complex(fast, 0.0), complex(slow, 0.0)
+    s = math.sqrt(-disc)
+    return complex(-d / 2.0, s / 2.0), complex(-d / 2.0, -s / 2.0)
+
+
+def energy(params: PendulumParams, phi: Any, dphi: Any) -> Any:
+    """Return the mechanical energy E = ½ I φ'² + m g l (1 − cos φ) in J (eq 23)."""
+    return kinetic_energy(params, dphi) + potential_energy(params, phi)
+
+
+def kinetic_energy(params: PendulumParams, dphi: Any) -> Any:
+    """Return the kinetic energy ½ I φ'² in J."""
+    return 0.5 * params.inertia * np.square(dphi)
+
+
+def potential_energy(params: PendulumParams, phi: Any) -> Any:
+    """Return the potential energy m g l (1 − cos φ) in J, written as 2 m g l sin²(φ/2).
+
+    The half-angle form keeps full relative precision near the bottom, where 1 − cos φ cancels.
+    """
+    return 2.0 * params.mgl * np.square(np.sin(np.multiply(phi, 0.5)))
+
+
+def dissipated_power(params: PendulumParams, dphi: Any) -> Any:
+    """Return the power lost to damping, γ I |φ'|^(n+1) in W (eq 26; >= 0)."""
+    a = np.abs(dphi)
+    if params.n == 0.0:
+        return params.gamma * params.inertia * a
+    return params.gamma * params.inertia * a ** (params.n + 1.0)
+
+
+def input_power(dphi: Any, torque: Any) -> Any:
+    """Return the power put in by the external torque, τ φ' in W."""
+    return np.multiply(torque, dphi)
+
+
+def validate_state(phi0: float, dphi0: float) -> tuple[float, float]:
+    """Check an initial state (finite angle and velocity) and return it as floats."""
+    return _check_finite('phi0', phi0), _check_finite('dphi0', dphi0)
