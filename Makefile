@@ -30,7 +30,7 @@ demo: setup
 test: setup lint typecheck pytest
 
 lint: setup
-	$(VENV)/bin/ruff check pendulum_sim test bench setup.py
+	$(VENV)/bin/ruff check .
 
 typecheck: setup
 	$(VENV)/bin/mypy

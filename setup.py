@@ -1,6 +1,6 @@
 """Install pendulum_sim as a ROS 2 ament_python package or with pip into a plain venv."""
-from glob import glob
 import os
+from glob import glob
 
 from setuptools import find_packages, setup
 
