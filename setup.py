@@ -32,7 +32,8 @@ setup(
         'plots': ['matplotlib>=3.7'],
         'peers': ['scipy>=1.10'],
         'test': [
-            'pytest>=8', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10', 'mcap-ros2-support>=0.5',
+            'pytest>=8', 'wheel>=0.40', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10',
+            'mcap-ros2-support>=0.5',
             'colcon-core>=0.17', 'colcon-ros>=0.5', 'colcon-python-setup-py>=0.2',
         ],
     },
