@@ -149,13 +149,16 @@ class StabilityGuard:
         return h * (d + omega0) <= self.disk and h * speed <= self.max_angle
 
     def substeps(self, h: float, omega0_sq: float, gamma: float, n: float, phi: float,
-                 dphi: float, force: float) -> int:
+                 dphi: float, force: float, force_now: float | None = None) -> int:
         """Return m ≥ 1 substeps for a stable step, or FALLBACK for the implicit method.
 
         ``force`` bounds the non-damping acceleration over the step (|τ/I| + ω0²); it bounds
         how far the velocity, and with it the damping's stiffness, can move within the step.
+        ``force_now`` is that acceleration at the start (|τ/I − ω0² sin φ|): for n < 1 it sets
+        the creeping speed, where the bound would overstate it near the bottom.
         """
-        d = damping_derivative(gamma, n, stiffness_speed(gamma, n, dphi, h, force))
+        creep = force if force_now is None or n >= 1.0 else force_now
+        d = damping_derivative(gamma, n, stiffness_speed(gamma, n, dphi, h, creep))
         if not math.isfinite(d):
             return FALLBACK
         m_angle = max(1, math.ceil(h * max_speed(gamma, n, dphi, h, force) / self.max_angle))

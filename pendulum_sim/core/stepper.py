@@ -348,7 +348,8 @@ class Stepper:
         force = abs(ain) + self._w2
         left, w, taken = h, 0.0, 0
         while left > 0.0:
-            m = self._guard.substeps(left, self._w2, self._gamma, self._n, p, v, force)
+            m = self._guard.substeps(left, self._w2, self._gamma, self._n, p, v, force,
+                                     abs(ain - self._w2 * math.sin(p)))
             if m == FALLBACK:
                 self.stats.fallbacks += 1
                 p, v, wi = self._implicit(p, v, left, ain)

@@ -1,0 +1,346 @@
+"""The vectorized sweep: agreement with scalar integrations, order, stiffness, validation."""
+from __future__ import annotations
+
+import itertools
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from pendulum_sim.core import IntegratorError, ModelError, PendulumParams, simulate
+from pendulum_sim.core import sweep as sweep_module
+from pendulum_sim.core.sweep import SUBSTEP_CAP, sweep
+from pendulum_sim.core.tableaus import TABLEAUS
+
+EPS = np.finfo(float).eps
+W2 = 9.8  # the paper's ω0² (m = 0.2 kg, l = 1 m, I = 0.2 kg m², g = 9.8 m/s²)
+
+
+def plain_rk(method: str, w2: float, gamma: float, n: float, phi: float, dphi: float,
+             hs: list[float], tau: float = 0.0) -> tuple[float, float]:
+    """Integrate one pendulum with a plain-Python explicit RK loop (first-order form)."""
+    tab = TABLEAUS[method]
+
+    def acc(p: float, v: float) -> float:
+        damp = 0.0 if v == 0.0 else gamma * math.copysign(abs(v) ** n, v)
+        return tau - w2 * math.sin(p) - damp
+
+    s = tab.stages
+    for h in hs:
+        kp: list[float] = []
+        kv: list[float] = []
+        for i in range(s):
+            p = phi + h * sum(tab.A[i, j] * kp[j] for j in range(i))
+            v = dphi + h * sum(tab.A[i, j] * kv[j] for j in range(i))
+            kp.append(v)
+            kv.append(acc(p, v))
+        phi = phi + h * sum(tab.B[i] * kp[i] for i in range(s))
+        dphi = dphi + h * sum(tab.B[i] * kv[i] for i in range(s))
+    return phi, dphi
+
+
+def roundoff_tol(steps: int, scale: float) -> float:
+    """Return a round-off bound: a few ulps of the state per step, accumulated linearly."""
+    return 8.0 * steps * EPS * scale
+
+
+# Smooth damping (odd n) or even n without a velocity reversal in the interval, so a plain loop
+# that knows nothing of reversals is the same method. δ = h φ' spans both sin branches of the
+# sweep: the short polynomials (small δ) and np.sin (h = 0.1, |φ'| ~ 4: δ ~ 0.4 rad, above the
+# polynomials' 0.21 rad and below the guard's 0.5 rad per step).
+AGREE = [
+    # (method, ω0², γ, n, φ0, φ'0, τ/I, t_end, h)
+    ('rk4', W2, 1.0, 1.0, 2.0, 0.0, 0.0, 1.0, 1e-3),
+    ('rk4', W2, 0.5, 3.0, 1.0, 1.0, 0.0, 1.0, 1e-3),
+    ('rk4', W2, 0.3, 5.0, 2.5, 0.0, 0.0, 0.5, 1e-3),
+    ('rk4', W2, 0.2, 2.0, 0.5, 3.0, 0.0, 0.3, 1e-3),
+    ('rk4', 4.0, 0.1, 4.0, -1.0, -2.0, 0.0, 0.2, 1e-2),
+    ('rk4', W2, 0.0, 1.0, 3.0, 0.0, 0.0, 1.0, 1e-2),
+    ('rk4', W2, 2.0, 1.0, 0.1, 0.0, 4.9, 2.0, 1e-2),
+    ('rk4', 1.0, 0.01, 1.0, 0.0, 4.0, 0.0, 1.0, 0.1),
+    ('rk4', W2, 0.2, 1.5, 0.3, 2.0, 0.0, 0.1, 1e-3),
+    ('midpoint', W2, 1.0, 1.0, 2.0, 0.0, 0.0, 1.0, 1e-3),
+    ('euler', W2, 1.0, 3.0, 2.0, 0.0, 0.0, 1.0, 1e-3),
+]
+
+
+def test_sweep_agrees_with_plain_python_rk_to_roundoff() -> None:
+    for method in ('rk4', 'midpoint', 'euler'):
+        cases = [c for c in AGREE if c[0] == method]
+        for t_end, h in sorted({(c[7], c[8]) for c in cases}):
+            group = [c for c in cases if (c[7], c[8]) == (t_end, h)]
+            cols = np.array([c[1:7] for c in group]).T
+            res = sweep(*cols[:5], t_end, h, method=method, torque=cols[5])
+            steps = round(t_end / h)
+            assert res.steps == steps
+            for i, (_, w2, g, n, p0, v0, tau, _, _) in enumerate(group):
+                p, v = plain_rk(method, w2, g, n, p0, v0, [h] * steps, tau)
+                scale = max(1.0, abs(p), abs(v))
+                assert abs(res.phi[i] - p) <= roundoff_tol(steps, scale), group[i]
+                assert abs(res.dphi[i] - v) <= roundoff_tol(steps, scale), group[i]
+                assert res.reversals[i] == 0 and res.substeps[i] == 0
+
+
+def test_sweep_agrees_with_core_simulate() -> None:
+    # Smooth n: the same RK4 steps as the scalar core, to round-off.
+    ns = np.array([1.0, 3.0, 5.0, 1.0])
+    gs = np.array([1.0, 0.5, 0.3, 10.0])
+    p0 = np.array([2.0, 1.0, 2.5, 2.0])
+    res = sweep(W2, gs, ns, p0, 0.0, 3.0, 0.01)
+    for i in range(ns.size):
+        tr = simulate(PendulumParams(gamma=gs[i], n=ns[i]), p0[i], 0.0, 3.0, 0.01)
+        assert abs(res.phi[i] - tr.phi[-1]) <= roundoff_tol(300, 2.0)
+        assert abs(res.dphi[i] - tr.dphi[-1]) <= roundoff_tol(300, 2.0)
+    # Non-smooth n: both split the steps at the reversals, each its own way; they agree to far
+    # better than the error of RK4 at this h, measured against h / 2.
+    ns = np.array([2.0, 0.0, 4.0, 1.5, 2.5])
+    gs = np.array([1.0, 0.5, 0.3, 2.0, 1.0])
+    res = sweep(W2, gs, ns, 2.0, 0.0, 3.0, 0.01)
+    half = sweep(W2, gs, ns, 2.0, 0.0, 3.0, 0.005)
+    assert np.all(res.reversals >= 2)
+    for i in range(ns.size):
+        tr = simulate(PendulumParams(gamma=gs[i], n=ns[i]), 2.0, 0.0, 3.0, 0.01)
+        err_h = math.hypot(res.phi[i] - half.phi[i], res.dphi[i] - half.dphi[i])
+        diff = math.hypot(res.phi[i] - tr.phi[-1], res.dphi[i] - tr.dphi[-1])
+        assert diff < 0.1 * err_h, (ns[i], diff, err_h)
+
+
+def test_order_four_for_n1_and_n2_with_reversals() -> None:
+    # Paper set-up, x0 = 2, γ = 1: n = 2 reverses 3 times in 4 s. The reference is an
+    # independent route: the core's adaptive Dormand-Prince at tight tolerance.
+    ns = np.array([1.0, 2.0, 3.0, 4.0])
+    t_end = 4.0
+    refs = [simulate(PendulumParams(gamma=1.0, n=n), 2.0, 0.0, t_end, t_end, method='dopri5',
+                     rtol=1e-13, atol=1e-14) for n in ns]
+    ref = np.array([[r.phi[-1], r.dphi[-1]] for r in refs])
+    errs = []
+    for h in (0.02, 0.01, 0.005):
+        res = sweep(W2, 1.0, ns, 2.0, 0.0, t_end, h)
+        errs.append(np.hypot(res.phi - ref[:, 0], res.dphi - ref[:, 1]))
+        assert list(res.reversals[[1, 3]]) == [3, 3]
+    errs_a = np.array(errs)
+    ratios = errs_a[:-1] / errs_a[1:]
+    assert np.all(errs_a[-1] > 1e3 * EPS)  # still above round-off: the ratios mean something
+    # 16 = 2^4 for a 4th-order method; log2 within ±0.1.
+    assert np.all(np.abs(np.log2(ratios) - 4.0) < 0.1), ratios
+
+
+@pytest.mark.parametrize(('method', 'order'), [('euler', 1), ('midpoint', 2)])
+def test_measured_order_of_the_low_order_methods(method: str, order: int) -> None:
+    ref = simulate(PendulumParams(gamma=1.0, n=1.0), 2.0, 0.0, 1.0, 1.0, method='dopri5',
+                   rtol=1e-13, atol=1e-14)
+    errs = []
+    for h in (4e-3, 2e-3, 1e-3):
+        res = sweep(W2, 1.0, 1.0, 2.0, 0.0, 1.0, h, method=method)
+        errs.append(math.hypot(res.phi[0] - ref.phi[-1], res.dphi[0] - ref.dphi[-1]))
+    for a, b in itertools.pairwise(errs):
+        assert abs(math.log2(a / b) - order) < 0.1
+
+
+def energy_per_inertia(res: sweep_module.SweepResult, w2: float) -> np.ndarray:
+    assert res.phi_record is not None and res.dphi_record is not None
+    return 0.5 * res.dphi_record ** 2 + 2.0 * w2 * np.sin(0.5 * res.phi_record) ** 2
+
+
+def test_stiff_cells_stay_finite_and_never_gain_energy() -> None:
+    # γ = 1000 at 60 Hz: h λ ≈ −16.7, far outside RK4's interval [−2.785, 0].
+    gs = np.array([1000.0, 1000.0, 1e6, 1e6, 1e6, 1e6, 1e3])
+    ns = np.array([1.0, 2.0, 1.0, 2.0, 0.0, 0.5, 3.0])
+    v0 = np.array([0.0, 0.0, 0.0, 50.0, 100.0, 0.0, 100.0])
+    h = 1.0 / 60.0
+    res = sweep(W2, gs, ns, 2.0, v0, 2.0, h, record_every=1)
+    assert res.phi_record is not None and res.dphi_record is not None
+    assert np.isfinite(res.phi_record).all() and np.isfinite(res.dphi_record).all()
+    e = energy_per_inertia(res, W2)
+    assert np.all(np.diff(e, axis=0) <= 0.0)
+    assert np.array_equal(res.energy, e[-1])
+    # The guard acted and says how: substeps for γ = 1000 (n = 1), the fallback at γ = 1e6.
+    assert res.substeps[0] > 0 and res.fallbacks[0] == 0
+    assert res.fallbacks[2] > 0
+    assert res.capped == int(np.count_nonzero(res.fallbacks))
+    # The overdamped creep is right even in the fallback: φ' ≈ −ω0² sin φ / γ.
+    creep = -W2 * math.sin(res.phi[2]) / 1e6
+    assert res.dphi[2] == pytest.approx(creep, rel=0.01)
+    # Coulomb friction of 1e6 rad/s² stops the pendulum at once and holds it.
+    assert res.dphi[4] == 0.0 and res.sticks[4] > 0
+    # Without the guard the same γ = 1000 cell explodes: the guard is what keeps it finite.
+    bare = sweep(W2, 1000.0, 1.0, 2.0, 0.0, 2.0, h, guard=False)
+    assert not np.isfinite(bare.phi[0])
+
+
+def guard_substeps(w2: float, gamma: float, phi: float, h: float) -> int:
+    """Return the fewest m with |R(SAFETY h λ / m)| ≤ 1 for n = 1, computed independently."""
+    c = w2 * math.cos(phi)
+    disc = complex(gamma * gamma - 4.0 * c)
+    lams = [(-gamma + disc ** 0.5) / 2.0, (-gamma - disc ** 0.5) / 2.0]
+    rk4 = TABLEAUS['rk4']
+    m = 1
+    while any(lam.real < 0.0 and abs(rk4.stability_function(sweep_module.SAFETY * h * lam / m))
+              > 1.0 for lam in lams):
+        m += 1
+    return m
+
+
+def test_guard_substeps_are_plain_rk4_substeps_and_reported() -> None:
+    h, gamma, phi0 = 1.0 / 60.0, 1000.0, 2.0
+    res = sweep(W2, gamma, 1.0, phi0, 0.0, h, h)
+    m = guard_substeps(W2, gamma, phi0, h)
+    assert m > 1
+    assert res.substeps[0] == m - 1
+    p, v = plain_rk('rk4', W2, gamma, 1.0, phi0, 0.0, [h / m] * m)
+    assert res.phi[0] == pytest.approx(p, abs=roundoff_tol(m, 2.0))
+    assert res.dphi[0] == pytest.approx(v, abs=roundoff_tol(m, 1.0))
+
+
+def test_step_count_rounds_and_lands_on_t_end() -> None:
+    # 0.7 / 0.001 = 699.999…: int() would drop a step (the seed code's bug).
+    res = sweep(W2, 1.0, 1.0, 2.0, 0.0, 0.7, 0.001, record_every=100)
+    assert res.steps == 700
+    assert res.t_record is not None and res.t_record[-1] == 0.7
+    assert res.t_record.shape == (8,) and res.phi_record is not None
+    assert res.phi_record.shape == (8, 1)
+    assert res.phi_record[-1, 0] == res.phi[0]
+    # t_end not a multiple of h: two steps of 0.1 and a last one of 0.05.
+    res = sweep(W2, 0.5, 1.0, 2.0, 0.0, 0.25, 0.1, record_every=1)
+    assert res.steps == 3 and res.t_record is not None
+    assert res.t_record.tolist() == [0.0, 0.1, 0.2, 0.25]
+    p, v = plain_rk('rk4', W2, 0.5, 1.0, 2.0, 0.0, [0.1, 0.1, 0.25 - 0.2])
+    assert abs(res.phi[0] - p) <= roundoff_tol(3, 2.0)
+    assert abs(res.dphi[0] - v) <= roundoff_tol(3, 2.0)
+
+
+def test_coulomb_friction_sticks_where_static_friction_holds() -> None:
+    gamma = 5.0
+    res = sweep(W2, gamma, 0.0, 1.0, 0.0, 3.0, 1e-3, record_every=10)
+    assert res.phi_record is not None and res.dphi_record is not None
+    # It moved (ω0² sin 1 > γ), then came to rest where |ω0² sin φ| ≤ γ and stayed there.
+    assert res.phi[0] < 1.0 and res.dphi[0] == 0.0
+    assert abs(W2 * math.sin(res.phi[0])) <= gamma
+    assert res.sticks[0] > 0 and res.reversals[0] >= 1
+    still = np.flatnonzero(res.dphi_record[:, 0] != 0.0)[-1] + 1
+    assert still < res.dphi_record.shape[0] - 10
+    assert np.all(res.phi_record[still:, 0] == res.phi[0])
+
+
+def test_order_blocks_and_grouping_do_not_change_results(monkeypatch: pytest.MonkeyPatch
+                                                         ) -> None:
+    rng = np.random.default_rng(7)
+    size = 60
+    ns = rng.choice([0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0], size)
+    gs = rng.uniform(0.0, 3.0, size)
+    p0 = rng.uniform(-3.0, 3.0, size)
+    v0 = rng.uniform(-5.0, 5.0, size)
+    whole = sweep(W2, gs, ns, p0, v0, 0.5, 1e-2)
+    perm = rng.permutation(size)
+    shuffled = sweep(W2, gs[perm], ns[perm], p0[perm], v0[perm], 0.5, 1e-2)
+    assert np.array_equal(shuffled.phi, whole.phi[perm])
+    assert np.array_equal(shuffled.dphi, whole.dphi[perm])
+    # Blocks of 4 pendulums instead of one block: the same method; only the length of the sin
+    # polynomials (chosen per block from the largest angle increment) may differ, so the
+    # results agree to round-off.
+    monkeypatch.setattr(sweep_module, 'BLOCK', 4)
+    small = sweep(W2, gs, ns, p0, v0, 0.5, 1e-2)
+    scale = np.maximum(1.0, np.abs(whole.dphi))
+    assert np.all(np.abs(small.phi - whole.phi) <= roundoff_tol(50, 1.0) * scale)
+    assert np.all(np.abs(small.dphi - whole.dphi) <= roundoff_tol(50, 1.0) * scale)
+    assert np.array_equal(small.reversals, whole.reversals)
+
+
+def test_extreme_inputs_stay_finite() -> None:
+    gs = np.array([0.1, 1.0, 1e3, 1e6])
+    ns = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 10.0, 1.5])
+    x0 = np.array([0.1, 3.1, 4.0])
+    v0 = np.array([0.0, 100.0])
+    grid = [a.ravel() for a in np.meshgrid(gs, ns, x0, v0, indexing='ij')]
+    res = sweep(W2, grid[0], grid[1], grid[2], grid[3], 0.3, 0.1)
+    assert np.isfinite(res.phi).all() and np.isfinite(res.dphi).all()
+    assert np.isfinite(res.energy).all()
+    assert res.guarded > 0 and res.capped > 0
+    assert np.all(res.substeps <= res.steps * (SUBSTEP_CAP - 1))
+
+
+BAD = [
+    ({'gamma': [1.0, 1.0, 1.0, -1.0]}, ModelError,
+     'gamma must be >= 0 s^(n-2), got -1.0 at index 3'),
+    ({'gamma': -1.0}, ModelError, 'gamma must be >= 0 s^(n-2), got -1.0'),
+    ({'n': [0.0, -0.5]}, ModelError, 'n must be >= 0, got -0.5 at index 1'),
+    ({'omega0_sq': -9.8}, ModelError, 'omega0_sq must be >= 0 s^-2, got -9.8'),
+    ({'omega0_sq': math.inf}, ModelError, 'omega0_sq must be finite, got inf'),
+    ({'phi0': [0.0, math.nan]}, ModelError, 'phi0 must be finite, got nan at index 1'),
+    ({'dphi0': -math.inf}, ModelError, 'dphi0 must be finite, got -inf'),
+    ({'torque': [1.0, math.nan]}, ModelError, 'torque must be finite, got nan at index 1'),
+    ({'phi0': [[1.0, 2.0]]}, ModelError, 'phi0 must be a scalar or a 1-D array, got shape (1, 2)'),
+    ({'gamma': 1 + 2j}, ModelError,
+     'gamma must be a real number or a 1-D array of them, got (1+2j)'),
+    ({'gamma': 'strong'}, ModelError,
+     "gamma must be a real number or a 1-D array of them, got 'strong'"),
+    ({'gamma': [1.0, 2.0, 3.0], 'n': [1.0, 2.0]}, ModelError,
+     'arrays must all have the same length N, got gamma (3,), n (2,)'),
+    ({'phi0': []}, ModelError, 'a sweep needs at least one pendulum, got arrays of length 0'),
+    ({'h': 0.0}, IntegratorError, 'h must be a finite step > 0 s, got 0.0'),
+    ({'h': math.nan}, IntegratorError, 'h must be a finite step > 0 s, got nan'),
+    ({'t_end': -1.0}, IntegratorError, 't_end must be > 0 s, got -1.0'),
+    ({'method': 'dopri5'}, IntegratorError,
+     "sweep supports the explicit methods euler, midpoint, rk4, got 'dopri5'"),
+    ({'record_every': 0}, IntegratorError, 'record_every must be an integer >= 1, got 0'),
+    ({'record_every': 2.5}, IntegratorError, 'record_every must be an integer >= 1, got 2.5'),
+]
+
+
+@pytest.mark.parametrize(('changes', 'error', 'message'), BAD)
+def test_bad_inputs_raise_exact_messages(changes: dict[str, object], error: type[Exception],
+                                         message: str) -> None:
+    args: dict[str, object] = {'omega0_sq': W2, 'gamma': 1.0, 'n': 1.0, 'phi0': 2.0,
+                               'dphi0': 0.0, 't_end': 1.0, 'h': 0.01}
+    args.update(changes)
+    with pytest.raises(error) as info:
+        sweep(**args)  # type: ignore[arg-type]
+    assert str(info.value) == message
+    assert isinstance(info.value, ValueError)
+
+
+def test_spinning_pendulum_is_resolved_and_loses_energy() -> None:
+    # 100 rad/s at h = 0.1 sweeps 10 rad per step: gravity is forced at 100 rad/s, which the
+    # Jacobian at one point does not show. The guard limits a step to 0.5 rad, as the scalar one.
+    res = sweep(W2, 0.05, 1.0, 0.0, 100.0, 2.0, 0.1, record_every=1)
+    # |φ'| stays above 90 rad/s: every step is cut into m >= 0.1 * 90 / 0.5 = 18 substeps.
+    assert np.all(np.abs(res.dphi_record) > 90.0)
+    assert res.substeps[0] >= (18 - 1) * res.steps
+    e = energy_per_inertia(res, W2)
+    assert np.all(np.diff(e, axis=0) <= 0.0)
+
+
+def hermite(th: np.ndarray, v0: np.ndarray, v1: np.ndarray, dv0: np.ndarray, dv1: np.ndarray
+            ) -> np.ndarray:
+    """Evaluate the cubic Hermite interpolant on [0, 1] in the textbook basis."""
+    t2, t3 = th * th, th * th * th
+    return ((2 * t3 - 3 * t2 + 1) * v0 + (t3 - 2 * t2 + th) * dv0 + (-2 * t3 + 3 * t2) * v1
+            + (t3 - t2) * dv1)
+
+
+def test_hermite_root_is_a_root_in_the_step() -> None:
+    rng = np.random.default_rng(3)
+    size = 200
+    v0 = rng.uniform(0.1, 1.0, size) * rng.choice([-1.0, 1.0], size)
+    v1 = -np.sign(v0) * rng.uniform(1e-6, 1.0, size)
+    slope = v1 - v0
+    dv0 = slope * rng.uniform(0.5, 1.5, size)
+    dv1 = slope * rng.uniform(0.5, 1.5, size)
+    # Wiggly cubics too, where Newton from the linear guess leaves [0, 1] (bisection safeguard).
+    dv0[:20] = -8.0 * slope[:20]
+    dv1[:20] = -8.0 * slope[:20]
+    th = sweep_module._hermite_root(v0, v1, dv0, dv1)
+    assert np.all((th >= 0.0) & (th <= 1.0))
+    scale = np.abs(v0) + np.abs(v1) + np.abs(dv0) + np.abs(dv1)
+    assert np.all(np.abs(hermite(th, v0, v1, dv0, dv1)) <= 16 * EPS * scale)
+
+
+def test_the_sweep_imports_numpy_and_the_core_only() -> None:
+    code = ('import sys, pendulum_sim.core.sweep; '
+            'print(sorted({m.split(".")[0] for m in sys.modules} & '
+            '{"rclpy", "sensor_msgs", "std_msgs", "scipy", "matplotlib"}))')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == '[]'
