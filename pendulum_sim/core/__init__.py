@@ -1,7 +1,7 @@
 """The numerical core of pendulum_sim: model, integrators, stability guard, energy, analysis.
 
 Pure Python and numpy; nothing here imports ROS. Many pendulums at once:
-``from pendulum_sim.core.sweep import sweep`` (the module keeps its name, so it is not re-exported).
+``from pendulum_sim.core.sweep import sweep`` (kept out of this namespace: it is also a module).
 
 >>> from pendulum_sim.core import PendulumParams, simulate
 >>> run = simulate(PendulumParams(gamma=1.0, n=1), phi0=2.0, dphi0=0.0, t_end=20.0, h=1e-3)
