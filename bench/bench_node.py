@@ -1,0 +1,250 @@
+"""Benchmark pendulum_node from a separate subscriber process; print the figures.
+
+Phase 1, real time (1 kHz physics, 1 kHz publishing by default): the publish period seen by the
+subscriber, the stamp-to-receive age, the drift of simulated against wall time over the run,
+the node's CPU (from /proc/<pid>/stat) and its own wake latency (from /diagnostics).
+Phase 2, lockstep as fast as possible, joint_states every 1 ms of simulated time: the real-time
+factor, from /clock as received and from the node's diagnostics.
+
+    .venv/bin/python bench/bench_node.py --duration 60
+
+Targets (issue 3): drift <= h, wake latency p99 <= 0.3 ms, node CPU <= 25 % of one core,
+lockstep >= 50x real time. Timings are figures to read, not assertions.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import random
+import sys
+import textwrap
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(40, 49)))
+os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from node_harness import NodeProcess, Probe, stamp_ns, unique_namespace
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+from pendulum_sim.node.diagnostics import values_of
+
+CLK_TCK = os.sysconf('SC_CLK_TCK')
+
+
+def cpu_seconds(pid: int) -> float:
+    """Return user + system CPU time of process ``pid`` in s, from /proc/<pid>/stat."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLK_TCK
+
+
+def machine() -> str:
+    """Return a one-line description of this machine."""
+    model = 'unknown CPU'
+    for line in Path('/proc/cpuinfo').read_text().splitlines():
+        if line.startswith('model name'):
+            model = line.split(':', 1)[1].strip()
+            break
+    return (f'{model}, {os.cpu_count()} cores, Linux {platform.release()}, '
+            f'Python {platform.python_version()}')
+
+
+def pct(values: np.ndarray, q: float) -> float:
+    """Return the q-th percentile."""
+    return float(np.percentile(values, q))
+
+
+def node_args(args: argparse.Namespace) -> list[str]:
+    """Return the node's own command-line options for this run."""
+    return ['--executor', args.executor, '--rt-priority', str(args.rt_priority)]
+
+
+def wait_for_node(probe: Probe, states: Any, what: str) -> None:
+    """Spin until messages flow."""
+    probe.spin_until(lambda: len(states) >= 10, 30.0, what)
+
+
+def real_time_phase(args: argparse.Namespace) -> dict[str, Any]:
+    """Run the node in real time and measure it from this process."""
+    params = {'publish_rate': args.rate, 'h': args.h, 'status_line': False}
+    out: dict[str, Any] = {}
+    with NodeProcess('paper', params, extra_args=node_args(args)) as node, \
+            Probe('bench', executor='events') as probe:
+        stamps: list[int] = []
+        recv: list[int] = []
+
+        def on_state(msg: JointState) -> None:
+            recv.append(time.time_ns())
+            stamps.append(stamp_ns(msg))
+
+        states = probe.subscribe(JointState, f'{node.namespace}/joint_states', 100, on_state)
+        diags = probe.subscribe(DiagnosticArray, '/diagnostics', 10)
+        wait_for_node(probe, states, 'joint_states')
+        probe.spin_for(args.warmup)
+        stamps.clear()
+        recv.clear()
+        n_diag = len(diags)
+        assert node.proc is not None
+        pid = node.proc.pid
+        cpu0, wall0 = cpu_seconds(pid), time.monotonic()
+        probe.spin_for(args.duration)
+        cpu1, wall1 = cpu_seconds(pid), time.monotonic()
+        reports = [values_of(a) for a in diags.msgs[n_diag:]
+                   if a.status and a.status[0].name.startswith(node.fqn)]
+        node.stop()
+        summary = node.output().split('pendulum_node summary:')[-1]
+    s = np.array(stamps, dtype=np.int64)
+    r = np.array(recv, dtype=np.int64)
+    period_ms = np.diff(r) / 1e6
+    age_ms = (r - s) / 1e6
+    t = (r - r[0]) / 1e9
+    # Drift: how the offset between simulated and wall time moves over the run. The age of a
+    # message mixes that offset with the step lag (< h), wake latency and transport delay,
+    # which only ever add; so the offset is tracked by the smallest age in each 1 s window,
+    # and the drift is the trend of those minima.
+    window = np.floor(t).astype(np.int64)
+    edges = np.flatnonzero(np.diff(window)) + 1
+    minima = np.array([a.min() for a in np.split(age_ms, edges)])
+    centers = np.array([c.mean() for c in np.split(t, edges)])
+    slope, _ = np.polyfit(centers, minima, 1)
+    edge = max(1, len(minima) // 10)
+    out.update(
+        received=len(s), expected=int(args.rate * args.duration),
+        period_p50=pct(period_ms, 50), period_p99=pct(period_ms, 99),
+        period_max=float(period_ms.max()),
+        age_p50=pct(age_ms, 50), age_p99=pct(age_ms, 99), age_max=float(age_ms.max()),
+        drift_fit_ms=float(-slope * t[-1]),
+        drift_ends_ms=float(np.median(minima[:edge]) - np.median(minima[-edge:])),
+        offset_spread_ms=float(minima.max() - minima.min()),
+        cpu_percent=100.0 * (cpu1 - cpu0) / (wall1 - wall0),
+        wake_p99_windows=[float(x['wake_latency_p99_us']) for x in reports],
+        wake_p50_windows=[float(x['wake_latency_p50_us']) for x in reports],
+        overruns=reports[-1]['overruns'] if reports else '?',
+        missed=reports[-1]['missed_wakes'] if reports else '?',
+        rtf_total=reports[-1]['real_time_factor_total'] if reports else '?',
+        wake_p99_total=reports[-1]['wake_latency_p99_us_total'] if reports else '?',
+        summary=summary.strip())
+    return out
+
+
+def lockstep_phase(args: argparse.Namespace, clock_subscriber: bool) -> dict[str, Any]:
+    """Run lockstep as fast as possible; measure the real-time factor.
+
+    Without a /clock subscriber the factor comes from the node's diagnostics (1 Hz, nothing
+    else subscribed); with one, from the /clock ticks as this process receives them.
+    """
+    params = {'status_line': False, 'h': 1e-3, 'publish_rate': 1000.0}
+    best_effort = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+    namespace = unique_namespace()
+    clock_topic = f'{namespace}/clock'  # remapped, so no other run in the domain interferes
+    node = NodeProcess('lockstep', params, namespace=namespace, remap={'/clock': clock_topic},
+                       extra_args=node_args(args))
+    with node, Probe('bench_lockstep', executor='events') as probe:
+        ticks: list[tuple[int, int]] = []
+
+        def on_clock(msg: Clock) -> None:
+            ticks.append((time.monotonic_ns(), msg.clock.sec * 1_000_000_000 + msg.clock.nanosec))
+
+        diags = probe.subscribe(DiagnosticArray, '/diagnostics', 10)
+
+        def reports() -> list[dict[str, str]]:
+            return [values_of(a) for a in diags.msgs
+                    if a.status and a.status[0].name.startswith(node.fqn)]
+
+        if clock_subscriber:
+            probe.subscribe(Clock, clock_topic, best_effort, on_clock)
+            probe.spin_until(lambda: len(ticks) >= 10, 30.0, '/clock')
+        else:
+            probe.spin_until(lambda: len(reports()) >= 1, 30.0, 'diagnostics')
+        probe.spin_for(1.0)
+        n0, r0 = len(ticks), len(reports())
+        probe.spin_for(args.lockstep_duration)
+        window = ticks[n0:]
+        rtf_node = [float(x['real_time_factor_achieved']) for x in reports()[r0:]]
+        node.stop()
+    out: dict[str, Any] = {'rtf_node': rtf_node}
+    if window:
+        (w0, c0), (w1, c1) = window[0], window[-1]
+        out['rtf_clock'] = (c1 - c0) / (w1 - w0)
+    return out
+
+
+def print_real_time(args: argparse.Namespace, rt: dict[str, Any]) -> None:
+    """Print the figures of the real-time phase."""
+    h_ms = args.h * 1e3
+    p99w = np.array(rt['wake_p99_windows'])
+    print(f'\nreal time: h = {h_ms:g} ms, publish {args.rate:g} Hz, {args.duration:g} s '
+          f'measured after {args.warmup:g} s warm-up')
+    print(f'  received {rt["received"]} of ~{rt["expected"]} joint_states')
+    print(f'  publish period at the subscriber p50/p99/max: {rt["period_p50"]:.3f} / '
+          f'{rt["period_p99"]:.3f} / {rt["period_max"]:.3f} ms')
+    print(f'  stamp-to-receive age p50/p99/max: {rt["age_p50"]:.3f} / {rt["age_p99"]:.3f} / '
+          f'{rt["age_max"]:.3f} ms (step lag < h + wake latency + transport)')
+    print(f'  smallest age per 1 s window: spread {rt["offset_spread_ms"]:.4f} ms over the run')
+    for key, label in (('drift_fit_ms', 'trend of the per-window minimum age'),
+                       ('drift_ends_ms', 'first vs last 10 % of windows')):
+        ok = 'ok' if abs(rt[key]) <= h_ms else 'MISSED'
+        print(f'  sim-vs-wall drift over the run ({label}): {rt[key]:+.4f} ms  '
+              f'[target |drift| <= h = {h_ms:g} ms: {ok}]')
+    ok = 'ok' if rt['cpu_percent'] <= 25.0 else 'MISSED'
+    print(f'  node CPU: {rt["cpu_percent"]:.1f} % of one core  [target <= 25 %: {ok}]')
+    if p99w.size:
+        ok = 'ok' if np.median(p99w) <= 300.0 else 'MISSED'
+        print(f'  wake latency p99 per 1 s window (node diagnostics): median {np.median(p99w):.0f}'
+              f' us, worst {p99w.max():.0f} us; p50 median '
+              f'{np.median(rt["wake_p50_windows"]):.0f} us  [target p99 <= 300 us: {ok}]')
+    print(f'  whole run (incl. start-up): wake latency p99 {rt["wake_p99_total"]} us, overruns '
+          f'{rt["overruns"]}, missed wakes {rt["missed"]}, achieved RTF {rt["rtf_total"]}')
+    lines = [line.strip() for line in rt['summary'].splitlines()]
+    print('\n  node shutdown summary:\n' + textwrap.indent('\n'.join(lines), '    '))
+
+
+def main() -> int:
+    """Run the phases and print the figures."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--duration', type=float, default=60.0, help='real-time phase, s')
+    parser.add_argument('--warmup', type=float, default=3.0, help='ignored start, s')
+    parser.add_argument('--rate', type=float, default=1000.0, help='publish rate, Hz')
+    parser.add_argument('--h', type=float, default=1e-3, help='integration step, s')
+    parser.add_argument('--lockstep-duration', type=float, default=10.0, help='s')
+    parser.add_argument('--skip-lockstep', action='store_true')
+    parser.add_argument('--skip-realtime', action='store_true')
+    parser.add_argument('--executor', choices=('events', 'single'), default='events')
+    parser.add_argument('--rt-priority', type=int, default=0,
+                        help="the node's SCHED_FIFO priority (0 = normal scheduler)")
+    args = parser.parse_args()
+    print(f'machine: {machine()}')
+    print(f'node executor: {args.executor}; ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}')
+    if not args.skip_realtime:
+        print_real_time(args, real_time_phase(args))
+    if not args.skip_lockstep:
+        print(f'\nlockstep, as fast as possible, joint_states + energy + /clock every 1 ms of '
+              f'simulated time, {args.lockstep_duration:g} s per measurement:')
+        quiet = np.array(lockstep_phase(args, clock_subscriber=False)['rtf_node'])
+        if quiet.size:
+            ok = 'ok' if np.median(quiet) >= 50.0 else 'MISSED'
+            print(f'  no /clock subscriber: node diagnostics median {np.median(quiet):.1f}x, '
+                  f'min {quiet.min():.1f}x  [target >= 50x: {ok}]')
+        busy = lockstep_phase(args, clock_subscriber=True)
+        node_rtf = np.array(busy['rtf_node'])
+        node_text = f'{np.median(node_rtf):.1f}x' if node_rtf.size else 'n/a'
+        ok = 'ok' if busy.get('rtf_clock', 0.0) >= 50.0 else 'MISSED'
+        print(f'  with this Python process taking every /clock tick: '
+              f'{busy.get("rtf_clock", float("nan")):.1f}x from /clock, node diagnostics '
+              f'{node_text}  [target >= 50x: {ok}]')
+    rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,16 @@
+"""Exceptions of the ROS node."""
+from __future__ import annotations
+
+from pendulum_sim.core import PendulumError
+
+
+class NodeError(PendulumError):
+    """The node cannot start or run as configured."""
+
+
+class SceneError(NodeError):
+    """A scene name or file cannot be resolved."""
+
+
+class ParameterError(NodeError, ValueError):
+    """A node parameter has a value the node cannot use."""

@@ -1,0 +1,164 @@
+"""The node's parameters: declarations with descriptors and ranges, and their validation.
+
+rclpy checks types, ranges and read-only flags from the descriptors before any callback runs
+(``Node._apply_descriptor``). What a range cannot say (a mass > 0, a known integrator, a factor
+that is 0 only in lockstep) is checked here, in one function that sees the whole proposed set so
+cross-parameter rules hold; its messages are the reasons the set is rejected with.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
+from pendulum_sim.core import METHODS, ModelError, PendulumParams
+from pendulum_sim.core.model import validate_state
+
+Value = bool | int | float | str
+
+FIXED = 'Read-only: fixed when the node starts (restart the node to change it).'
+SWITCH = 'Read-only: a scene builds only what it enables.'
+
+
+@dataclass(frozen=True)
+class Spec:
+    """One parameter: name, default (its type is the parameter's type), meaning, limits."""
+
+    name: str
+    default: Value
+    description: str
+    read_only: bool = False
+    low: float | None = None
+    high: float | None = None
+    constraints: str = ''
+
+    def descriptor(self) -> ParameterDescriptor:
+        """Return the ParameterDescriptor declaring this parameter."""
+        text = self.description + (f' {FIXED}' if self.read_only and 'Read-only' not in
+                                   self.description else '')
+        desc = ParameterDescriptor(description=text, read_only=self.read_only,
+                                   additional_constraints=self.constraints)
+        if self.low is not None and self.high is not None:
+            if isinstance(self.default, bool):
+                raise TypeError(f'{self.name}: a bool parameter has no range')
+            if isinstance(self.default, int):
+                desc.integer_range = [IntegerRange(from_value=int(self.low),
+                                                   to_value=int(self.high), step=0)]
+            else:
+                desc.floating_point_range = [FloatingPointRange(from_value=self.low,
+                                                                to_value=self.high, step=0.0)]
+        return desc
+
+
+SPECS: tuple[Spec, ...] = (
+    # The body: fixed, since changing it mid-run would break the energy balance.
+    Spec('m', 0.2, 'Mass in kg (> 0).', read_only=True),
+    Spec('l', 1.0, 'Distance from the pivot to the centre of mass in m (> 0).', read_only=True),
+    Spec('inertia', 0.2, 'Moment of inertia about the pivot in kg m^2 (> 0).', read_only=True),
+    Spec('g', 9.8, 'Gravitational acceleration in m/s^2 (>= 0).', read_only=True),
+    # Damping: live.
+    Spec('gamma', 1.0, 'Damping coefficient in s^(n-2). Live: applies from the next step, the '
+         'state is kept.', low=0.0, high=1e6),
+    Spec('n', 1.0, 'Damping exponent: 0 dry (Coulomb), 1 viscous, 2 quadratic drag. Live: '
+         'applies from the next step, the state is kept.', low=0.0, high=10.0),
+    Spec('phi0', 0.0, 'Initial angle in rad. Live: used by the next ~/reset.'),
+    Spec('dphi0', 0.0, 'Initial angular velocity in rad/s. Live: used by the next ~/reset.'),
+    # Integration and timing.
+    Spec('h', 1e-3, 'Fixed integration step in s.', read_only=True, low=1e-6, high=0.1),
+    Spec('integrator', 'rk4', 'Integration method of the core.', read_only=True,
+         constraints='one of: ' + ', '.join(sorted(METHODS))),
+    Spec('guard', True, 'Keep explicit steps inside their stability region (substeps or an '
+         'implicit fallback).', read_only=True),
+    Spec('publish_rate', 100.0, 'Wake and publish rate in Hz (wall clock).', read_only=True,
+         low=0.1, high=10000.0),
+    Spec('real_time_factor', 1.0, 'Simulated seconds per wall second. In lockstep mode 0 means '
+         'as fast as possible. Live.', low=0.0, high=10000.0),
+    Spec('lockstep', False, 'Lockstep mode: publish /clock, step as fast as possible (or at '
+         'real_time_factor) and stamp from simulated time. ' + SWITCH, read_only=True),
+    Spec('start_time', -1.0, 'Epoch in s (since 1970) that simulated time 0 is stamped as; < 0 '
+         'means the wall clock when the simulation starts (0 in lockstep).', read_only=True,
+         low=-1.0, high=1e10),
+    Spec('joint_name', 'pendulum_joint', 'Joint name in joint_states and the URDF.',
+         read_only=True),
+    # Effort input.
+    Spec('max_effort', 10.0, 'Commanded torques are saturated at +-max_effort N m. Live.',
+         low=0.0, high=1e6),
+    Spec('command_timeout', 0.5, 'Simulated seconds after the last effort command at which the '
+         'torque drops to 0 (0 holds the last command). Live.', low=0.0, high=3600.0),
+    # Sensor realism.
+    Spec('sensor.position_noise', 0.0, 'Standard deviation of Gaussian noise on the published '
+         'angle, rad. Live.', low=0.0, high=10.0),
+    Spec('sensor.velocity_noise', 0.0, 'Standard deviation of Gaussian noise on the published '
+         'velocity, rad/s. Live.', low=0.0, high=100.0),
+    Spec('sensor.resolution', 0.0, 'Encoder resolution in rad per count (0 = exact). Live.',
+         low=0.0, high=1.0),
+    Spec('sensor.delay', 0.0, 'Publish delay of joint_states in s (wall clock). Live.',
+         low=0.0, high=1.0),
+    Spec('sensor.seed', 0, 'Seed of the sensor noise.', read_only=True, low=0, high=2**31 - 1),
+    # Feature switches.
+    Spec('publish_energy', True, 'Publish the energy (J, true state) on energy. ' + SWITCH,
+         read_only=True),
+    Spec('publish_energy_terms', False, 'Publish energy_terms/{kinetic,potential,'
+         'dissipated_power,residual}. ' + SWITCH, read_only=True),
+    Spec('effort_input', True, 'Subscribe to effort_command (N m). ' + SWITCH, read_only=True),
+    Spec('services', True, 'Offer ~/reset and ~/pause. ' + SWITCH, read_only=True),
+    Spec('diagnostics', True, 'Publish /diagnostics about once a second. ' + SWITCH,
+         read_only=True),
+    Spec('publish_robot_description', False, 'Publish the URDF on robot_description '
+         '(transient local). ' + SWITCH, read_only=True),
+    Spec('status_line', True, 'Show a live status line on stderr. ' + SWITCH, read_only=True),
+    Spec('recording.path', '', "Record to this MCAP file or folder ('' = off). " + SWITCH,
+         read_only=True),
+    Spec('recording.overwrite', False, 'Replace an existing recording file.', read_only=True),
+)
+
+SPEC_BY_NAME: dict[str, Spec] = {s.name: s for s in SPECS}
+PHYSICS = ('m', 'l', 'inertia', 'g', 'gamma', 'n')
+LIVE = frozenset(s.name for s in SPECS if not s.read_only)
+
+
+def declare_all(node: Any) -> dict[str, Value]:
+    """Declare every parameter on ``node`` and return the values it starts with."""
+    node.declare_parameters('', [(s.name, s.default, s.descriptor()) for s in SPECS])
+    return {s.name: node.get_parameter(s.name).value for s in SPECS}
+
+
+def physics(values: Mapping[str, Value]) -> PendulumParams:
+    """Return the PendulumParams of a parameter set (raises ModelError)."""
+    return PendulumParams(**{k: float(values[k]) for k in PHYSICS})
+
+
+def check(values: Mapping[str, Value]) -> str | None:
+    """Return why the complete parameter set ``values`` is unusable, or None if it is fine."""
+    try:
+        physics(values)
+        validate_state(float(values['phi0']), float(values['dphi0']))
+    except ModelError as exc:
+        return str(exc)
+    if values['integrator'] not in METHODS:
+        known = ', '.join(sorted(METHODS))
+        return f"integrator must be one of {known}, got '{values['integrator']}'"
+    if not str(values['joint_name']).strip():
+        return f"joint_name must be a non-empty name, got '{values['joint_name']}'"
+    rtf = float(values['real_time_factor'])
+    if rtf == 0.0 and not values['lockstep']:
+        return 'real_time_factor must be > 0 unless lockstep is true, got 0.0'
+    return None
+
+
+def merged(current: Mapping[str, Value], changes: Iterable[tuple[str, Value]]) -> dict[str, Value]:
+    """Return ``current`` updated with the (name, value) changes this node owns."""
+    out = dict(current)
+    for name, value in changes:
+        if name in SPEC_BY_NAME:
+            out[name] = value
+    return out
+
+
+def is_finite_number(value: object) -> bool:
+    """Return True for an int or a finite float (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(
+        value)

@@ -1,0 +1,76 @@
+"""What a real joint sensor adds to the true state: seeded noise, encoder steps, a delay.
+
+The node publishes measured values on ``joint_states``; the ``energy`` topic always reports the
+true state.
+"""
+from __future__ import annotations
+
+import random
+from collections import deque
+from typing import Generic, TypeVar
+
+T = TypeVar('T')
+
+
+class SensorModel:
+    """Turn the true (φ, φ') into a measurement: Gaussian noise, then encoder quantisation.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the noise generator: the same seed gives the same noise sequence.
+    position_noise, velocity_noise : float
+        Standard deviations of the additive Gaussian noise, rad and rad/s (0 = none).
+    resolution : float
+        Encoder resolution in rad per count (0 = no quantisation): the measured angle is the
+        nearest multiple of it.
+    """
+
+    def __init__(self, seed: int, position_noise: float = 0.0, velocity_noise: float = 0.0,
+                 resolution: float = 0.0) -> None:
+        self._rng = random.Random(seed)
+        self.position_noise = position_noise
+        self.velocity_noise = velocity_noise
+        self.resolution = resolution
+
+    @property
+    def ideal(self) -> bool:
+        """Return True when measurements equal the true state."""
+        return self.position_noise == 0.0 and self.velocity_noise == 0.0 and (
+            self.resolution == 0.0)
+
+    def measure(self, phi: float, dphi: float) -> tuple[float, float]:
+        """Return the measured angle and velocity for the true ones."""
+        if self.position_noise > 0.0:
+            phi += self._rng.gauss(0.0, self.position_noise)
+        if self.velocity_noise > 0.0:
+            dphi += self._rng.gauss(0.0, self.velocity_noise)
+        if self.resolution > 0.0:
+            phi = self.resolution * round(phi / self.resolution)
+        return phi, dphi
+
+
+class DelayLine(Generic[T]):
+    """Hold items until their release time (a sensor's transport delay)."""
+
+    def __init__(self) -> None:
+        self._items: deque[tuple[int, T]] = deque()
+
+    def push(self, release_ns: int, item: T) -> None:
+        """Queue ``item`` for release at ``release_ns`` (times must not decrease)."""
+        self._items.append((release_ns, item))
+
+    def pop_due(self, now_ns: int) -> list[T]:
+        """Return the items due at ``now_ns``, oldest first, and drop them from the line."""
+        out: list[T] = []
+        items = self._items
+        while items and items[0][0] <= now_ns:
+            out.append(items.popleft()[1])
+        return out
+
+    def clear(self) -> None:
+        """Drop everything queued."""
+        self._items.clear()
+
+    def __len__(self) -> int:
+        return len(self._items)
