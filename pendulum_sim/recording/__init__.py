@@ -1,0 +1,25 @@
+"""Record runs to MCAP (ROS 2 profile, rosbag2-compatible), load them into numpy, replay them.
+
+The names below are imported on first use, so that the recording's writer process, which runs
+``pendulum_sim.recording.sink``, starts without rclpy or numpy.
+"""
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from pendulum_sim.recording.errors import RecorderError
+    from pendulum_sim.recording.loader import Recording, load
+    from pendulum_sim.recording.writer import McapRecorder
+
+__all__ = ['McapRecorder', 'RecorderError', 'Recording', 'load']
+
+_WHERE = {'McapRecorder': 'writer', 'RecorderError': 'errors', 'Recording': 'loader',
+          'load': 'loader'}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    return getattr(importlib.import_module(f'{__name__}.{_WHERE[name]}'), name)

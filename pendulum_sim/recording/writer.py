@@ -1,0 +1,337 @@
+"""Record ROS 2 messages to an MCAP file that rosbag2 (Jazzy) and Foxglove open as their own.
+
+The real-time loop calls :meth:`McapRecorder.write`, which serializes the message (rclpy's CDR,
+with its encapsulation header) and hands the bytes to a writer *process*
+(:mod:`pendulum_sim.recording.sink`) through a non-blocking pipe: one ``write`` system call, no
+lock, no thread to wake. The writer process builds the chunks, compresses them and writes them
+to disk; being another process, it never holds the GIL the loop needs. A chunk is closed at the
+latest ``chunk_interval`` seconds (wall clock) after its first message, or once it spans that
+much log time, so if both processes are killed at once at most that much is lost; if only the
+recording process dies, the writer process sees its input end and finalises the file.
+:meth:`McapRecorder.close` has the writer add the ``rosbag2`` metadata, the summary (schemas,
+channels, statistics, chunk, metadata and summary-offset indexes) and the footer. A write error
+(full disk, file size limit) stops the recording only: it shows in :attr:`McapRecorder.error`,
+further writes are dropped, and the chunks already written stay readable.
+"""
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Final, NoReturn
+
+import mcap
+from rclpy.qos import QoSProfile
+from rclpy.serialization import serialize_message
+
+from pendulum_sim import __version__
+from pendulum_sim.recording import sink
+from pendulum_sim.recording.errors import RecorderError
+from pendulum_sim.recording.rosbag2 import offered_qos, qos_profiles_yaml
+from pendulum_sim.recording.schemas import ros2msg_schema, type_hash, type_name_of
+
+LIBRARY: Final = f'pendulum_sim {__version__}; mcap-python {mcap.__version__}'
+PIPE_SIZE: Final = 1 << 20          # bytes the pipe holds while the writer is busy
+MAX_BACKLOG: Final = 64 << 20       # bytes kept here beyond that before giving up
+_F_SETPIPE_SZ: Final = getattr(fcntl, 'F_SETPIPE_SZ', 1031)
+
+
+@dataclass(frozen=True)
+class _Channel:
+    id: int
+    spec: dict[str, Any]
+
+
+def _timestamped_name() -> str:
+    return time.strftime('pendulum_sim_%Y_%m_%d-%H_%M_%S')
+
+
+class McapRecorder:
+    """Record messages of several topics to one MCAP file, written by a separate process.
+
+    Parameters
+    ----------
+    path
+        A ``.mcap`` file, or an existing folder in which a timestamped file is created.
+    overwrite
+        Replace an existing file; without it an existing recording is never touched.
+    metadata
+        Metadata records to write at the start, ``{record name: {key: value}}`` (strings).
+    chunk_interval
+        Close a chunk at the latest this many seconds (wall clock) after its first message, or
+        once it holds this many seconds of data (log time), whichever comes first.
+    chunk_size
+        Close a chunk when its uncompressed size exceeds this many bytes.
+    compression
+        Chunk compression: ``'zstd'``, ``'lz4'`` or ``'none'``.
+    """
+
+    def __init__(self, path: str | Path, overwrite: bool = False,
+                 metadata: dict[str, dict[str, str]] | None = None, *,
+                 chunk_interval: float = 0.25, chunk_size: int = 1024 * 1024,
+                 compression: str = 'zstd') -> None:
+        requested = Path(path)
+        if requested.suffix == '.mcap':
+            self._folder = False
+            self._path = requested
+        elif requested.is_dir():
+            self._folder = True
+            self._path = requested / f'{_timestamped_name()}.mcap'
+        else:
+            raise RecorderError(
+                f"recording path must be a '.mcap' file or an existing folder, got '{path}'")
+        metadata = dict(metadata or {})
+        for name, record in metadata.items():
+            for key, value in record.items():
+                if not isinstance(key, str) or not isinstance(value, str):
+                    raise RecorderError(f'metadata record {name!r} must map str to str, got '
+                                        f'{key!r}: {value!r}')
+        if not chunk_interval > 0:
+            raise RecorderError(f'chunk_interval must be > 0 s, got {chunk_interval}')
+        if chunk_size < 1:
+            raise RecorderError(f'chunk_size must be >= 1 byte, got {chunk_size}')
+        if compression not in sink.COMPRESSIONS:
+            raise RecorderError(f"compression must be one of 'zstd', 'lz4', 'none', got "
+                                f'{compression!r}')
+        self._overwrite = overwrite
+        self._settings = {'chunk_interval': float(chunk_interval), 'chunk_size': int(chunk_size),
+                          'compression': compression, 'library': LIBRARY, 'metadata': metadata}
+        self._channels: dict[str, _Channel] = {}
+        self._schema_ids: dict[str, int] = {}
+        self._state = 'new'
+        self._error: BaseException | None = None
+        self._messages_written = 0
+        self._process: subprocess.Popen[bytes] | None = None
+        self._fd = -1
+        self._backlog = bytearray()
+        self._reader: threading.Thread | None = None
+
+    # -- public state -------------------------------------------------------------------------
+
+    @property
+    def path(self) -> Path:
+        """Return the path of the recording file."""
+        return self._path
+
+    @property
+    def error(self) -> BaseException | None:
+        """Return the exception that stopped the recording, or None while it is healthy."""
+        return self._error
+
+    @property
+    def messages_written(self) -> int:
+        """Return how many messages are in closed chunks on disk (all of them once closed)."""
+        return self._messages_written
+
+    @property
+    def writer_pid(self) -> int | None:
+        """Return the process id of the writer process while the recording is open."""
+        return None if self._process is None else self._process.pid
+
+    @property
+    def closed(self) -> bool:
+        """Return whether :meth:`close` has been called."""
+        return self._state == 'closed'
+
+    @property
+    def topics(self) -> tuple[str, ...]:
+        """Return the topics that have a channel, in the order they were added."""
+        return tuple(self._channels)
+
+    # -- life cycle -----------------------------------------------------------------------------
+
+    def __enter__(self) -> McapRecorder:
+        if self._state == 'new':
+            self.open()
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        self.close()
+
+    def _create_file(self) -> int:
+        flags = os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC | (
+            os.O_TRUNC if self._overwrite else os.O_EXCL)
+        for attempt in range(100):
+            try:
+                return os.open(self._path, flags, 0o644)
+            except FileExistsError:
+                if not self._folder:
+                    raise RecorderError(f'recording {self._path} already exists; pass '
+                                        f'overwrite=True to replace it') from None
+                stem = self._path.stem.split('.')[0]
+                self._path = self._path.with_name(f'{stem}.{attempt + 1}.mcap')
+            except IsADirectoryError:
+                raise RecorderError(f'cannot create recording {self._path}: it is a '
+                                    f'folder') from None
+            except OSError as exc:
+                raise RecorderError(f'cannot create recording {self._path}: '
+                                    f'{exc.strerror}') from exc
+        raise RecorderError(f'cannot create recording in {self._path.parent}: too many '
+                            f'recordings named {self._path.stem}')
+
+    def open(self) -> McapRecorder:
+        """Create the file, start the writer process and have it write header and metadata."""
+        if self._state != 'new':
+            raise RecorderError(f'recording {self._path} is already {self._state}')
+        fd = self._create_file()
+        try:
+            process = subprocess.Popen(
+                [sys.executable, '-m', 'pendulum_sim.recording.sink', str(fd)],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, pass_fds=(fd,), bufsize=0)
+        finally:
+            os.close(fd)
+        assert process.stdin is not None and process.stdout is not None
+        self._process, self._fd = process, process.stdin.fileno()
+        spec = dict(self._settings, path=str(self._path))
+        self._send_blocking(self._frame(sink.OPEN, json.dumps(spec).encode()))
+        reply = json.loads(process.stdout.readline() or b'{}')
+        if not reply.get('ready'):
+            process.stdin.close()
+            process.stdout.close()
+            code = process.wait()
+            raise RecorderError(reply.get('error') or f'cannot start the writer process of '
+                                f'recording {self._path} (exit code {code})')
+        try:
+            fcntl.fcntl(self._fd, _F_SETPIPE_SZ, PIPE_SIZE)
+        except OSError:
+            pass   # the system's maximum pipe size is lower; the backlog covers it
+        os.set_blocking(self._fd, False)
+        self._state = 'open'
+        self._reader = threading.Thread(target=self._read_status, name='mcap-recorder-status',
+                                        daemon=True)
+        self._reader.start()
+        for channel in self._channels.values():
+            self._send(self._frame(sink.CHANNEL, json.dumps(channel.spec).encode()))
+        return self
+
+    def close(self) -> None:
+        """Have the writer finalise the file (rosbag2 metadata, summary, footer); idempotent."""
+        if self._state == 'closed':
+            return
+        was_open, self._state = self._state == 'open', 'closed'
+        if not was_open:
+            return
+        process = self._process
+        assert process is not None and process.stdin is not None
+        try:
+            os.set_blocking(self._fd, True)
+            self._send_blocking(bytes(self._backlog) + self._frame(sink.CLOSE, b''))
+            self._backlog.clear()
+        except OSError:
+            pass   # the writer process is gone; its exit code tells below
+        process.stdin.close()
+        code = process.wait()
+        assert self._reader is not None and process.stdout is not None
+        self._reader.join()
+        process.stdout.close()
+        if code != 0 and self._error is None:
+            self._error = RecorderError(f'recording {self._path}: the writer process exited '
+                                        f'with code {code}')
+
+    # -- channels and messages ------------------------------------------------------------------
+
+    def add_channel(self, topic: str, msg_type: type, qos: QoSProfile | int = 10) -> None:
+        """Add a channel for a topic: its schema (``ros2msg``), QoS offer and type hash."""
+        if self._state == 'closed':
+            raise RecorderError(f'recording {self._path} is closed')
+        if topic in self._channels:
+            raise RecorderError(f'topic {topic} already has a channel')
+        profile = qos if isinstance(qos, QoSProfile) else QoSProfile(depth=qos)
+        type_name = type_name_of(msg_type)
+        serialize_message(msg_type())   # loads the type support now, not in the first write()
+        offer = offered_qos(profile)
+        channel = _Channel(id=len(self._channels) + 1, spec={
+            'id': len(self._channels) + 1,
+            'schema_id': self._schema_ids.setdefault(type_name, len(self._schema_ids) + 1),
+            'topic': topic, 'type': type_name, 'schema': ros2msg_schema(type_name),
+            'qos': offer,
+            'metadata': {'offered_qos_profiles': qos_profiles_yaml([offer]),
+                         'topic_type_hash': type_hash(type_name)}})
+        self._channels[topic] = channel
+        if self._state == 'open':
+            self._send(self._frame(sink.CHANNEL, json.dumps(channel.spec).encode()))
+
+    def write(self, topic: str, msg: Any, stamp_ns: int) -> None:
+        """Record one message with log and publish time ``stamp_ns``; cheap, never blocks.
+
+        The message is serialized at once, so the caller may reuse it right away.
+        """
+        if self._error is not None:
+            return
+        channel = self._channels.get(topic)
+        if channel is None or self._state != 'open':
+            self._refuse(topic)
+        data = serialize_message(msg)
+        self._send(sink.MESSAGE_HEAD.pack(sink.MESSAGE, 10 + len(data), channel.id, stamp_ns)
+                   + data)
+
+    def write_serialized(self, topic: str, data: bytes, stamp_ns: int) -> None:
+        """Record one already serialized (CDR) message; cheap, never blocks."""
+        if self._error is not None:
+            return
+        channel = self._channels.get(topic)
+        if channel is None or self._state != 'open':
+            self._refuse(topic)
+        self._send(sink.MESSAGE_HEAD.pack(sink.MESSAGE, 10 + len(data), channel.id, stamp_ns)
+                   + data)
+
+    def _refuse(self, topic: str) -> NoReturn:
+        if self._state != 'open':
+            raise RecorderError(f'recording {self._path} is {self._state}, not open')
+        raise RecorderError(f'topic {topic} has no channel; call add_channel first')
+
+    # -- the pipe to the writer process -----------------------------------------------------------
+
+    @staticmethod
+    def _frame(kind: int, payload: bytes) -> bytes:
+        return sink.FRAME.pack(kind, len(payload)) + payload
+
+    def _send(self, frame: bytes) -> None:
+        """Write a frame without blocking; what does not fit waits here for the next call."""
+        backlog = self._backlog
+        data: bytes | bytearray = frame
+        if backlog:   # keep the order: the backlog goes first, the new frame behind it
+            backlog += frame
+            data = backlog
+        try:
+            sent = os.write(self._fd, data)
+        except BlockingIOError:
+            sent = 0
+        except OSError as exc:   # the writer process is gone
+            self._error = RecorderError(f'recording {self._path} stopped: the writer process '
+                                        f'is gone ({exc.strerror})')
+            return
+        if data is backlog:
+            del backlog[:sent]
+        elif sent < len(frame):
+            backlog += memoryview(frame)[sent:]
+        if len(backlog) > MAX_BACKLOG:
+            backlog.clear()
+            self._error = RecorderError(f'recording {self._path} stopped: the writer process '
+                                        f'fell {MAX_BACKLOG >> 20} MiB behind')
+
+    def _send_blocking(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            view = view[os.write(self._fd, view):]
+
+    def _read_status(self) -> None:
+        process = self._process
+        assert process is not None and process.stdout is not None
+        for line in process.stdout:
+            try:
+                status = json.loads(line)
+            except ValueError:
+                continue   # not a status line
+            if 'written' in status or 'closed' in status:
+                self._messages_written = int(status.get('written', status.get('closed', 0)))
+            if 'error' in status and self._error is None:
+                self._error = RecorderError(status['error'])
