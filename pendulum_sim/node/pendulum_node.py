@@ -113,9 +113,6 @@ class PendulumNode(Node):
 
         start_time = float(v['start_time'])
         self._wall_anchored = start_time < 0.0 and not self._lockstep
-        now = time.monotonic_ns()
-        self._epoch_ns = time.time_ns() if self._wall_anchored else round(
-            max(start_time, 0.0) * 1e9)
 
         # Entities: only what the scene enables.
         self._js_pub = self.create_publisher(JointState, 'joint_states', JOINT_STATE_QOS)
@@ -143,6 +140,11 @@ class PendulumNode(Node):
             self._open_recorder(str(v['recording.path']), bool(v['recording.overwrite']))
 
         # Timing: a steady-clock timer, an absolute schedule and rttest-like measurement.
+        # The schedule starts after every entity (and the recorder) exists, so the first wake
+        # has no set-up time to catch up.
+        now = time.monotonic_ns()
+        self._epoch_ns = time.time_ns() if self._wall_anchored else round(
+            max(start_time, 0.0) * 1e9)
         rate = float(v['publish_rate'])
         self._k_pub = max(1, round(1.0 / (rate * self._h)))
         period = LOCKSTEP_PERIOD if self._lockstep else 1.0 / rate
