@@ -1,0 +1,60 @@
+"""``pendulum_report <what> --out DIR [--quick] [--force]``: thin plumbing over ``report.py``."""
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from .errors import ReportError
+from .report import WHATS, run_report
+
+
+def _repeats(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}') from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}')
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``pendulum_report``."""
+    parser = argparse.ArgumentParser(
+        prog='pendulum_report',
+        description='Work-precision, stability and paper-figure reports for pendulum_sim. '
+                    'Writes summary.md, CSV tables and PNG figures into --out.')
+    parser.add_argument('what', choices=WHATS,
+                        help='which report: work-precision, stability, paper, or all')
+    parser.add_argument('--out', required=True, metavar='DIR',
+                        help='output folder (created; must be empty unless --force)')
+    parser.add_argument('--quick', action='store_true',
+                        help='a small grid that runs in seconds (for tests)')
+    parser.add_argument('--force', action='store_true',
+                        help='write into an existing non-empty --out')
+    parser.add_argument('--repeats', type=_repeats, default=None, metavar='N',
+                        help='timed repeats per work-precision configuration (default 3, '
+                             'quick 1); the minimum is kept')
+    parser.add_argument('--no-progress', action='store_true',
+                        help='do not print progress lines on stderr')
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; return the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        result = run_report(args.what, args.out, quick=args.quick, force=args.force,
+                            repeats=args.repeats, progress=not args.no_progress,
+                            command=' '.join(['pendulum_report', *(argv if argv is not None
+                                                                   else sys.argv[1:])]))
+    except ReportError as exc:
+        parser.error(str(exc))
+    print(f'wrote {result["summary_path"]}', file=sys.stderr)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
