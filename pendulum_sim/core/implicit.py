@@ -88,15 +88,15 @@ def dirk_step(tableau: Tableau, p0: float, v0: float, h: float, ain: float, w2: 
     Returns ``(φ₁, φ'₁, w, a₀)`` like the explicit steps: ``w`` is the damping work per unit
     inertia by the same quadrature, ``a₀`` the acceleration of the first stage.
     """
-    A, B = tableau.A, tableau.B
+    A, B = tableau.A.tolist(), tableau.B.tolist()  # plain floats: the state stays a float
     s = tableau.stages
     vs: list[float] = []
     acc: list[float] = []
     ds: list[float] = []
     for i in range(s):
-        P = p0 + h * sum(A[i, j] * vs[j] for j in range(i))
-        W = v0 + h * sum(A[i, j] * acc[j] for j in range(i))
-        alpha = h * A[i, i]
+        P = p0 + h * sum(A[i][j] * vs[j] for j in range(i))
+        W = v0 + h * sum(A[i][j] * acc[j] for j in range(i))
+        alpha = h * A[i][i]
         V = _solve_stage(P, W, alpha, w2, ain, gamma, n, damping)
         # The stage acceleration follows from the stage equation itself, (V − W)/α; this keeps
         # the set-valued Coulomb case exact when the stage sticks.

@@ -25,7 +25,7 @@ from .guard import FALLBACK, GuardStats, StabilityGuard, max_speed
 from .implicit import dirk_step
 from .methods import FALLBACK_METHOD, Method, get_method
 from .model import PendulumParams, validate_state
-from .tableaus import RK4, Tableau
+from .tableaus import BACKWARD_EULER, RK4, Tableau
 
 # An explicit step may raise the energy by round-off and by the conservative part of its
 # truncation error near turning points, where the damping removes almost nothing; anything
@@ -393,8 +393,18 @@ class Stepper:
         return p1, v1, e0 - (0.5 * v1 * v1 + 2.0 * self._w2 * math.sin(0.5 * p1) ** 2)
 
     def _implicit(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
-        p1, v1, w, _ = dirk_step(FALLBACK_METHOD.tableau, p, v, h, ain, self._w2, self._gamma,
-                                 self._n, self._damping)
+        """Take the step with the L-stable fallback, or backward Euler where that flips φ'.
+
+        Across a violent power-law transient (n = 10 at 10 rad/s) the SDIRK stages, with their
+        negative weight, can turn the velocity round where the flow cannot; backward Euler's
+        single stage is monotone, so when it keeps the sign its answer is taken instead.
+        """
+        args = (p, v, h, ain, self._w2, self._gamma, self._n, self._damping)
+        p1, v1, w, _ = dirk_step(FALLBACK_METHOD.tableau, *args)
+        if v1 * v < 0.0:
+            pb, vb, wb, _ = dirk_step(BACKWARD_EULER, *args)
+            if vb * v >= 0.0:
+                return pb, vb, wb
         return p1, v1, w
 
     def _micro(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
@@ -402,11 +412,13 @@ class Stepper:
         if self._coulomb and v == 0.0:
             return self._from_rest(p, h, ain)
         p1, v1, w, a0 = self._step_fn(p, v, h, ain)
-        if self._nonsmooth and (v1 < 0.0 < v or v < 0.0 < v1):
-            return self._split(p, v, h, ain, p1, v1, a0)
+        # A reversal shows as a sign change over the step, or, where a stage already crossed
+        # and spoiled the result, as a deceleration that could stop the pendulum within h.
+        if self._nonsmooth and (v1 * v < 0.0 or (a0 * v < 0.0 and abs(v) <= h * abs(a0))):
+            return self._split(p, v, h, ain, a0)
         return p1, v1, w
 
-    def _split(self, p: float, v: float, h: float, ain: float, p1: float, v1: float,
+    def _split(self, p: float, v: float, h: float, ain: float,
                a0: float) -> tuple[float, float, float]:
         """Split a step that straddles φ' = 0 at the reversal, located to round-off.
 
@@ -422,6 +434,9 @@ class Stepper:
         def accel_branch(pp: float, vv: float) -> float:
             return float(ain - sign * gamma * abs(vv) ** n - w2 * math.sin(pp))
 
+        p1, v1, w1, _ = before(p, v, h, ain)
+        if v1 * v > 0.0:
+            return p1, v1, w1  # the branch step does not reach φ' = 0: no kink inside
         th = hermite_root(v, v1, h * a0, h * accel_branch(p1, v1))
         pm, vm, wm, _ = before(p, v, th * h, ain)
         for _ in range(4):
@@ -476,10 +491,13 @@ class Stepper:
                 break
             last = hh >= h - done
             step_h = h - done if last else hh
-            p1, v1, w, _, ep, ev = estep(p, v, step_h, ain)
-            sp = atol + rtol * max(abs(p), abs(p1))
-            sv = atol + rtol * max(abs(v), abs(v1))
-            err = math.sqrt(0.5 * ((ep / sp) ** 2 + (ev / sv) ** 2))
+            try:
+                p1, v1, w, _, ep, ev = estep(p, v, step_h, ain)
+                sp = atol + rtol * max(abs(p), abs(p1))
+                sv = atol + rtol * max(abs(v), abs(v1))
+                err = math.sqrt(0.5 * ((ep / sp) ** 2 + (ev / sv) ** 2))
+            except OverflowError:
+                err = math.inf  # a trial step that overflows is rejected like any other
             if err <= 1.0 and math.isfinite(err):
                 if self._coulomb and (v1 < 0.0 < v or v < 0.0 < v1) and abs(
                         ain - self._w2 * math.sin(p1)) <= self._gamma:
@@ -520,8 +538,12 @@ class Stepper:
         return math.hypot(pa - pb, va - vb) / (2.0 ** self._method.order - 1.0)
 
     def _dirk_plain(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
-        p1, v1, w, _ = dirk_step(self._method.tableau, p, v, h, ain, self._w2, self._gamma,
-                                 self._n, self._damping)
+        args = (p, v, h, ain, self._w2, self._gamma, self._n, self._damping)
+        p1, v1, w, _ = dirk_step(self._method.tableau, *args)
+        if v1 * v < 0.0:  # see _implicit: a flip that backward Euler does not make is spurious
+            pb, vb, wb, _ = dirk_step(BACKWARD_EULER, *args)
+            if vb * v >= 0.0:
+                return pb, vb, wb
         return p1, v1, w
 
 

@@ -119,4 +119,9 @@ SDIRK3 = Tableau(
     description='L-stable SDIRK, order 3 (Alexander 1977), the stiff fallback',
 )
 
+# Backward Euler: order 1, L-stable, and monotone in the velocity (its one stage cannot flip the
+# sign of φ' against the forces), the last resort of the guard's fallback.
+BACKWARD_EULER = Tableau('backward_euler', 1, _t([[1.0]]), _t([1.0]), _t([1.0]),
+                         description='backward Euler, the last resort of the fallback')
+
 TABLEAUS: dict[str, Tableau] = {t.name: t for t in (EULER, MIDPOINT, RK4, DOPRI5, SDIRK2, SDIRK3)}
