@@ -393,18 +393,27 @@ class Stepper:
         return p1, v1, e0 - (0.5 * v1 * v1 + 2.0 * self._w2 * math.sin(0.5 * p1) ** 2)
 
     def _implicit(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
-        """Take the step with the L-stable fallback, or backward Euler where that flips φ'.
+        """Take the step with the L-stable fallback (see :meth:`_dirk_safe`).
 
         Across a violent power-law transient (n = 10 at 10 rad/s) the SDIRK stages, with their
         negative weight, can turn the velocity round where the flow cannot; backward Euler's
-        single stage is monotone, so when it keeps the sign its answer is taken instead.
+        single stage is monotone in φ', so it takes such a step instead.
+        """
+        return self._dirk_safe(FALLBACK_METHOD.tableau, p, v, h, ain)
+
+    def _dirk_safe(self, tab: Tableau, p: float, v: float, h: float,
+                   ain: float) -> tuple[float, float, float]:
+        """Take a DIRK step; replace it by backward Euler where it turned φ' round spuriously.
+
+        Once φ' has passed 0 it can grow again by at most h (|τ/I| + ω0²) within the step, since
+        damping only opposes the motion: a reversed velocity larger than that is the stages'
+        doing, not the flow's.
         """
         args = (p, v, h, ain, self._w2, self._gamma, self._n, self._damping)
-        p1, v1, w, _ = dirk_step(FALLBACK_METHOD.tableau, *args)
-        if v1 * v < 0.0:
+        p1, v1, w, _ = dirk_step(tab, *args)
+        if v1 * v < 0.0 and abs(v1) > h * (abs(ain) + self._w2):
             pb, vb, wb, _ = dirk_step(BACKWARD_EULER, *args)
-            if vb * v >= 0.0:
-                return pb, vb, wb
+            return pb, vb, wb
         return p1, v1, w
 
     def _micro(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
@@ -538,12 +547,6 @@ class Stepper:
         return math.hypot(pa - pb, va - vb) / (2.0 ** self._method.order - 1.0)
 
     def _dirk_plain(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
-        args = (p, v, h, ain, self._w2, self._gamma, self._n, self._damping)
-        p1, v1, w, _ = dirk_step(self._method.tableau, *args)
-        if v1 * v < 0.0:  # see _implicit: a flip that backward Euler does not make is spurious
-            pb, vb, wb, _ = dirk_step(BACKWARD_EULER, *args)
-            if vb * v >= 0.0:
-                return pb, vb, wb
-        return p1, v1, w
+        return self._dirk_safe(self._method.tableau, p, v, h, ain)
 
 
