@@ -40,6 +40,8 @@ pytest: setup
 
 bench: setup
 	$(PY) bench/bench_core.py
+	$(PY) bench/bench_node.py --duration 60
+	$(PY) bench/bench_recording.py --seconds 10 --node
 
 clean:
 	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache
