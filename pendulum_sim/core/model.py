@@ -19,7 +19,8 @@ from .errors import ModelError
 FloatArray = npt.NDArray[np.float64]
 
 
-def _check_finite(name: str, value: float) -> float:
+def check_finite(name: str, value: float) -> float:
+    """Return ``value`` as a float, or raise ModelError naming it if not a finite real."""
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -30,14 +31,14 @@ def _check_finite(name: str, value: float) -> float:
 
 
 def _check_positive(name: str, value: float, unit: str) -> float:
-    x = _check_finite(name, value)
+    x = check_finite(name, value)
     if x <= 0.0:
         raise ModelError(f'{name} must be > 0 {unit}, got {x}')
     return x
 
 
 def _check_nonneg(name: str, value: float, unit: str) -> float:
-    x = _check_finite(name, value)
+    x = check_finite(name, value)
     if x < 0.0:
         raise ModelError(f'{name} must be >= 0{unit}, got {x}')
     return x
@@ -188,4 +189,4 @@ def input_power(dphi: Any, torque: Any) -> Any:
 
 def validate_state(phi0: float, dphi0: float) -> tuple[float, float]:
     """Check an initial state (finite angle and velocity) and return it as floats."""
-    return _check_finite('phi0', phi0), _check_finite('dphi0', dphi0)
+    return check_finite('phi0', phi0), check_finite('dphi0', dphi0)

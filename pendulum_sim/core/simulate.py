@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import IntegratorError, ModelError
+from .errors import IntegratorError
 from .guard import GuardStats
-from .model import FloatArray, PendulumParams, energy
+from .model import FloatArray, PendulumParams, check_finite, energy
 from .stepper import Stepper
 
 TorqueInput = float | Callable[[float, float, float], float] | None
@@ -87,7 +87,7 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     -------
     Trajectory
     """
-    t_end = _finite('t_end', t_end)
+    t_end = check_finite('t_end', t_end)
     if t_end <= 0.0:
         raise IntegratorError(f't_end must be > 0 s, got {t_end}')
     if not isinstance(record_every, int) or record_every < 1:
@@ -99,7 +99,7 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     if callable(torque):
         tau_of: Callable[[float, float, float], float] = torque
     else:
-        tau_const = 0.0 if torque is None else _finite('torque', torque)
+        tau_const = 0.0 if torque is None else check_finite('torque', torque)
 
         def tau_of(t: float, phi: float, dphi: float) -> float:
             return tau_const
@@ -132,12 +132,3 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         dissipated_work=np.array(wd), input_work=np.array(wi), torque=np.array(taus),
         stats=stepper.stats, params=params, method=stepper.method, h=h)
 
-
-def _finite(name: str, value: float) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ModelError(f'{name} must be a real number, got {value!r}') from None
-    if not math.isfinite(x):
-        raise ModelError(f'{name} must be finite, got {x}')
-    return x
