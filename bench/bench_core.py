@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import platform
 import time
 from collections.abc import Callable
 from typing import Any
@@ -31,6 +30,7 @@ import numpy as np
 from pendulum_sim.core import PendulumParams, Stepper
 from pendulum_sim.core import sweep as sweep_module
 from pendulum_sim.core.sweep import sweep
+from pendulum_sim.reports.report import machine_info
 
 W2 = 9.8
 H = 1e-3
@@ -53,19 +53,10 @@ def best_of_both(fn: Callable[[], Any], repeats: int) -> tuple[float, float]:
 
 
 def machine() -> str:
-    """Return CPU model, cores, Python and numpy versions and the load average."""
-    model = platform.processor() or '?'
-    try:
-        with open('/proc/cpuinfo', encoding='utf-8') as f:
-            for line in f:
-                if line.startswith('model name'):
-                    model = line.split(':', 1)[1].strip()
-                    break
-    except OSError:
-        pass
+    """Return the machine and library versions (as the reports print them) and the load."""
     load = ', '.join(f'{x:.2f}' for x in os.getloadavg())
-    return (f'CPU {model}, {os.cpu_count()} cores; Python {platform.python_version()}, '
-            f'numpy {np.__version__}; load average {load}')
+    return f'{machine_info()}; load average {load}'
+
 
 
 def bench_stepper(steps: int, repeats: int) -> dict[float, float]:

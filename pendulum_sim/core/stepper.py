@@ -233,12 +233,6 @@ class Stepper:
         """Return the angular velocity φ' in rad/s."""
         return self._v
 
-    @property
-    def stuck(self) -> bool:
-        """Return True while static (Coulomb, n = 0) friction holds the pendulum at rest."""
-        return self._coulomb and self._v == 0.0 and abs(-self._w2 * math.sin(self._p)) <= (
-            self._gamma)
-
     def energy(self) -> float:
         """Return the mechanical energy E = ½ I φ'² + m g l (1 − cos φ) in J (eq 23)."""
         p = self._params
