@@ -44,7 +44,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'pendulum_node = pendulum_sim.node.pendulum_node:main',
+            'pendulum_node = pendulum_sim.node.cli:main',
             'pendulum_replay = pendulum_sim.recording.replay:main',
             'pendulum_report = pendulum_sim.reports.cli:main',
             'pendulum_demo = pendulum_sim.demo:main',

@@ -35,7 +35,7 @@ def node_command() -> list[str]:
     script = Path(sys.executable).parent / 'pendulum_node'
     if script.is_file():
         return [str(script)]
-    return [sys.executable, '-m', 'pendulum_sim.node.pendulum_node']
+    return [sys.executable, '-m', 'pendulum_sim.node.cli']
 
 
 def unique_namespace() -> str:
