@@ -1,0 +1,162 @@
+"""PD control with gravity compensation for the pendulum joint, and a settle detector; no ROS.
+
+The joint is ``I φ'' = −m g l sin φ − γ I φ'|φ'|^(n−1) + τ`` (Quiroga & Ospina-Henao,
+Eur. J. Phys. 38 (2017) 065005, eq 11 with an input torque τ). The law
+
+    τ = m g l sin φ + Kp · wrap(φ_ref − φ) − Kd · φ',     clipped to [−τ_max, τ_max]
+
+cancels the gravity torque with its first term (with Kp = Kd = 0 it holds any angle at rest, and
+with the true m g l the only equilibrium of the closed loop is φ = φ_ref, so there is no static
+error to integrate away), and leaves ``I e'' = −Kp e − (Kd + damping) e'`` for the error
+e = φ − φ_ref: a damped oscillator for any Kp, Kd ≥ 0 (the textbook computed-torque / PD plus
+gravity compensation scheme, e.g. Spong, Hutchinson & Vidyasagar, *Robot Modeling and Control*,
+ch. 8). The angle error is wrapped to [−π, π] so that the controller turns the short way round.
+
+Everything here is a pure function of its arguments: no clock, no state but the settle
+detector's, which is driven by the simulated time stamps of the states it is given.
+"""
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+from .errors import ControllerError
+
+
+def wrap_angle(x: float) -> float:
+    """Return ``x`` wrapped to [−π, π] (the angle in that range equal to x modulo 2π)."""
+    return math.remainder(x, math.tau)
+
+
+def _finite(name: str, value: float) -> None:
+    if not math.isfinite(value):
+        raise ControllerError(f'{name} must be finite, got {value!r}')
+
+
+def _nonnegative(name: str, value: float) -> None:
+    _finite(name, value)
+    if value < 0.0:
+        raise ControllerError(f'{name} must be >= 0, got {value!r}')
+
+
+def _positive(name: str, value: float) -> None:
+    _finite(name, value)
+    if value <= 0.0:
+        raise ControllerError(f'{name} must be > 0, got {value!r}')
+
+
+@dataclass(frozen=True)
+class PDGains:
+    """Gains, target and limit of the law; validated when built.
+
+    Parameters
+    ----------
+    kp : float
+        Proportional gain in N·m/rad (>= 0).
+    kd : float
+        Derivative gain in N·m·s/rad (>= 0).
+    target : float
+        Reference angle φ_ref in rad (finite; φ = 0 hangs straight down).
+    mgl : float
+        Gravity torque amplitude m g l in N·m (>= 0; 0 switches the compensation off).
+    max_effort : float
+        The torque is clipped to [−max_effort, max_effort] N·m (> 0).
+    """
+
+    kp: float = 4.0
+    kd: float = 1.0
+    target: float = 0.5
+    mgl: float = 0.2 * 9.8 * 1.0
+    max_effort: float = 5.0
+
+    def __post_init__(self) -> None:
+        _nonnegative('kp', self.kp)
+        _nonnegative('kd', self.kd)
+        _finite('target', self.target)
+        _nonnegative('mgl', self.mgl)
+        _positive('max_effort', self.max_effort)
+
+
+def pd_torque(gains: PDGains, phi: float, dphi: float) -> float:
+    """Return the clipped torque τ in N·m for the measured angle ``phi`` and rate ``dphi``.
+
+    Raises
+    ------
+    ControllerError
+        If ``phi`` or ``dphi`` is not finite (no torque is better than a NaN command).
+    """
+    if not (math.isfinite(phi) and math.isfinite(dphi)):
+        raise ControllerError(f'state must be finite, got phi = {phi!r}, dphi = {dphi!r}')
+    tau = (gains.mgl * math.sin(phi) + gains.kp * wrap_angle(gains.target - phi)
+           - gains.kd * dphi)
+    return min(max(tau, -gains.max_effort), gains.max_effort)
+
+
+class SettleEvent(enum.Enum):
+    """What a state told the settle detector."""
+
+    NONE = 'none'
+    SETTLED = 'settled'         # the first state at which the hold time has been met
+    RESTARTED = 'restarted'     # simulated time went back (a reset): detection starts over
+
+
+@dataclass(frozen=True)
+class SettleLimits:
+    """When the loop counts as settled.
+
+    Parameters
+    ----------
+    position : float
+        |wrap(φ − φ_ref)| must stay below this, in rad (> 0).
+    velocity : float
+        |φ'| must stay below this, in rad/s (> 0).
+    hold : float
+        ... for this long in simulated time, in s (>= 0).
+    """
+
+    position: float = 0.01
+    velocity: float = 0.01
+    hold: float = 0.5
+
+    def __post_init__(self) -> None:
+        _positive('settle_position_tolerance', self.position)
+        _positive('settle_velocity_tolerance', self.velocity)
+        _nonnegative('settle_hold', self.hold)
+
+
+class SettleDetector:
+    """Tell, from states and their simulated time stamps, when the loop has settled.
+
+    The loop has settled at stamp t when every state from stamp t − hold to t was within the
+    limits (the stamps, not the wall clock, measure the hold, so the verdict is the same at any
+    real-time factor). It is reported once; a stamp earlier than the previous one (a reset of the
+    simulation) starts the detection over.
+    """
+
+    def __init__(self, limits: SettleLimits) -> None:
+        self.limits = limits
+        self._hold_ns = round(limits.hold * 1e9)
+        self._last_ns: int | None = None
+        self.inside_since_ns: int | None = None
+        self.settled_at_ns: int | None = None
+
+    def update(self, stamp_ns: int, error: float, dphi: float) -> SettleEvent:
+        """Take the state at ``stamp_ns`` with position error ``error`` and rate ``dphi``."""
+        event = SettleEvent.NONE
+        if self._last_ns is not None and stamp_ns < self._last_ns:
+            self.inside_since_ns = None
+            self.settled_at_ns = None
+            event = SettleEvent.RESTARTED
+        self._last_ns = stamp_ns
+        lim = self.limits
+        if abs(error) < lim.position and abs(dphi) < lim.velocity:
+            if self.inside_since_ns is None:
+                self.inside_since_ns = stamp_ns
+            if (self.settled_at_ns is None
+                    and stamp_ns - self.inside_since_ns >= self._hold_ns):
+                self.settled_at_ns = stamp_ns
+                return SettleEvent.SETTLED
+        else:
+            self.inside_since_ns = None
+        return event
