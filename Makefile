@@ -10,6 +10,9 @@ SCENE ?= default
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 export ROS_DOMAIN_ID ?= $(shell python3 -c 'import random; print(random.randint(1, 100))')
 export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
+# Fast DDS sockets on 127.0.0.1 only (config/fastdds_localhost.xml; README: across hosts).
+export FASTRTPS_DEFAULT_PROFILES_FILE ?= $(CURDIR)/config/fastdds_localhost.xml
+export FASTDDS_DEFAULT_PROFILES_FILE ?= $(FASTRTPS_DEFAULT_PROFILES_FILE)
 
 .PHONY: setup run demo test lint typecheck pytest bench clean
 

@@ -4,23 +4,38 @@ Run it as::
 
     pendulum_node --scene default
     pendulum_node --ros-args --params-file config/default.yaml
+
+Every command-line and parameter-file error is found before ``rclpy.init`` where possible (and
+what rcl still refuses is caught): the process exits 2 with the reason on stderr, never a
+traceback. Ctrl-C (SIGINT) and SIGTERM end it with exit 0 after the summary.
 """
 from __future__ import annotations
 
 import argparse
 import os
 import sys
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.utilities import remove_ros_args
 
 from pendulum_sim.core import PendulumError
 
 from .errors import NodeError, SceneError
 from .pendulum_node import PendulumNode
-from .scenes import available_scenes, find_scene
+from .scenes import (
+    available_scenes,
+    find_scene,
+    known_parameters,
+    read_params_file,
+    unknown_parameter,
+    use_loopback_profile,
+)
 from .status import StatusLine
 
 
@@ -52,34 +67,168 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+# rcl's errors (RCLInvalidROSArgsError, UnknownROSArgsError, ...) derive from RCLError.
+RCLError: type[Exception] = rclpy_implementation.RCLError
+
+# ---------------------------------------------------------------- ROS arguments, checked
+PROG = 'pendulum_node'
+# rcl's ROS arguments (rcl/arguments.h, ROS 2 Jazzy): flags that take one value, flags alone.
+VALUE_FLAGS = {
+    '-p': '--param', '--param': '--param', '-r': '--remap', '--remap': '--remap',
+    '--params-file': '--params-file', '--log-level': '--log-level', '-e': '--enclave',
+    '--enclave': '--enclave', '--log-config-file': '--log-config-file',
+    '--log-file-name': '--log-file-name',
+}
+SWITCH_FLAGS = frozenset(f'--{on}-{what}-logs' for on in ('enable', 'disable')
+                         for what in ('rosout', 'stdout', 'external-lib'))
+LOG_LEVELS = ('debug', 'info', 'warn', 'error', 'fatal', 'unset')
+NEEDS = {'--param': 'name:=value', '--remap': 'from:=to', '--params-file': 'a YAML file',
+         '--log-level': 'a level: ' + ', '.join(LOG_LEVELS)}
+
+
+class UsageError(NodeError):
+    """The command line cannot be used; the message says why."""
+
+
+@dataclass
+class RosArgs:
+    """What the ROS arguments of the command line ask for."""
+
+    params_files: list[str] = field(default_factory=list)
+    params: list[tuple[str, str]] = field(default_factory=list)
+
+
+def _ros_sections(argv: list[str]) -> Iterator[tuple[bool, str]]:
+    """Yield (is_ros_argument, argument) the way rcl splits them: --ros-args ... [--]."""
+    in_ros = False
+    for arg in argv:
+        if arg == '--ros-args':
+            in_ros = True
+        elif in_ros and arg == '--':
+            in_ros = False
+        else:
+            yield in_ros, arg
+
+
+def _rule(flag: str, value: str, need: str) -> tuple[str, str]:
+    name, sep, rhs = value.partition(':=')
+    if not sep or not name or not rhs:
+        raise UsageError(f"{flag} needs {need}, got '{value}'")
+    return name, rhs
+
+
+def check_ros_args(argv: list[str]) -> RosArgs:
+    """Check the ROS arguments in ``argv`` (no program name); raise UsageError with the reason."""
+    out = RosArgs()
+    args = [a for ros, a in _ros_sections(argv) if ros]
+    i = 0
+    while i < len(args):
+        arg = args[i]
+        if arg in SWITCH_FLAGS:
+            i += 1
+            continue
+        if arg not in VALUE_FLAGS:
+            raise UsageError(f"unknown ROS argument '{arg}' (see ros2 run --help or "
+                             'https://docs.ros.org/en/jazzy/How-To-Guides/Node-arguments.html)')
+        flag = VALUE_FLAGS[arg]
+        if i + 1 >= len(args):
+            raise UsageError(f"{arg} needs {NEEDS.get(flag, 'a value')}")
+        value = args[i + 1]
+        i += 2
+        if flag == '--param':
+            out.params.append(_rule(arg, value, 'name:=value'))
+        elif flag == '--remap':
+            _rule(arg, value, 'from:=to')
+        elif flag == '--params-file':
+            if not Path(value).is_file():
+                raise UsageError(f"parameter file '{value}' does not exist")
+            out.params_files.append(value)
+        elif flag == '--log-level':
+            level = value.rpartition(':=')[2]
+            if level.lower() not in LOG_LEVELS:
+                raise UsageError(f"--log-level must be one of {', '.join(LOG_LEVELS)} (or "
+                                 f"logger:=level), got '{value}'")
+    return out
+
+
+def check_parameters(ros: RosArgs) -> None:
+    """Check the parameter files and the -p names; raise SceneError with the reason."""
+    for name in ros.params_files:
+        read_params_file(Path(name), name)
+    known = known_parameters()
+    for name, value in ros.params:
+        reason = unknown_parameter(name, f'-p {name}:={value}', known)
+        if reason:
+            raise SceneError(reason)
+
+
+def _rcl_reason(exc: BaseException) -> str:
+    """Return rcl's message without its source locations (', at .../arguments.c:356')."""
+    text = str(exc).strip()
+    while ', at /' in text:
+        text = text[:text.rindex(', at /')]
+    return text
+
+
+def _fail(message: object) -> int:
+    print(f'{PROG}: {message}', file=sys.stderr)
+    return 2
+
+
 def main(args: list[str] | None = None) -> int:
-    """Run the node until Ctrl-C or SIGTERM, then print a summary."""
+    """Run the node until Ctrl-C or SIGTERM, then print a summary.
+
+    Returns 0 after a signal, 2 for a command line, scene or parameter the node cannot use.
+    """
     argv = list(sys.argv if args is None else args)
-    opts = _parser().parse_args(remove_ros_args(argv)[1:])
+    try:
+        ros = check_ros_args(argv[1:])
+        check_parameters(ros)
+        user_args = remove_ros_args(argv)[1:]
+    except (UsageError, SceneError) as exc:
+        return _fail(exc)
+    except RCLError as exc:  # what rcl refuses beyond the checks above
+        return _fail(f'invalid ROS arguments: {_rcl_reason(exc)}')
+    opts = _parser().parse_args(user_args)
     if opts.list_scenes:
         print('\n'.join(available_scenes()))
         return 0
     ros_argv = argv
-    if opts.scene:
-        try:
-            path = find_scene(opts.scene)
-        except SceneError as exc:
-            print(f'pendulum_node: {exc}', file=sys.stderr)
-            return 2
+    scene: Path | None = None
+    try:
+        if opts.scene:
+            scene = find_scene(opts.scene)
+            is_path = Path(opts.scene).suffix in ('.yaml', '.yml')
+            read_params_file(scene, opts.scene if is_path else scene.name)
+    except SceneError as exc:
+        return _fail(exc)
+    if scene is not None:
         # The scene comes first, so parameters given after --ros-args override it.
-        ros_argv = [argv[0], '--ros-args', '--params-file', str(path), '--', *argv[1:]]
+        ros_argv = [argv[0], '--ros-args', '--params-file', str(scene), '--', *argv[1:]]
+    # DDS on 127.0.0.1 unless the user chose a profile or a wider discovery range.
+    use_loopback_profile(os.environ)
     if opts.rt_priority:
         # Before rclpy.init, so the DDS and executor threads inherit the policy.
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(opts.rt_priority))
         except (OSError, ValueError) as exc:
-            print(f'pendulum_node: cannot use SCHED_FIFO priority {opts.rt_priority} ({exc}); '
+            print(f'{PROG}: cannot use SCHED_FIFO priority {opts.rt_priority} ({exc}); '
                   'running with the normal scheduler', file=sys.stderr)
-    rclpy.init(args=ros_argv)
+    try:
+        rclpy.init(args=ros_argv)
+    except KeyboardInterrupt:
+        return 0
+    except RCLError as exc:
+        return _fail(f'invalid ROS arguments: {_rcl_reason(exc)}')
+    return _run(opts.executor)
+
+
+def _run(executor_kind: str) -> int:
+    """Create the node and spin until shutdown; return the exit code."""
     node: PendulumNode | None = None
     code = 0
     try:
-        executor = _executor(opts.executor)
+        executor = _executor(executor_kind)
         node = PendulumNode(status=StatusLine())
         executor.add_node(node)
         # spin_once in a loop rather than spin(): the EventsExecutor's spin() does not return
@@ -91,16 +240,29 @@ def main(args: list[str] | None = None) -> int:
     except (NodeError, InvalidParameterValueException, InvalidParameterTypeException) as exc:
         hint = ' (write doubles with a decimal point, e.g. 2.0)' if isinstance(
             exc, InvalidParameterTypeException) else ''
-        print(f'pendulum_node: {exc}{hint}', file=sys.stderr)
-        code = 2
+        code = _fail(f'{exc}{hint}')
     except PendulumError as exc:  # e.g. RecorderError: the recording cannot be opened
-        print(f'pendulum_node: {exc}', file=sys.stderr)
-        code = 2
+        code = _fail(exc)
+    except RCLError as exc:  # e.g. a parameter override rcl parsed but rclpy cannot use
+        code = _fail(_rcl_reason(exc))
     finally:
+        code = _close(node, code)
+    return code
+
+
+def _close(node: PendulumNode | None, code: int) -> int:
+    """Close the node and shut rclpy down; a second Ctrl-C while closing skips to the end."""
+    try:
         if node is not None:
             node.close()
             node.destroy_node()
-        rclpy.try_shutdown()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        try:
+            rclpy.try_shutdown()
+        except KeyboardInterrupt:
+            rclpy.try_shutdown()
     return code
 
 

@@ -5,9 +5,14 @@ A scene is an ordinary ROS 2 parameter file (``/**: ros__parameters: ...``), so
 """
 from __future__ import annotations
 
+import difflib
 import os
 import sys
+from collections.abc import Mapping, MutableMapping
 from pathlib import Path
+from typing import Any
+
+import yaml
 
 from .errors import SceneError
 
@@ -62,3 +67,127 @@ def find_scene(name: str) -> Path:
             return path
     known = ', '.join(available_scenes()) or 'none found'
     raise SceneError(f"unknown scene '{name}'; known scenes: {known}")
+
+
+# ---------------------------------------------------------------- parameter files and names
+# Parameters rclpy declares on every node, and the prefix of its QoS overrides.
+ROS_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+QOS_OVERRIDES = 'qos_overrides.'
+NODE_NAME = 'pendulum_node'
+
+
+def known_parameters() -> list[str]:
+    """Return the parameter names pendulum_node declares (and rclpy declares on every node)."""
+    from .parameters import SPEC_BY_NAME
+
+    return sorted(set(SPEC_BY_NAME) | set(ROS_PARAMETERS))
+
+
+def unknown_parameter(name: str, where: str, known: list[str] | None = None) -> str | None:
+    """Return why ``name`` is not a parameter of the node (with the closest known name), or None.
+
+    ``where`` says where the name came from, e.g. ``scene.yaml`` or ``-p gama:=5.0``.
+    """
+    known = known_parameters() if known is None else known
+    if name in known or name.startswith(QOS_OVERRIDES):
+        return None
+    close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+    hint = f" (did you mean '{close[0]}'?)" if close else ''
+    return f"unknown parameter '{name}' in {where}{hint}"
+
+
+def is_own_section(key: str) -> bool:
+    """Return True if a parameter file's node key can apply to pendulum_node.
+
+    ``/**``, ``pendulum_node`` and fully qualified or wildcard forms ending in ``pendulum_node``
+    or ``*``/``**``; sections of other nodes are left to them.
+    """
+    last = key.rstrip('/').rsplit('/', 1)[-1]
+    return last in (NODE_NAME, '*', '**')
+
+
+def _flatten(prefix: str, tree: Mapping[Any, Any], out: dict[str, Any]) -> None:
+    for key, value in tree.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, dict):
+            _flatten(f'{name}.', value, out)
+        else:
+            out[name] = value
+
+
+def read_params_file(path: Path, label: str | None = None) -> dict[str, Any]:
+    """Read a ROS 2 parameter file and return pendulum_node's parameters in it (flat names).
+
+    Raises SceneError with the reason when the file cannot be read, is not YAML, is not a
+    mapping of node names to ``{ros__parameters: {...}}``, or names a parameter the node does
+    not have (sections of other nodes are not checked). ``label`` names the file in messages
+    (default: its file name).
+    """
+    label = label or path.name
+    if not path.is_file():
+        raise SceneError(f"parameter file '{label}' does not exist")
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"cannot read parameter file '{label}': {exc}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        problem = getattr(exc, 'problem', None) or str(exc).splitlines()[0]
+        at = f' at line {mark.line + 1}, column {mark.column + 1}' if mark is not None else ''
+        raise SceneError(f'{label} is not valid YAML: {problem}{at}') from None
+    if not isinstance(data, dict):
+        kind = 'nothing' if data is None else f'a {type(data).__name__}'
+        raise SceneError(f'{label} must map node names to {{ros__parameters: {{...}}}}, got '
+                         f'{kind}')
+    values: dict[str, Any] = {}
+    known = known_parameters()
+    for key, section in data.items():
+        if not isinstance(section, dict) or not isinstance(section.get('ros__parameters'), dict):
+            raise SceneError(f"{label}: section '{key}' must hold ros__parameters: "
+                             '{name: value, ...}')
+        if not is_own_section(str(key)):
+            continue
+        flat: dict[str, Any] = {}
+        _flatten('', section['ros__parameters'], flat)
+        for name in flat:
+            reason = unknown_parameter(name, label, known)
+            if reason:
+                raise SceneError(reason)
+        values.update(flat)
+    return values
+
+
+# ---------------------------------------------------------------- DDS on the loopback only
+LOOPBACK_PROFILE = 'fastdds_localhost.xml'
+PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
+
+
+def loopback_profile() -> Path | None:
+    """Return the installed Fast DDS profile that keeps DDS on 127.0.0.1, or None if missing."""
+    for folder in scene_dirs():
+        path = folder / LOOPBACK_PROFILE
+        if path.is_file():
+            return path
+    return None
+
+
+def use_loopback_profile(environ: MutableMapping[str, str]) -> Path | None:
+    """Point Fast DDS at the loopback profile when discovery is LOCALHOST and none is chosen.
+
+    Sets both ``FASTRTPS_DEFAULT_PROFILES_FILE`` (Fast DDS 2.x, ROS 2 Jazzy) and
+    ``FASTDDS_DEFAULT_PROFILES_FILE`` (Fast DDS 3.x) in ``environ`` unless either is set, or
+    ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is not ``LOCALHOST``. Call it before ``rclpy.init``.
+    Returns the profile set, or None when nothing was changed.
+    """
+    if environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '') != 'LOCALHOST':
+        return None
+    if any(environ.get(var) for var in PROFILE_VARIABLES):
+        return None
+    path = loopback_profile()
+    if path is None:
+        return None
+    for var in PROFILE_VARIABLES:
+        environ[var] = str(path)
+    return path

@@ -1,48 +1,247 @@
-"""Generate the pendulum's URDF from its parameters: one continuous joint, one link.
+"""Generate the pendulum's URDF from its parameters: a simulator-ready joint and link.
 
-The link's centre of mass sits ``l`` below the pivot; its inertia about the centre of mass is
-``I − m l²`` (parallel-axis theorem), clamped at 0 for the point mass of the paper's set-up.
+One joint (continuous, or revolute with position limits) carries one link whose centre of mass
+sits ``l`` below the pivot. The link's inertia about its centre of mass follows from the
+parallel-axis theorem, ``I_com = I − m l²``, written as an isotropic tensor (a ball's: ``ixx =
+iyy = izz = I_com``, positive definite whenever ``I > m l²``, as MuJoCo requires), so the inertia
+about the joint axis is exactly the paper's ``I`` (Quiroga & Ospina-Henao, Eur. J. Phys. 38 (2017)
+065005). ``I < m l²`` describes no rigid body and is refused; ``I = m l²`` (the paper's point
+mass) gives the zero tensor, which engines that need a positive one cannot load.
+
+The damping law ``γ I |φ'|^n sgn φ'`` has a URDF equivalent only for ``n = 1``: viscous damping
+``<dynamics damping="γ I"/>`` in N m s/rad. For any other ``n`` no ``<dynamics>`` is written and a
+comment says why.
+
+The ``<ros2_control>`` block declares the joint for ``topic_based_ros2_control``
+(https://github.com/PickNikRobotics/topic_based_ros2_control: plugin
+``topic_based_ros2_control/TopicBasedSystem``, hardware parameters ``joint_commands_topic`` and
+``joint_states_topic``, see its ``doc/user.md``), so a controller manager drives this node's
+``joint_commands`` topic and reads its ``joint_states``.
+
+Regenerate the shipped ``urdf/pendulum.urdf`` (the default scene) with::
+
+    python -m pendulum_sim.node.urdf > urdf/pendulum.urdf
 """
 from __future__ import annotations
 
+import math
+import re
+import sys
+from collections.abc import Mapping
+from xml.sax.saxutils import escape
+
 from pendulum_sim.core import PendulumParams
 
+from .errors import ParameterError
 
-def pendulum_urdf(params: PendulumParams, joint_name: str = 'pendulum_joint') -> str:
-    """Return the URDF of a pendulum swinging about the y axis of ``base_link``."""
+INTERFACES = ('effort', 'velocity', 'position')
+PLUGIN = 'topic_based_ros2_control/TopicBasedSystem'
+# Characters XML 1.0 cannot hold at all, escaped or not.
+_NOT_XML = re.compile('[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]')
+
+
+def _num(value: float) -> str:
+    """Return ``value`` at full precision (the shortest text that reads back as the same float)."""
+    return repr(float(value))
+
+
+def _attr(text: str, what: str) -> str:
+    """Return ``text`` escaped for a double-quoted attribute or element text."""
+    if _NOT_XML.search(text):
+        raise ParameterError(f'{what} {text!r} holds a character XML cannot represent')
+    return escape(text, {'"': '&quot;', "'": '&apos;'})
+
+
+def _finite(name: str, value: float, *, positive: bool = False) -> float:
+    value = float(value)
+    if not math.isfinite(value) or value < 0.0 or (positive and value == 0.0):
+        need = '> 0' if positive else '>= 0'
+        raise ParameterError(f'{name} must be a finite number {need} for the URDF, got {value}')
+    return value
+
+
+def com_inertia(params: PendulumParams) -> float:
+    """Return the link's moment of inertia about its centre of mass, ``I − m l²`` (kg m²).
+
+    Raises ParameterError when ``I < m l²`` (no rigid body has it). A difference within a few
+    rounding errors of 0 (a point mass, as in the paper's set-up) is 0.
+    """
+    ml2 = params.m * params.l * params.l
+    i_com = params.inertia - ml2
+    if i_com < 0.0:
+        if -i_com <= 4.0 * sys.float_info.epsilon * max(params.inertia, ml2):
+            return 0.0
+        raise ParameterError(
+            f'inertia I = {params.inertia!r} kg m^2 is below m l^2 = {ml2!r} kg m^2: no rigid '
+            'body of that mass and centre of mass has it (I >= m l^2, parallel-axis theorem)')
+    return i_com
+
+
+def pendulum_urdf(params: PendulumParams, joint_name: str = 'pendulum_joint', *,
+                  max_effort: float = 10.0, max_velocity: float = 100.0,
+                  lower: float | None = None, upper: float | None = None,
+                  command_interface: str = 'effort',
+                  joint_commands_topic: str = 'joint_commands',
+                  joint_states_topic: str = 'joint_states') -> str:
+    """Return the URDF of a pendulum swinging about the y axis of ``base_link``.
+
+    Parameters
+    ----------
+    params : PendulumParams
+        The physical parameters (m, l, I, γ, n; g is the world's, not the robot's).
+    joint_name : str
+        The joint's name (any text; escaped).
+    max_effort, max_velocity : float
+        ``<limit effort=… velocity=…>`` in N m and rad/s (finite, >= 0).
+    lower, upper : float, optional
+        Position limits in rad; given both, the joint is revolute, otherwise continuous.
+    command_interface : str
+        The command interface declared in ``<ros2_control>``: effort, velocity or position.
+    joint_commands_topic, joint_states_topic : str
+        This node's topics, given to topic_based_ros2_control.
+
+    Returns
+    -------
+    str
+        The URDF document.
+
+    Raises
+    ------
+    ParameterError
+        ``I < m l²``, a non-finite or negative limit, ``lower >= upper``, an unknown interface
+        or a name XML cannot hold.
+    """
+    if command_interface not in INTERFACES:
+        raise ParameterError(f"command_interface must be one of {', '.join(INTERFACES)}, got "
+                             f"'{command_interface}'")
+    if not str(joint_name).strip():
+        raise ParameterError(f"joint_name must be a non-empty name, got '{joint_name}'")
+    name = _attr(str(joint_name), 'joint_name')
+    cmd_topic = _attr(joint_commands_topic, 'joint_commands_topic')
+    state_topic = _attr(joint_states_topic, 'joint_states_topic')
+    effort = _finite('max_effort', max_effort)
+    velocity = _finite('max_velocity', max_velocity)
+    limited = lower is not None and upper is not None and math.isfinite(lower) and \
+        math.isfinite(upper)
+    if limited:
+        assert lower is not None and upper is not None
+        if not lower < upper:
+            raise ParameterError(f'position limits need lower < upper, got {lower} and {upper}')
     m, l = params.m, params.l  # noqa: E741 - the paper's symbol
-    i_com = max(params.inertia - m * l * l, 0.0)
+    i_com = com_inertia(params)
     rod = 0.01 * max(l, 0.1)
     bob = 0.05 * max(l, 0.1)
+
+    if limited:
+        joint_type = 'revolute'
+        limit = (f'<limit lower="{_num(lower)}" upper="{_num(upper)}" '  # type: ignore[arg-type]
+                 f'effort="{_num(effort)}" velocity="{_num(velocity)}"/>')
+    else:
+        joint_type = 'continuous'
+        limit = f'<limit effort="{_num(effort)}" velocity="{_num(velocity)}"/>'
+    if params.n == 1.0:
+        damping = params.gamma * params.inertia
+        dynamics = (f'<!-- Viscous damping (n = 1): gamma I = {_num(params.gamma)} * '
+                    f'{_num(params.inertia)} N m s/rad. -->\n'
+                    f'    <dynamics damping="{_num(damping)}" friction="0.0"/>')
+    else:
+        dynamics = (f'<!-- No <dynamics>: the damping torque gamma I |dphi|^n sgn(dphi) with '
+                    f'gamma = {_num(params.gamma)}, n = {_num(params.n)} has no URDF '
+                    'equivalent (URDF damping is viscous, n = 1). -->')
+
+    limits_params = {
+        'effort': (-effort, effort),
+        'velocity': (-velocity, velocity),
+        'position': (lower, upper) if limited else (None, None),
+    }[command_interface]
+    cmd_params = ''.join(
+        f'\n        <param name="{key}">{_num(value)}</param>'
+        for key, value in zip(('min', 'max'), limits_params, strict=True) if value is not None)
+    cmd_close = '\n      </command_interface>' if cmd_params else ''
+    cmd_open = f'<command_interface name="{command_interface}"' + ('>' if cmd_params else '/>')
+
     return f"""<?xml version="1.0"?>
-<!-- Generated by pendulum_sim.node.urdf from m = {m:g} kg, l = {l:g} m, I = {params.inertia:g} \
-kg m^2. -->
+<!-- Generated by pendulum_sim.node.urdf from m = {_num(m)} kg, l = {_num(l)} m, \
+I = {_num(params.inertia)} kg m^2, gamma = {_num(params.gamma)}, n = {_num(params.n)}. -->
 <robot name="pendulum">
   <link name="base_link"/>
-  <joint name="{joint_name}" type="continuous">
+  <joint name="{name}" type="{joint_type}">
     <parent link="base_link"/>
     <child link="pendulum_link"/>
     <origin xyz="0 0 0" rpy="0 0 0"/>
     <axis xyz="0 1 0"/>
+    {limit}
+    {dynamics}
   </joint>
   <link name="pendulum_link">
     <inertial>
-      <origin xyz="0 0 {-l:g}" rpy="0 0 0"/>
-      <mass value="{m:g}"/>
-      <inertia ixx="{i_com:g}" ixy="0" ixz="0" iyy="{i_com:g}" iyz="0" izz="0"/>
+      <!-- Centre of mass l below the pivot; about it I - m l^2 in every direction, so the
+           inertia about the joint axis is I. -->
+      <origin xyz="0 0 {_num(-l)}" rpy="0 0 0"/>
+      <mass value="{_num(m)}"/>
+      <inertia ixx="{_num(i_com)}" ixy="0.0" ixz="0.0" iyy="{_num(i_com)}" iyz="0.0" \
+izz="{_num(i_com)}"/>
     </inertial>
     <visual>
-      <origin xyz="0 0 {-l / 2:g}" rpy="0 0 0"/>
-      <geometry><cylinder radius="{rod:g}" length="{l:g}"/></geometry>
+      <origin xyz="0 0 {_num(-l / 2)}" rpy="0 0 0"/>
+      <geometry><cylinder radius="{_num(rod)}" length="{_num(l)}"/></geometry>
     </visual>
     <visual>
-      <origin xyz="0 0 {-l:g}" rpy="0 0 0"/>
-      <geometry><sphere radius="{bob:g}"/></geometry>
+      <origin xyz="0 0 {_num(-l)}" rpy="0 0 0"/>
+      <geometry><sphere radius="{_num(bob)}"/></geometry>
     </visual>
   </link>
+  <!-- ros2_control through topic_based_ros2_control
+       (github.com/PickNikRobotics/topic_based_ros2_control, doc/user.md): it publishes
+       sensor_msgs/JointState commands on joint_commands_topic and reads joint_states_topic.
+       trigger_joint_command_threshold -1 sends every command (its default skips commands
+       whose position equals the measured one, which drops effort and velocity commands). -->
+  <ros2_control name="pendulum" type="system">
+    <hardware>
+      <plugin>{PLUGIN}</plugin>
+      <param name="joint_commands_topic">{cmd_topic}</param>
+      <param name="joint_states_topic">{state_topic}</param>
+      <param name="trigger_joint_command_threshold">-1</param>
+    </hardware>
+    <joint name="{name}">
+      {cmd_open}{cmd_params}{cmd_close}
+      <state_interface name="position"/>
+      <state_interface name="velocity"/>
+      <state_interface name="effort"/>
+    </joint>
+  </ros2_control>
 </robot>
 """
 
 
+def urdf_from_values(values: Mapping[str, object]) -> str:
+    """Return the URDF of a node parameter set (names as the node declares them).
+
+    Missing names take the declared defaults (``pendulum_sim.node.parameters.SPECS``).
+    """
+    from .parameters import SPEC_BY_NAME
+
+    full: dict[str, object] = {name: spec.default for name, spec in SPEC_BY_NAME.items()}
+    full.update(values)
+
+    def num(name: str) -> float:
+        return float(full[name])  # type: ignore[arg-type]
+
+    params = PendulumParams(**{k: num(k) for k in ('m', 'l', 'inertia', 'g', 'gamma', 'n')})
+    lower = num('position_min') if 'position_min' in full else None
+    upper = num('position_max') if 'position_max' in full else None
+    return pendulum_urdf(params, str(full['joint_name']), max_effort=num('max_effort'),
+                         max_velocity=num('max_velocity') if 'max_velocity' in full else 100.0,
+                         lower=lower, upper=upper,
+                         command_interface=str(full.get('command_interface', 'effort')))
+
+
+def default_urdf() -> str:
+    """Return the URDF of the default scene (what ``urdf/pendulum.urdf`` holds)."""
+    from .scenes import find_scene, read_params_file
+
+    return urdf_from_values(read_params_file(find_scene('default')))
+
+
 if __name__ == '__main__':  # regenerate urdf/pendulum.urdf: python -m pendulum_sim.node.urdf
-    print(pendulum_urdf(PendulumParams()), end='')
+    print(default_urdf(), end='')
