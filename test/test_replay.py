@@ -165,8 +165,9 @@ def test_unknown_types_are_skipped_and_the_rest_replayed(tmp_path: Path) -> None
     result = run_replay(str(path), '--rate', '100')
     assert result.returncode == 0
     assert result.stderr.splitlines()[0] == (
-        'pendulum_replay: warning: skipping /bar: unknown message type foo_msgs/msg/Bar: no Bar '
-        'in a Python module foo_msgs.msg')
+        "pendulum_replay: warning: skipping /bar: message type 'foo_msgs/msg/Bar' is refused: "
+        'foo_msgs is not one of the allowed interface packages (std_msgs, sensor_msgs, ...: '
+        'pendulum_sim.recording.schemas.INTERFACE_PACKAGES)')
     assert final_count(result.stderr) == '20/20'
 
 

@@ -9,12 +9,13 @@ channels of unknown types or encodings are left out, each with a warning on stde
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Final, TextIO
 
 import rclpy
 import yaml
@@ -31,24 +32,28 @@ _PROGRESS_PERIOD = 0.1   # s between progress-line updates
 _MAX_SLEEP = 0.05        # s; sleep in slices to publish /clock and update the progress line
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f'must be > 0, got {text}')
-    return value
+MAX_SECONDS: Final = 9.2e9      # s; a time offset in int64 nanoseconds stays below 2**63
+MAX_RATE: Final = 1e6
+MAX_CLOCK_HZ: Final = 1e4
+MAX_WAIT: Final = 86400.0       # s
 
 
-def _non_negative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f'must be >= 0, got {text}')
-    return value
+def _number(low: float, high: float, low_allowed: bool) -> Callable[[str], float]:
+    """Return an argparse type: a finite number in ``[low, high]`` (``(low, high]``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f'must be a finite number, got {text}')
+        if not (value >= low if low_allowed else value > low):
+            raise argparse.ArgumentTypeError(f'must be {">=" if low_allowed else ">"} '
+                                             f'{low:g}, got {text}')
+        if value > high:
+            raise argparse.ArgumentTypeError(f'must be <= {high:g}, got {text}')
+        return value
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -56,19 +61,20 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description='Republish an MCAP recording with its recorded timing.')
     parser.add_argument('file', type=Path, help='the .mcap recording')
-    parser.add_argument('--rate', type=_positive, default=1.0,
+    parser.add_argument('--rate', type=_number(0, MAX_RATE, False), default=1.0,
                         help='playback speed factor (default 1.0)')
     parser.add_argument('--loop', action='store_true', help='replay again and again')
     parser.add_argument('--topics', nargs='+', metavar='T', default=None,
                         help='replay only these topics')
-    parser.add_argument('--start', type=_non_negative, default=0.0, metavar='S',
+    parser.add_argument('--start', type=_number(0, MAX_SECONDS, True), default=0.0, metavar='S',
                         help='start S seconds after the first message')
-    parser.add_argument('--end', type=_positive, default=None, metavar='S',
+    parser.add_argument('--end', type=_number(0, MAX_SECONDS, False), default=None, metavar='S',
                         help='stop S seconds after the first message')
-    parser.add_argument('--clock', type=_positive, nargs='?', const=100.0, default=None,
+    parser.add_argument('--clock', type=_number(0, MAX_CLOCK_HZ, False), nargs='?', const=100.0,
+                        default=None,
                         metavar='HZ', help='publish /clock with the recorded time at HZ '
                         '(default 100 Hz when given without a value)')
-    parser.add_argument('--wait-for-subscribers', type=_non_negative, default=0.0,
+    parser.add_argument('--wait-for-subscribers', type=_number(0, MAX_WAIT, True), default=0.0,
                         metavar='S', help='wait up to S seconds until every replayed topic '
                         'has a subscriber')
     return parser

@@ -19,7 +19,7 @@ import re
 import sys
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 from pendulum_sim.recording.errors import RecorderError
 
@@ -123,13 +123,58 @@ def type_hash(type_name: str) -> str:
     raise RecorderError(f'no type hash for {full_name} in its type description')
 
 
+# Type names read from a file are untrusted: only a message of an interface package listed here,
+# named exactly ``pkg/msg/Type`` and installed (its ``.msg`` file is in a share directory), is
+# ever imported. The packages are the ROS 2 common interfaces and the core rcl ones.
+INTERFACE_PACKAGES: Final = frozenset({
+    'action_msgs', 'actionlib_msgs', 'builtin_interfaces', 'control_msgs', 'diagnostic_msgs',
+    'geometry_msgs', 'lifecycle_msgs', 'nav_msgs', 'rcl_interfaces', 'rosgraph_msgs',
+    'sensor_msgs', 'service_msgs', 'shape_msgs', 'statistics_msgs', 'std_msgs', 'stereo_msgs',
+    'tf2_msgs', 'trajectory_msgs', 'type_description_interfaces', 'unique_identifier_msgs',
+    'visualization_msgs',
+})
+_MESSAGE_TYPE = re.compile(r'([a-z][a-z0-9_]*)/msg/([A-Z][A-Za-z0-9]*)')
+
+
+def check_message_type(type_name: str) -> tuple[str, str]:
+    """Return ``(package, Type)`` of a message type a file names, if it may be imported.
+
+    Raises
+    ------
+    RecorderError
+        The name is not exactly ``pkg/msg/Type``, the package is not in
+        :data:`INTERFACE_PACKAGES`, or the message is not installed.
+    """
+    match = _MESSAGE_TYPE.fullmatch(type_name)
+    if match is None:
+        raise RecorderError(f'message type {type_name!r} is refused: it is not a name of the '
+                            f"form 'pkg/msg/Type'")
+    package, name = match.groups()
+    if package not in INTERFACE_PACKAGES:
+        raise RecorderError(f'message type {type_name!r} is refused: {package} is not one of '
+                            f'the allowed interface packages (std_msgs, sensor_msgs, ...: '
+                            f'pendulum_sim.recording.schemas.INTERFACE_PACKAGES)')
+    try:
+        interface_file(type_name, '.msg')
+    except RecorderError as exc:
+        raise RecorderError(f'unknown message type {type_name}: {exc}') from None
+    return package, name
+
+
 @functools.cache
 def message_class(type_name: str) -> type:
-    """Import and return the generated Python class of a message type."""
-    package, namespace, name = split_type_name(type_name)
+    """Import and return the generated Python class of a message type a file names.
+
+    Only what :func:`check_message_type` allows is imported.
+    """
+    package, name = check_message_type(type_name)
     try:
-        module = importlib.import_module(f'{package}.{namespace}')
-        return getattr(module, name)  # type: ignore[no-any-return]
+        module = importlib.import_module(f'{package}.msg')
+        cls = getattr(module, name)
     except (ImportError, AttributeError) as exc:
-        raise RecorderError(f'unknown message type {type_name}: no {name} in a Python module '
-                            f'{package}.{namespace}') from exc
+        raise RecorderError(f'unknown message type {type_name}: no {name} in the Python module '
+                            f'{package}.msg') from exc
+    if not (isinstance(cls, type) and hasattr(cls, 'get_fields_and_field_types')):
+        raise RecorderError(f'unknown message type {type_name}: {package}.msg.{name} is not a '
+                            f'generated message class')
+    return cls

@@ -15,9 +15,12 @@ further writes are dropped, and the chunks already written stay readable.
 """
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import os
+import secrets
+import stat
 import subprocess
 import sys
 import threading
@@ -41,6 +44,8 @@ LIBRARY: Final = f'pendulum_sim {__version__}; mcap-python {mcap.__version__}'
 PIPE_SIZE: Final = 1 << 20          # bytes the pipe holds while the writer is busy
 MAX_BACKLOG: Final = 64 << 20       # bytes kept here beyond that before giving up
 _F_SETPIPE_SZ: Final = getattr(fcntl, 'F_SETPIPE_SZ', 1031)
+_CREATE: Final = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+_NAME_TRIES: Final = 16
 
 
 @dataclass(frozen=True)
@@ -49,8 +54,19 @@ class _Channel:
     spec: dict[str, Any]
 
 
-def _timestamped_name() -> str:
-    return time.strftime('pendulum_sim_%Y_%m_%d-%H_%M_%S')
+def generated_name() -> str:
+    """Return a recording name unique to this process: date-time, process id, random letters.
+
+    Two processes recording into one folder in the same second get different names (their
+    process ids differ), and so does one process recording twice (the random part); the file is
+    then created exclusively all the same, so a clash can never make two writers share a file.
+    """
+    stamp = time.strftime('%Y_%m_%d-%H_%M_%S')
+    return f'pendulum_sim_{stamp}_{os.getpid()}_{secrets.token_hex(3)}.mcap'
+
+
+def _reason(exc: OSError) -> str:
+    return exc.strerror or str(exc)
 
 
 class McapRecorder:
@@ -59,9 +75,12 @@ class McapRecorder:
     Parameters
     ----------
     path
-        A ``.mcap`` file, or an existing folder in which a timestamped file is created.
+        A ``.mcap`` file, or an existing folder in which a file named by
+        :func:`generated_name` (unique to the process) is created.
     overwrite
-        Replace an existing file; without it an existing recording is never touched.
+        Replace an existing file; without it an existing recording is never touched. Files are
+        always created exclusively, never through a symbolic link, and a recording another
+        recorder is writing is never replaced (see :meth:`_create_file`).
     metadata
         Metadata records to write at the start, ``{record name: {key: value}}`` (strings).
     chunk_interval
@@ -78,15 +97,21 @@ class McapRecorder:
                  chunk_interval: float = 0.25, chunk_size: int = 1024 * 1024,
                  compression: str = 'zstd') -> None:
         requested = Path(path)
-        if requested.suffix == '.mcap':
-            self._folder = False
-            self._path = requested
-        elif requested.is_dir():
-            self._folder = True
-            self._path = requested / f'{_timestamped_name()}.mcap'
+        self._folder = requested.suffix != '.mcap'
+        if self._folder:
+            try:
+                is_folder = stat.S_ISDIR(os.stat(requested).st_mode)
+            except (FileNotFoundError, NotADirectoryError):
+                is_folder = False
+            except OSError as exc:
+                raise RecorderError(f'cannot use recording folder {requested}: '
+                                    f'{_reason(exc)}') from exc
+            if not is_folder:
+                raise RecorderError(f"recording path must be a '.mcap' file or an existing "
+                                    f"folder, got '{path}'")
+            self._path = requested / generated_name()
         else:
-            raise RecorderError(
-                f"recording path must be a '.mcap' file or an existing folder, got '{path}'")
+            self._path = requested
         metadata = dict(metadata or {})
         for name, record in metadata.items():
             for key, value in record.items():
@@ -157,25 +182,79 @@ class McapRecorder:
         self.close()
 
     def _create_file(self) -> int:
-        flags = os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC | (
-            os.O_TRUNC if self._overwrite else os.O_EXCL)
-        for attempt in range(100):
+        """Create the recording file exclusively and lock it; return its descriptor.
+
+        The file is always created with ``O_CREAT | O_EXCL | O_NOFOLLOW``: never through a
+        symbolic link, never a file some other writer has open. In a folder a name that exists
+        already (practically impossible, see :func:`generated_name`) is replaced by a new one.
+        Replacing a recording (``overwrite``) creates the new file under a temporary name and
+        renames it over the old one, which replaces a link itself, never its target; a recording
+        another recorder still writes (it holds the ``flock`` every recorder takes) is refused.
+        """
+        if self._folder:
+            for _ in range(_NAME_TRIES):
+                try:
+                    return self._create_exclusively(self._path)
+                except FileExistsError:
+                    self._path = self._path.with_name(generated_name())
+            raise RecorderError(f'cannot create a recording in {self._path.parent}: '
+                                f'{_NAME_TRIES} generated names exist already')
+        try:
+            if self._overwrite:
+                return self._replace()
+            return self._create_exclusively(self._path)
+        except FileExistsError:
+            if self._path.is_symlink():
+                raise RecorderError(f'recording {self._path} is a symbolic link; a recording is '
+                                    f'never written through one') from None
+            raise RecorderError(f'recording {self._path} already exists; pass '
+                                f'overwrite=True to replace it') from None
+
+    def _create_exclusively(self, path: Path) -> int:
+        try:
+            fd = os.open(path, _CREATE, 0o644)
+        except FileExistsError:
+            raise
+        except IsADirectoryError:
+            raise RecorderError(f'cannot create recording {path}: it is a folder') from None
+        except OSError as exc:
+            raise RecorderError(f'cannot create recording {path}: {_reason(exc)}') from exc
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)   # a new file: nobody else holds it
+        return fd
+
+    def _replace(self) -> int:
+        path = self._path
+        try:
+            old = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+        except FileNotFoundError:
+            return self._create_exclusively(path)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise RecorderError(f'cannot replace recording {path}: it is a symbolic link; '
+                                    f'a recording is never written through one') from None
+            raise RecorderError(f'cannot replace recording {path}: {_reason(exc)}') from exc
+        try:
+            if stat.S_ISDIR(os.fstat(old).st_mode):
+                raise RecorderError(f'cannot create recording {path}: it is a folder')
+            if not stat.S_ISREG(os.fstat(old).st_mode):
+                raise RecorderError(f'cannot replace recording {path}: it is not a regular file')
             try:
-                return os.open(self._path, flags, 0o644)
-            except FileExistsError:
-                if not self._folder:
-                    raise RecorderError(f'recording {self._path} already exists; pass '
-                                        f'overwrite=True to replace it') from None
-                stem = self._path.stem.split('.')[0]
-                self._path = self._path.with_name(f'{stem}.{attempt + 1}.mcap')
-            except IsADirectoryError:
-                raise RecorderError(f'cannot create recording {self._path}: it is a '
-                                    f'folder') from None
+                fcntl.flock(old, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise RecorderError(f'cannot replace recording {path}: another recorder is '
+                                    f'writing it') from None
+            temporary = path.with_name(f'.{path.name}.{os.getpid()}.{secrets.token_hex(4)}')
+            fd = self._create_exclusively(temporary)
+            try:
+                os.rename(temporary, path)
             except OSError as exc:
-                raise RecorderError(f'cannot create recording {self._path}: '
-                                    f'{exc.strerror}') from exc
-        raise RecorderError(f'cannot create recording in {self._path.parent}: too many '
-                            f'recordings named {self._path.stem}')
+                os.close(fd)
+                os.unlink(temporary)
+                raise RecorderError(f'cannot replace recording {path}: '
+                                    f'{_reason(exc)}') from exc
+            return fd
+        finally:
+            os.close(old)
 
     def open(self) -> McapRecorder:
         """Create the file, start the writer process and have it write header and metadata."""
@@ -186,6 +265,9 @@ class McapRecorder:
             process = subprocess.Popen(
                 [sys.executable, '-m', 'pendulum_sim.recording.sink', str(fd)],
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, pass_fds=(fd,), bufsize=0)
+        except OSError as exc:
+            raise RecorderError(f'cannot start the writer process of recording {self._path}: '
+                                f'{_reason(exc)}') from exc
         finally:
             os.close(fd)
         assert process.stdin is not None and process.stdout is not None
