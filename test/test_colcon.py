@@ -51,9 +51,10 @@ def test_executable_resolves_like_ros2_run(workspace: Path,
     monkeypatch.setenv('AMENT_PREFIX_PATH', str(install))
     prefix = Path(get_package_prefix('pendulum_sim'))
     assert prefix == install
-    exe = prefix / 'lib' / 'pendulum_sim' / 'pendulum_node'
-    assert exe.is_file()
-    assert os.access(exe, os.X_OK)
+    for name in ('pendulum_node', 'pendulum_pd_controller'):
+        exe = prefix / 'lib' / 'pendulum_sim' / name
+        assert exe.is_file(), name
+        assert os.access(exe, os.X_OK), name
     share = Path(get_package_share_directory('pendulum_sim'))
     assert (share / 'package.xml').read_text() == (REPO / 'package.xml').read_text()
     installed = sorted(p.name for p in (share / 'config').glob('*.yaml'))
@@ -72,6 +73,13 @@ def test_installed_node_finds_installed_scenes(workspace: Path) -> None:
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == sorted(p.stem for p in (REPO / 'config').glob('*.yaml'))
+    assert 'controller_test' in result.stdout.split()
+    # The example controller runs from the workspace too (its help needs no DDS).
+    ctl = prefix / 'lib' / 'pendulum_sim' / 'pendulum_pd_controller'
+    result = subprocess.run([str(ctl), '--help'], env=env, cwd=workspace,
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith('usage: pendulum_pd_controller')
     probe = ('import pendulum_sim.node.scenes as s; print(s.__file__); '
              "print(s.find_scene('paper'))")
     result = subprocess.run([sys.executable, '-c', probe], env=env, cwd=workspace,

@@ -22,7 +22,8 @@ def test_wheel_installs_the_ament_marker_package_xml_scenes_and_executables(
     assert {p.name for p in (ROOT / 'config').glob('*.yaml')} == scenes
     assert 'pendulum_sim/py.typed' in names
     entry = zipfile.ZipFile(wheel).read('pendulum_sim-0.1.0.dist-info/entry_points.txt').decode()
-    for exe in ('pendulum_node', 'pendulum_replay', 'pendulum_report', 'pendulum_demo'):
+    for exe in ('pendulum_node', 'pendulum_replay', 'pendulum_report', 'pendulum_demo',
+                'pendulum_pd_controller'):
         assert f'{exe} = pendulum_sim.' in entry
     # The ROS-free core ships without ROS in its requirements; the Jazzy wheels are an extra.
     meta = zipfile.ZipFile(wheel).read('pendulum_sim-0.1.0.dist-info/METADATA').decode()
