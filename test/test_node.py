@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 import signal
 import time
 import xml.etree.ElementTree as ET
@@ -68,7 +69,7 @@ def assert_clean_exit(node: NodeProcess, sig: int = signal.SIGINT) -> str:
         'wakes', 'wake latency p50/p99/max (us)', 'overruns / missed wakes / slips',
         'guard substeps / fallbacks / reversals', 'guard sticks / energy rejections',
         'energy-balance residual (J)', 'local error estimate (last / max)',
-        'effort commands received / rejected', 'stopped by']
+        'commands received / rejected / dropped', 'stopped by']
     return out
 
 
@@ -202,7 +203,12 @@ def test_effort_timeout_reset() -> None:
         n_before_reset = len(states)
         reset = probe.call(Trigger, f'{node.fqn}/reset', Trigger.Request())
         assert reset.success
-        assert reset.message == 'reset to phi = 0.0 rad, dphi = 0.0 rad/s at t = 0'
+        # Simulated time goes on through a reset (use_sim_time users never see it go back).
+        said = re.fullmatch(r'reset to phi = 0\.0 rad, dphi = 0\.0 rad/s at t = ([0-9.]+) s '
+                            r'\(simulated time goes on\)', reset.message)
+        assert said is not None, reset.message
+        reset_k = round(float(said.group(1)) / 1e-3)
+        assert reset_k >= k_before_reset
         probe.spin_until(lambda: len(states) >= n_before_reset + 20, 10.0,
                          'joint_states after reset')
         assert_clean_exit(node)
@@ -235,12 +241,11 @@ def test_effort_timeout_reset() -> None:
     assert report['command_timeouts'] == '1'
     # Energy balance (eq 26 with input) held through it all, to round-off.
     assert abs(float(report['energy_residual'])) < 1e-9
-    # After the reset: simulated time restarts at 0, at rest at the bottom again.
-    later = states.msgs[n_before_reset:]
-    restart = next(i for i, m in enumerate(later) if steps_of(m) < k_before_reset)
-    after = later[restart:]
+    # After the reset: at rest at the bottom again, while simulated time goes on.
+    later = [steps_of(m) for m in states.msgs[n_before_reset:]]
+    assert later == sorted(later) and later[0] > k_before_reset
+    after = [m for m in states.msgs[n_before_reset:] if steps_of(m) > reset_k]
     assert len(after) >= 10
-    assert all(steps_of(m) < k_before_reset for m in after)
     assert all(list(m.position) == [0.0] and list(m.velocity) == [0.0] for m in after)
 
 
@@ -348,9 +353,10 @@ def test_minimal_scene_graph() -> None:
         f = full.namespace
         assert names('publisher', f) >= {f'{f}/joint_states', f'{f}/energy',
                                          f'{f}/robot_description', '/diagnostics'}
-        assert names('subscriber', f) == {f'{f}/effort_command'}
+        assert names('subscriber', f) == {f'{f}/effort_command',
+                                          f'{f}/pendulum_node/step_periods'}
         assert names('service', f) - {s.replace(m, f) for s in always_services} == {
-            f'{f}/pendulum_node/reset', f'{f}/pendulum_node/pause'}
+            f'{f}/pendulum_node/reset', f'{f}/pendulum_node/pause', f'{f}/pendulum_node/step'}
         # The URDF is latched: a subscriber that joins late still gets it.
         latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -14,3 +14,7 @@ class SceneError(NodeError):
 
 class ParameterError(NodeError, ValueError):
     """A node parameter has a value the node cannot use."""
+
+
+class JointError(NodeError, ValueError):
+    """The simulated joint cannot take a configuration or state (the reason says why)."""

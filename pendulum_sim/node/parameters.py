@@ -17,6 +17,9 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from pendulum_sim.core import METHODS, ModelError, PendulumParams
 from pendulum_sim.core.model import validate_state
 
+from .errors import JointError
+from .joint import INTERFACES, JointConfig, check_config
+
 Value = bool | int | float | str
 
 FIXED = 'Read-only: fixed when the node starts (restart the node to change it).'
@@ -78,6 +81,20 @@ SPECS: tuple[Spec, ...] = (
          'as fast as possible. Live.', low=0.0, high=10000.0),
     Spec('lockstep', False, 'Lockstep mode: publish /clock, step as fast as possible (or at '
          'real_time_factor) and stamp from simulated time. ' + SWITCH, read_only=True),
+    Spec('synchronous', False, 'Synchronous lockstep (needs lockstep): each control period '
+         '(1/publish_rate of simulated time) publish /clock and joint_states, wait for the '
+         "controller's command answering that state, apply it for the next period. " + SWITCH,
+         read_only=True),
+    Spec('sync_timeout', 1.0, 'Synchronous mode: wall-clock seconds to wait for the command '
+         'answering a state before sync_timeout_action. Live.', low=0.001, high=3600.0),
+    Spec('sync_timeout_action', 'hold', "Synchronous mode, when no command came within "
+         "sync_timeout: 'hold' keeps the last command for the next period (counted), 'stop' "
+         'pauses the simulation (resume with ~/pause or ~/step). Live.',
+         constraints='one of: hold, stop'),
+    Spec('start_paused', False, 'Start paused: nothing is stepped or published until ~/step or '
+         '~/pause false.', read_only=True),
+    Spec('publish_clock', True, 'In lockstep, publish /clock (switch off when another joint or '
+         'simulator owns the clock). ' + SWITCH, read_only=True),
     Spec('start_time', -1.0, 'Epoch in s (since 1970) that simulated time 0 is stamped as; < 0 '
          'means the wall clock when the simulation starts (0 in lockstep).', read_only=True,
          low=-1.0, high=1e10),
@@ -86,8 +103,26 @@ SPECS: tuple[Spec, ...] = (
     # Effort input.
     Spec('max_effort', 10.0, 'Commanded torques are saturated at +-max_effort N m. Live.',
          low=0.0, high=1e6),
-    Spec('command_timeout', 0.5, 'Simulated seconds after the last effort command at which the '
-         'torque drops to 0 (0 holds the last command). Live.', low=0.0, high=3600.0),
+    Spec('command_timeout', 0.5, 'Simulated seconds after the last command at which it returns '
+         'to its safe value: no torque (effort), no speed (velocity), the same target '
+         '(position). Rounded to steps of h, at least one step; 0 holds the last command for '
+         'ever. Live.', low=0.0, high=3600.0),
+    Spec('command_delay', 0.0, 'Transport delay of commands in simulated seconds, rounded to '
+         'steps of h. Live.', low=0.0, high=1.0),
+    Spec('command_interface', 'effort', "What commands set: 'effort' (N m), 'velocity' (rad/s) "
+         "or 'position' (rad), the latter two tracked by a joint servo whose torque is "
+         'saturated at max_effort.', read_only=True,
+         constraints='one of: ' + ', '.join(INTERFACES)),
+    Spec('max_velocity', 100.0, 'Velocity limit in rad/s: velocity commands are limited to it '
+         'and no torque drives the joint faster. Live.', low=0.0, high=1e6),
+    Spec('position_min', -math.inf, 'Lower position limit of position commands, rad (-.inf = '
+         'none). Live.'),
+    Spec('position_max', math.inf, 'Upper position limit of position commands, rad (.inf = '
+         'none). Live.'),
+    Spec('servo.position_p', 20.0, 'Position servo stiffness, N m/rad. Live.', low=0.0,
+         high=1e6),
+    Spec('servo.position_d', 2.0, 'Position servo damping, N m s/rad. Live.', low=0.0, high=1e6),
+    Spec('servo.velocity_p', 2.0, 'Velocity servo gain, N m s/rad. Live.', low=0.0, high=1e6),
     # Sensor realism.
     Spec('sensor.position_noise', 0.0, 'Standard deviation of Gaussian noise on the published '
          'angle, rad. Live.', low=0.0, high=10.0),
@@ -95,16 +130,24 @@ SPECS: tuple[Spec, ...] = (
          'velocity, rad/s. Live.', low=0.0, high=100.0),
     Spec('sensor.resolution', 0.0, 'Encoder resolution in rad per count (0 = exact). Live.',
          low=0.0, high=1.0),
-    Spec('sensor.delay', 0.0, 'Publish delay of joint_states in s (wall clock). Live.',
-         low=0.0, high=1.0),
+    Spec('sensor.delay', 0.0, 'Delay of the joint_states measurement in simulated seconds, '
+         'rounded to steps of h: the state of round(delay/h) steps ago, stamped when it was '
+         'measured. Live.', low=0.0, high=1.0),
     Spec('sensor.seed', 0, 'Seed of the sensor noise.', read_only=True, low=0, high=2**31 - 1),
     # Feature switches.
     Spec('publish_energy', True, 'Publish the energy (J, true state) on energy. ' + SWITCH,
          read_only=True),
     Spec('publish_energy_terms', False, 'Publish energy_terms/{kinetic,potential,'
          'dissipated_power,residual}. ' + SWITCH, read_only=True),
-    Spec('effort_input', True, 'Subscribe to effort_command (N m). ' + SWITCH, read_only=True),
-    Spec('services', True, 'Offer ~/reset and ~/pause. ' + SWITCH, read_only=True),
+    Spec('effort_input', True, 'Subscribe to effort_command (std_msgs/Float64, N m; effort '
+         'interface only). ' + SWITCH, read_only=True),
+    Spec('joint_commands_input', False, 'Subscribe to joint_commands (sensor_msgs/JointState '
+         'matched by joint name, the field of command_interface; topic_based_ros2_control). '
+         + SWITCH, read_only=True),
+    Spec('array_command_input', False, 'Subscribe to commands (std_msgs/Float64MultiArray of '
+         'length 1; forward_command_controller). ' + SWITCH, read_only=True),
+    Spec('services', True, 'Offer ~/reset, ~/pause, ~/step and ~/step_periods. ' + SWITCH,
+         read_only=True),
     Spec('diagnostics', True, 'Publish /diagnostics about once a second. ' + SWITCH,
          read_only=True),
     Spec('publish_robot_description', False, 'Publish the URDF on robot_description '
@@ -146,7 +189,28 @@ def check(values: Mapping[str, Value]) -> str | None:
     rtf = float(values['real_time_factor'])
     if rtf == 0.0 and not values['lockstep']:
         return 'real_time_factor must be > 0 unless lockstep is true, got 0.0'
+    if values['synchronous'] and not values['lockstep']:
+        return 'synchronous needs lockstep: true'
+    if values['sync_timeout_action'] not in ('hold', 'stop'):
+        action = values['sync_timeout_action']
+        return f"sync_timeout_action must be one of hold, stop, got '{action}'"
+    if values['effort_input'] and values['command_interface'] != 'effort':
+        return (f"effort_input takes N m on effort_command; with command_interface "
+                f"'{values['command_interface']}' switch it off and use joint_commands_input or "
+                'array_command_input')
+    for name in ('position_min', 'position_max'):
+        if math.isnan(float(values[name])):
+            return f'{name} must be a number or an infinity, got nan'
+    try:
+        check_config(joint_config(values))
+    except (JointError, ModelError) as exc:
+        return str(exc)
     return None
+
+
+def joint_config(values: Mapping[str, Value], epoch_ns: int = 0) -> JointConfig:
+    """Return the simulated joint's config of a parameter set (raises JointError)."""
+    return JointConfig.from_values(values, physics(values), epoch_ns)
 
 
 def merged(current: Mapping[str, Value], changes: Iterable[tuple[str, Value]]) -> dict[str, Value]:

@@ -1,11 +1,17 @@
-"""``pendulum_node``: the core's pendulum served as a real-time simulated joint.
+"""``pendulum_node``: the core's pendulum served as a simulated ROS 2 joint.
 
-The node is a thin adapter: a :class:`~pendulum_sim.core.Stepper` does the physics; the node
-decides when to step (``realtime.py``), what a sensor would report (``sensors.py``) and fills
-messages. Run it as::
+The node is a thin adapter. A :class:`~pendulum_sim.node.joint.SimulatedJoint` (no ROS) holds
+everything between two publications: command hold, limits, delays, sensor, stamps, energy. The
+node declares parameters, decides *when* the joint advances, and publishes what it returns:
 
-    pendulum_node --scene default
-    pendulum_node --ros-args --params-file config/default.yaml
+- real time: a steady-clock timer at ``publish_rate`` steps to an absolute schedule
+  (``realtime.py``);
+- free lockstep (``lockstep: true``): whole control periods as fast as possible (or paced by
+  ``real_time_factor``), ``/clock`` after each;
+- synchronous lockstep (``synchronous: true``): each control period publishes ``/clock`` and
+  ``joint_states``, then waits for the controller's command answering that state.
+
+The command line lives in ``cli.py``.
 """
 from __future__ import annotations
 
@@ -18,22 +24,23 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import ParameterEvent, SetParametersResult
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float64, Float64MultiArray, String, UInt32
 from std_srvs.srv import SetBool, Trigger
 
 from pendulum_sim import __version__
-from pendulum_sim.core import PendulumError, Stepper
+from pendulum_sim.core import PendulumError
 
 from . import diagnostics as diag
-from .errors import ParameterError
-from .parameters import SPEC_BY_NAME, Value, check, declare_all, merged, physics
+from .errors import JointError, ParameterError
+from .joint import SimulatedJoint
+from .parameters import SPEC_BY_NAME, Value, check, declare_all, joint_config, merged
 from .realtime import RateMeter, Schedule, WakeStats
-from .sensors import DelayLine, SensorModel
 from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 from .status import StatusLine, status_text, summary_text
 from .urdf import pendulum_urdf
@@ -43,21 +50,40 @@ from .urdf import pendulum_urdf
 JOINT_STATE_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                              reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.VOLATILE)
+# Commands in real time and free lockstep: a best-effort subscription matches reliable and
+# best-effort publishers alike (forward_command_controller publishes reliable; many
+# teleoperation tools best effort).
+COMMAND_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.BEST_EFFORT,
+                         durability=DurabilityPolicy.VOLATILE)
+# Synchronous mode: every command answers a state, so none may be lost.
+SYNC_COMMAND_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                              reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.VOLATILE)
 # Late joiners (RViz, Foxglove) must still get the URDF: transient local, as
 # robot_state_publisher publishes robot_description (ros/robot_state_publisher, README.md).
 LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Services keep many requests: a burst of 100 concurrent ~/reset calls is answered in full
+# (the rmw default depth of 10 drops the rest).
+SERVICE_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
-# Lockstep as fast as possible: work for this long per wake, then let the executor serve
+# Lockstep and real time: work for at most this long per wake, then let the executor serve
 # commands, parameters and services.
-LOCKSTEP_BUDGET_NS = 10_000_000
+WAKE_BUDGET_NS = 10_000_000
 LOCKSTEP_PERIOD = 1e-3
-LOCKSTEP_CHUNK = 64
+# Steps between looks at the clock.
+CHUNK_STEPS = 256
+# Synchronous mode: how often the watchdog looks for controllers and timeouts.
+SYNC_WATCH_PERIOD = 0.02
 # At most this much simulated time is caught up in one wake; beyond it the schedule slips
 # (counted) instead of freezing the node after a long stall.
 CATCH_UP_SECONDS = 0.25
 ENERGY_TERMS = ('kinetic', 'potential', 'dissipated_power', 'residual')
+RESET_TOPIC_FALLBACK = '/pendulum_sim/reset'
 
 
 def _stamp(ns: int) -> Time:
@@ -65,7 +91,7 @@ def _stamp(ns: int) -> Time:
 
 
 class PendulumNode(Node):
-    """Advance a pendulum in real time (or lockstep) and publish it as a joint."""
+    """Advance a simulated joint in real time, free lockstep or synchronous lockstep."""
 
     def __init__(self, *, status: StatusLine | None = None) -> None:
         super().__init__('pendulum_node')
@@ -75,37 +101,27 @@ class PendulumNode(Node):
             raise ParameterError(reason)
         v = self._values
         self._h = float(v['h'])
-        h_ns = self._h * 1e9
-        # An h of whole nanoseconds keeps every stamp exactly on the grid epoch + k h.
-        self._h_ns_int = round(h_ns) if abs(h_ns - round(h_ns)) < 1e-6 else 0
         self._lockstep = bool(v['lockstep'])
-        self._joint = str(v['joint_name'])
-        self._stepper = Stepper(physics(v), float(v['phi0']), float(v['dphi0']), self._h,
-                                str(v['integrator']), guard=bool(v['guard']))
-        self._guard_before_reset: dict[str, int] = {}
-        self._steps_total = 0
-        self._paused = False
-        self._failed: str | None = None
-
-        # Effort input: a command holds for round(command_timeout / h) steps (simulated time,
-        # counted in steps so the duration is exact), then the torque drops to 0.
-        self._command = 0.0
-        self._command_step = 0
-        self._timeout_steps = round(float(v['command_timeout']) / self._h)
-        self._torque = 0.0
-        self._cmd_received = 0
-        self._cmd_rejected = 0
-        self._cmd_saturated = 0
-        self._cmd_timeouts = 0
-
-        self._sensor = SensorModel(int(v['sensor.seed']), float(v['sensor.position_noise']),
-                                   float(v['sensor.velocity_noise']),
-                                   float(v['sensor.resolution']))
-        self._delay_ns = round(float(v['sensor.delay']) * 1e9)
-        self._delay_line: DelayLine[bytes] = DelayLine()
-
+        self._sync = bool(v['synchronous'])
+        self._joint_name = str(v['joint_name'])
         start_time = float(v['start_time'])
-        self._wall_anchored = start_time < 0.0 and not self._lockstep
+        wall_anchored = start_time < 0.0 and not self._lockstep
+        epoch_ns = time.time_ns() if wall_anchored else round(max(start_time, 0.0) * 1e9)
+        self._joint = SimulatedJoint(joint_config(v, epoch_ns))
+        self._paused = bool(v['start_paused'])
+        self._step_budget = 0          # control periods still to take while paused
+        self._stop_requested = False
+        self._interface = str(v['command_interface'])
+
+        # Synchronous-mode bookkeeping: the step whose state waits for its answer.
+        self._awaiting: int | None = None
+        self._awaiting_since = 0
+        self._answered: float | None = None
+        self._sync_stats = {'answered': 0, 'timeouts': 0, 'late': 0, 'duplicates': 0,
+                            'ahead': 0}
+        self._incompatible: dict[str, int] = {}
+        self._failure_logged = False
+        self._bad_commands: dict[str, int] = {}
 
         # Entities: only what the scene enables.
         self._js_pub = self.create_publisher(JointState, 'joint_states', JOINT_STATE_QOS)
@@ -114,19 +130,29 @@ class PendulumNode(Node):
         self._terms_pubs = ([self.create_publisher(Float64, f'energy_terms/{name}', 10)
                              for name in ENERGY_TERMS] if v['publish_energy_terms'] else [])
         self._clock_pub = (self.create_publisher(ClockMsg, '/clock', 10)
-                           if self._lockstep else None)
+                           if self._lockstep and v['publish_clock'] else None)
         self._diag_pub = (self.create_publisher(DiagnosticArray, '/diagnostics', 10)
                           if v['diagnostics'] else None)
-        self._desc_pub = None
         if v['publish_robot_description']:
             self._desc_pub = self.create_publisher(String, 'robot_description', LATCHED_QOS)
-            self._desc_pub.publish(String(data=pendulum_urdf(self._stepper.params,
-                                                             self._joint)))
-        self._cmd_sub = (self.create_subscription(Float64, 'effort_command', self._on_command,
-                                                  10) if v['effort_input'] else None)
+            self._desc_pub.publish(String(data=self._urdf()))
+        cmd_qos = SYNC_COMMAND_QOS if self._sync else COMMAND_QOS
+        self._cmd_subs: list[Any] = []
+        if v['effort_input']:
+            self._cmd_subs.append(self._subscribe(Float64, 'effort_command', self._on_effort,
+                                                  cmd_qos))
+        if v['joint_commands_input']:
+            self._cmd_subs.append(self._subscribe(JointState, 'joint_commands',
+                                                  self._on_joint_command, cmd_qos))
+        if v['array_command_input']:
+            self._cmd_subs.append(self._subscribe(Float64MultiArray, 'commands',
+                                                  self._on_array_command, cmd_qos))
         if v['services']:
-            self.create_service(Trigger, '~/reset', self._on_reset)
-            self.create_service(SetBool, '~/pause', self._on_pause)
+            self.create_service(Trigger, '~/reset', self._on_reset, qos_profile=SERVICE_QOS)
+            self.create_service(SetBool, '~/pause', self._on_pause, qos_profile=SERVICE_QOS)
+            self.create_service(Trigger, '~/step', self._on_step_one, qos_profile=SERVICE_QOS)
+            self.create_subscription(UInt32, '~/step_periods', self._on_step_periods,
+                                     SYNC_COMMAND_QOS)
         self._recorder: Any = None
         self._recorder_error_logged = False
         if v['recording.path']:
@@ -136,24 +162,29 @@ class PendulumNode(Node):
         # The schedule starts after every entity (and the recorder) exists, so the first wake
         # has no set-up time to catch up.
         now = time.monotonic_ns()
-        self._epoch_ns = time.time_ns() if self._wall_anchored else round(
-            max(start_time, 0.0) * 1e9)
         rate = float(v['publish_rate'])
-        self._k_pub = max(1, round(1.0 / (rate * self._h)))
-        period = LOCKSTEP_PERIOD if self._lockstep else 1.0 / rate
+        if self._sync:
+            period = SYNC_WATCH_PERIOD
+        elif self._lockstep:
+            period = LOCKSTEP_PERIOD
+        else:
+            period = 1.0 / rate
         self._period_ns = round(period * 1e9)
         rtf = float(v['real_time_factor'])
         self._schedule = Schedule(self._h, rtf if rtf > 0.0 else 1.0, now)
         self._asap = self._lockstep and rtf == 0.0
-        self._wakes = WakeStats(0 if self._asap else self._period_ns)
+        self._wakes = WakeStats(0 if (self._asap or self._sync) else self._period_ns)
         self._rate = RateMeter(now)
+        if self._paused:
+            self._rate.pause(now)
         self._cap = max(1, math.ceil(CATCH_UP_SECONDS * max(rtf, 1.0) / self._h))
         self._slips = 0
+        self._behind_logged_ns = 0
         self._next_report_ns = now + DIAGNOSTICS_PERIOD_NS
         self._last_error = math.nan
         self._max_error = 0.0
         self._status = status if v['status_line'] else None
-        self._js_bytes = JointStateBytes(self._joint)
+        self._js_bytes = JointStateBytes(self._joint_name)
         self._clock_bytes = ClockBytes()
         self._float_bytes = Float64Bytes()
         self._js_topic = self._js_pub.topic_name
@@ -161,10 +192,37 @@ class PendulumNode(Node):
         self._timer = self.create_timer(period, self._on_wake, clock=self._steady)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
-        mode = 'lockstep' if self._lockstep else 'real time'
+        mode = ('synchronous lockstep' if self._sync else 'lockstep' if self._lockstep
+                else 'real time')
         self.get_logger().info(
-            f'{mode}: h = {self._h:g} s, {v["integrator"]}, publishing at {rate:g} Hz, '
-            f'real_time_factor = {rtf:g}, joint {self._joint!r}')
+            f'{mode}: h = {self._h:g} s, {v["integrator"]}, control period '
+            f'{self._joint.config.period_steps} steps ({rate:g} Hz), real_time_factor = {rtf:g}, '
+            f'{self._interface} commands, joint {self._joint_name!r}'
+            + (', paused (~/step or ~/pause false to go on)' if self._paused else ''))
+
+    @property
+    def stop_requested(self) -> bool:
+        """Return True once a signal arrived inside a callback (the main loop then ends)."""
+        return self._stop_requested
+
+    def _urdf(self) -> str:
+        return pendulum_urdf(self._joint.config.params, self._joint_name)
+
+    def _subscribe(self, msg_type: Any, topic: str, callback: Any, qos: QoSProfile) -> Any:
+        """Create a command subscription that says when a publisher cannot connect."""
+        def incompatible(event: Any) -> None:
+            count = self._incompatible.get(topic, 0) + 1
+            self._incompatible[topic] = count
+            if count == 1 or count % 100 == 0:
+                need = ('reliable (synchronous mode loses no command)' if self._sync
+                        else 'a compatible QoS')
+                self.get_logger().warning(
+                    f'a publisher on {topic} cannot connect: its QoS is incompatible '
+                    f'({event.last_policy_kind}); publish {need} ({count} so far)')
+
+        events = SubscriptionEventCallbacks(incompatible_qos=incompatible)
+        return self.create_subscription(msg_type, topic, callback, qos,
+                                        event_callbacks=events)
 
     # ------------------------------------------------------------------ recording
     def _open_recorder(self, path: str, overwrite: bool) -> None:
@@ -180,8 +238,8 @@ class PendulumNode(Node):
         rec.add_channel(self._js_pub.topic_name, JointState, JOINT_STATE_QOS)
         if self._energy_pub is not None:
             rec.add_channel(self._energy_pub.topic_name, Float64, 10)
-        if self._cmd_sub is not None:
-            rec.add_channel(self._cmd_sub.topic_name, Float64, 10)
+        for sub in self._cmd_subs:
+            rec.add_channel(sub.topic_name, sub.msg_type, 10)
         if self._diag_pub is not None:
             rec.add_channel(self._diag_pub.topic_name, DiagnosticArray, 10)
         rec.add_channel('/parameter_events', ParameterEvent, 10)
@@ -207,199 +265,391 @@ class PendulumNode(Node):
             self.get_logger().error(f'recording failed, simulation continues: {exc}')
 
     # ------------------------------------------------------------------ time
-    def _stamp_ns(self) -> int:
-        steps = self._stepper.steps
-        if self._h_ns_int:
-            return self._epoch_ns + steps * self._h_ns_int
-        return self._epoch_ns + round(steps * self._h * 1e9)
-
     def _on_wake(self) -> None:
         try:
             self._wake()
+        except KeyboardInterrupt:
+            # Ctrl-C landed inside this callback: end the main loop, no traceback.
+            self._stop_requested = True
         except Exception:
-            # Ctrl-C or SIGTERM shut the context down in the middle of this wake (rclpy's
-            # signal handler runs on its own thread): publishing then fails; that is the end.
+            # SIGTERM shut the context down in the middle of this wake (rclpy's signal
+            # handler runs on its own thread): publishing then fails; that is the end.
             if self.context.ok():
                 raise
+            self._stop_requested = True
 
     def _wake(self) -> None:
-        """Step up to the schedule, publish, and measure this wake (the timer callback)."""
+        """Step as the mode says, publish, and measure this wake (the timer callback)."""
         now = time.monotonic_ns()
         remaining = self._timer.time_until_next_call()
         sched = now if remaining is None else now + remaining - self._period_ns
         wakes = self._wakes
         wakes.wake(sched, now)
         taken = 0
-        if not self._paused and self._failed is None:
-            if self._asap:
-                taken = self._run_until(now + LOCKSTEP_BUDGET_NS)
+        joint = self._joint
+        if self._sync:
+            self._sync_watch(now)
+        elif joint.failed is None:
+            if self._paused:
+                if self._step_budget:
+                    taken = self._run_periods(self._step_budget, now + WAKE_BUDGET_NS)
+            elif self._asap:
+                taken = self._run_periods(1 << 62, now + WAKE_BUDGET_NS)
             else:
-                k = self._schedule.due(now) - self._stepper.steps
-                if k > self._cap:
-                    self._slips += 1
-                    taken = self._run(self._cap)
-                    self._schedule.rebase(now, self._stepper.steps)
+                k = self._schedule.due(now) - joint.steps
+                capped = k > self._cap
+                if capped:
+                    k = self._cap
+                if self._lockstep:   # paced lockstep: whole periods, /clock on their grid
+                    periods = k // joint.config.period_steps
+                    if periods:
+                        taken = self._run_periods(periods, now + WAKE_BUDGET_NS)
+                    k = periods * joint.config.period_steps
                 elif k > 0:
-                    taken = self._run(k)
-            if taken and not self._lockstep:
-                self._publish(now)
-        if self._delay_ns and len(self._delay_line):
-            for msg in self._delay_line.pop_due(now):
-                self._js_pub.publish(msg)
+                    taken = self._run_due(k, now + WAKE_BUDGET_NS)
+                if capped or taken < k:
+                    # Not all that was due fits in one wake: slip the schedule, say so.
+                    self._slips += 1
+                    self._behind(now)
+                    self._schedule.rebase(time.monotonic_ns(), joint.steps)
         if now >= self._next_report_ns:
             self._next_report_ns += DIAGNOSTICS_PERIOD_NS * max(
                 1, (now - self._next_report_ns) // DIAGNOSTICS_PERIOD_NS + 1)
             self._report(now)
         status = self._status
         if status is not None and status.due(now / 1e9):
-            st = self._stepper
-            status.show(now / 1e9, status_text(st.t, st.phi, st.energy(), self._rate.total(now),
-                                               self._paused))
+            st = joint.stepper
+            status.show(now / 1e9, status_text(st.t, st.phi, self._energy_or_nan(),
+                                               self._rate.total(now), self._paused))
         wakes.done(sched, time.monotonic_ns(), taken)
 
-    def _run(self, k: int) -> int:
-        """Take ``k`` steps; in lockstep publish on every k_pub-th step. Return steps taken."""
-        st = self._stepper
-        step = st.step
-        lockstep = self._lockstep
-        k_pub = self._k_pub
-        timeout = self._timeout_steps
+    def _behind(self, now: int) -> None:
+        """Say (at most every 5 s) that the requested real-time factor cannot be kept."""
+        if now - self._behind_logged_ns >= 5_000_000_000:
+            self._behind_logged_ns = now
+            self.get_logger().warning(
+                f'cannot keep real_time_factor {float(self._values["real_time_factor"]):g}: '
+                f'achieved {self._rate.total(now):.3g} so far; the schedule slips '
+                f'({self._slips} slips so far)')
+
+    def _run_due(self, k: int, deadline_ns: int) -> int:
+        """Real time: take up to ``k`` steps within the wake's budget, then publish."""
+        joint = self._joint
         done = 0
-        tau = self._torque
-        try:
-            while done < k:
-                tau = self._command
-                if tau != 0.0 and timeout and st.steps - self._command_step >= timeout:
-                    self._command = tau = 0.0
-                    self._cmd_timeouts += 1
-                step(tau)
-                done += 1
-                if lockstep and st.steps % k_pub == 0:
-                    self._torque = tau
-                    self._publish(0)
-        except PendulumError as exc:
-            self._fail(f'{type(exc).__name__}: {exc}')
-        self._torque = tau
+        while done < k and joint.failed is None:
+            n = joint.advance(min(CHUNK_STEPS, k - done))
+            done += n
+            if n == 0 or (done < k and time.monotonic_ns() >= deadline_ns):
+                break
+        self._after_steps(done)
+        if done:
+            self._publish()
+        return done
+
+    def _run_periods(self, count: int, deadline_ns: int) -> int:
+        """Lockstep: take whole control periods, publishing /clock and the state after each.
+
+        Steps go in chunks so a long period never holds the executor past the wake's budget;
+        a period left partial is finished by the next wake.
+        """
+        joint = self._joint
+        k = joint.config.period_steps
+        done = 0
+        periods = 0
+        while periods < count and joint.failed is None:
+            n = joint.advance(min(k - joint.steps % k, CHUNK_STEPS))
+            done += n
+            if n == 0:
+                break
+            if joint.steps % k == 0:
+                periods += 1
+                self._publish()
+                if self._paused:
+                    self._step_budget -= 1
+                    if self._step_budget <= 0:
+                        self._step_budget = 0
+                        break
+            if time.monotonic_ns() >= deadline_ns:
+                break
         self._after_steps(done)
         return done
 
-    def _run_until(self, deadline_ns: int) -> int:
-        """Step as fast as possible until ``deadline_ns`` (lockstep), in chunks of k_pub."""
-        done = 0
-        k_pub = self._k_pub
-        # Chunks of about LOCKSTEP_CHUNK steps between looks at the clock, each ending on a
-        # publish step, so /clock ticks land on the k_pub grid.
-        chunk = k_pub * max(1, LOCKSTEP_CHUNK // k_pub)
-        while self._failed is None:
-            done += self._run(chunk - self._stepper.steps % k_pub)
-            if time.monotonic_ns() >= deadline_ns:
-                break
-        return done
-
     def _after_steps(self, done: int) -> None:
-        self._steps_total += done
         self._rate.advance(done * self._h)
-        st = self._stepper
-        if not (math.isfinite(st.phi) and math.isfinite(st.dphi)):
-            self._fail(f'non-finite state phi = {st.phi}, dphi = {st.dphi} at t = {st.t} s')
+        failed = self._joint.failed
+        if failed is not None and not self._failure_logged:
+            self._failure_logged = True
+            self.get_logger().error(f'simulation stopped: {failed}; call ~/reset to restart')
 
-    def _fail(self, reason: str) -> None:
-        if self._failed is None:
-            self._failed = reason
-            self.get_logger().error(f'simulation stopped: {reason}; call ~/reset to restart')
+    # ------------------------------------------------------------------ synchronous mode
+    def _sync_watch(self, now: int) -> None:
+        """Start the exchange once a controller is connected; act on a missing answer."""
+        if self._joint.failed is not None:
+            return
+        if self._awaiting is None:
+            if self._paused and not self._step_budget:
+                return
+            if self._ready():
+                self._sync_publish()
+            return
+        if self._paused and not self._step_budget:
+            return
+        if self._answered is not None:
+            self._sync_go()
+            return
+        waited = (now - self._awaiting_since) / 1e9
+        if waited < float(self._values['sync_timeout']):
+            return
+        self._sync_stats['timeouts'] += 1
+        count = self._sync_stats['timeouts']
+        action = str(self._values['sync_timeout_action'])
+        t = self._awaiting * self._h
+        if action == 'stop':
+            self._pause(True)
+            self.get_logger().error(
+                f'sync_timeout: no command answered the state at t = {t:.9g} s within '
+                f'{waited:.3g} s; paused (sync_timeout_action: stop; ~/step or ~/pause false '
+                'to go on)')
+            self._awaiting_since = now
+            return
+        if count == 1 or count % 100 == 0:
+            self.get_logger().warning(
+                f'sync_timeout: no command answered the state at t = {t:.9g} s within '
+                f'{waited:.3g} s; holding the last command ({count} timeouts so far)')
+        self._answered = math.nan   # hold: nothing new to apply
+        self._sync_go()
+
+    def _ready(self) -> bool:
+        """Return True when joint_states and a command topic have a matched peer."""
+        if self._js_pub.get_subscription_count() < 1:
+            return False
+        return any(sub.get_publisher_count() > 0 for sub in self._cmd_subs) or not (
+            self._cmd_subs)
+
+    def _sync_publish(self) -> None:
+        """Publish the state at the current step and wait for its answer."""
+        self._publish()
+        self._awaiting = self._joint.steps
+        self._awaiting_since = time.monotonic_ns()
+        self._answered = None
+
+    def _sync_answer(self, value: float, stamp_ns: int | None) -> bool:
+        """Take a command as the answer to the awaited state; return False if dropped."""
+        awaiting = self._awaiting
+        if awaiting is None:
+            self._sync_stats['ahead'] += 1
+            return False
+        if stamp_ns is not None:
+            want = self._joint.stamp_ns(awaiting)
+            if stamp_ns < want:
+                self._sync_stats['late'] += 1
+                return False
+            if stamp_ns > want:
+                self._sync_stats['ahead'] += 1
+                return False
+        if self._answered is not None:
+            self._sync_stats['duplicates'] += 1
+            return False
+        self._answered = value
+        self._sync_stats['answered'] += 1
+        return True
+
+    def _sync_go(self) -> None:
+        """Apply the answer, advance one control period and publish the next state."""
+        value = self._answered
+        if value is not None and not math.isnan(value):
+            self._joint.command(value)
+        self._awaiting = None
+        self._answered = None
+        joint = self._joint
+        k = joint.config.period_steps
+        n = joint.advance(k - joint.steps % k)
+        self._after_steps(n)
+        if self._paused:
+            self._step_budget = max(0, self._step_budget - 1)
+        if joint.failed is None:
+            # Paused after N steps, this state waits for its answer until the next ~/step.
+            self._sync_publish()
 
     # ------------------------------------------------------------------ publishing
-    def _publish(self, now_ns: int) -> None:
-        st = self._stepper
-        if self._failed is not None:
+    def _energy_or_nan(self) -> float:
+        try:
+            return self._joint.terms().energy
+        except JointError:
+            return math.nan
+
+    def _publish(self) -> None:
+        joint = self._joint
+        if joint.failed is not None:
             return
-        stamp_ns = self._stamp_ns()
-        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+        stamp_ns = joint.stamp_ns()
         if self._clock_pub is not None:
+            sec, nanosec = divmod(stamp_ns, 1_000_000_000)
             self._clock_pub.publish(self._clock_bytes.pack(sec, nanosec))
-        phi, dphi = st.phi, st.dphi
-        if not self._sensor.ideal:
-            phi, dphi = self._sensor.measure(phi, dphi)
-        data = self._js_bytes.pack(sec, nanosec, phi, dphi, self._torque)
-        if self._delay_ns:
-            self._delay_line.push((now_ns or time.monotonic_ns()) + self._delay_ns, data)
-        else:
-            self._js_pub.publish(data)
+        sample = joint.sample()
         rec = self._recorder
-        if rec is not None:
-            self._record(self._js_topic, data, stamp_ns)
+        if sample is not None:
+            sec, nanosec = divmod(sample.stamp_ns, 1_000_000_000)
+            data = self._js_bytes.pack(sec, nanosec, sample.position, sample.velocity,
+                                       sample.effort)
+            self._js_pub.publish(data)
+            if rec is not None:
+                self._record(self._js_topic, data, stamp_ns)
+        if self._energy_pub is None and not self._terms_pubs:
+            return
+        try:
+            terms = joint.terms()
+        except JointError as exc:
+            joint.fail(str(exc))
+            self._after_steps(0)
+            return
         if self._energy_pub is not None:
-            e = self._float_bytes.pack(st.energy())
+            e = self._float_bytes.pack(terms.energy)
             self._energy_pub.publish(e)
             if rec is not None:
                 self._record(self._energy_pub.topic_name, e, stamp_ns)
         if self._terms_pubs:
-            p = st.params
-            s = math.sin(0.5 * st.phi)
-            absv = abs(st.dphi)
-            dissipated = p.gamma * p.inertia * (absv if p.n == 0.0 else absv ** (p.n + 1.0))
-            values = (0.5 * p.inertia * st.dphi * st.dphi, 2.0 * p.mgl * s * s, dissipated,
-                      st.residual)
             pack = self._float_bytes.pack
+            values = (terms.kinetic, terms.potential, terms.dissipated_power, terms.residual)
             for pub, value in zip(self._terms_pubs, values, strict=True):
                 pub.publish(pack(value))
 
     # ------------------------------------------------------------------ inputs
-    def _on_command(self, msg: Float64) -> None:
-        x = msg.data
-        if not math.isfinite(x):
-            self._cmd_rejected += 1
-            if self._cmd_rejected == 1 or self._cmd_rejected % 1000 == 0:
-                self.get_logger().warning(
-                    f'rejected non-finite effort command {x} ({self._cmd_rejected} so far)')
-            return
-        limit = float(self._values['max_effort'])
-        tau = min(max(x, -limit), limit)
-        if tau != x:
-            self._cmd_saturated += 1
-        self._command = tau
-        self._command_step = self._stepper.steps
-        self._cmd_received += 1
-        if self._recorder is not None and self._cmd_sub is not None:
-            self._record(self._cmd_sub.topic_name, msg, self._stamp_ns())
+    def _drop(self, topic: str, reason: str) -> None:
+        """Count a command that cannot be applied; log each reason once, then every 1000th."""
+        key = f'{topic}: {reason}'
+        count = self._bad_commands.get(key, 0) + 1
+        self._bad_commands[key] = count
+        if count == 1 or count % 1000 == 0:
+            self.get_logger().warning(f'dropped a command on {topic}: {reason} '
+                                      f'({count} so far)')
 
+    def _take(self, topic: str, msg: Any, value: float, stamp_ns: int | None) -> None:
+        """Apply (or, in synchronous mode, answer with) a valid command value."""
+        if not math.isfinite(value):
+            self._joint.counters.rejected_nonfinite += 1
+            self._drop(topic, f'non-finite value {value}')
+            return
+        stamp = self._joint.stamp_ns()
+        if self._sync:
+            if self._awaiting is not None:
+                stamp = self._joint.stamp_ns(self._awaiting)
+            if not self._sync_answer(value, stamp_ns):
+                return
+        else:
+            self._joint.command(value)
+        if self._recorder is not None:
+            self._record(topic, msg, stamp)
+        if self._sync and (not self._paused or self._step_budget):
+            self._sync_go()
+
+    def _on_effort(self, msg: Float64) -> None:
+        self._guarded(self._take, self._cmd_topic('effort_command'), msg, msg.data, None)
+
+    def _on_array_command(self, msg: Float64MultiArray) -> None:
+        topic = self._cmd_topic('commands')
+        if len(msg.data) != 1:
+            self._drop(topic, f'expected 1 value (one joint), got {len(msg.data)}')
+            return
+        self._guarded(self._take, topic, msg, float(msg.data[0]), None)
+
+    def _on_joint_command(self, msg: JointState) -> None:
+        topic = self._cmd_topic('joint_commands')
+        try:
+            i = list(msg.name).index(self._joint_name)
+        except ValueError:
+            self._drop(topic, f'no joint named {self._joint_name!r} in {list(msg.name)}')
+            return
+        field = self._interface
+        values = getattr(msg, field)
+        if len(values) <= i:
+            self._drop(topic, f'no {field} for joint {self._joint_name!r} '
+                       f'({len(values)} {field} values for {len(msg.name)} names)')
+            return
+        stamp = msg.header.stamp
+        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+        self._guarded(self._take, topic, msg, float(values[i]), stamp_ns or None)
+
+    def _cmd_topic(self, name: str) -> str:
+        for sub in self._cmd_subs:
+            if sub.topic_name.endswith('/' + name):
+                return str(sub.topic_name)
+        return name
+
+    def _guarded(self, fn: Any, *args: Any) -> None:
+        try:
+            fn(*args)
+        except KeyboardInterrupt:
+            self._stop_requested = True
+
+    # ------------------------------------------------------------------ services
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         v = self._values
-        self._accumulate_guard_stats()
-        self._stepper.reset(float(v['phi0']), float(v['dphi0']))
+        joint = self._joint
+        was_failed = joint.reset()
+        self._failure_logged = False
         now = time.monotonic_ns()
-        self._schedule.rebase(now, 0)
-        if self._wall_anchored:
-            self._epoch_ns = time.time_ns()
-        self._command = 0.0
-        self._torque = 0.0
-        self._delay_line.clear()
-        was_failed, self._failed = self._failed, None
+        self._schedule.rebase(now, joint.steps)
+        stamp = joint.stamp_ns()
+        t = joint.time
+        message = (f'reset to phi = {v["phi0"]} rad, dphi = {v["dphi0"]} rad/s at '
+                   f't = {t:.9g} s (simulated time goes on)'
+                   + (f' (was stopped: {was_failed})' if was_failed else ''))
+        rec = self._recorder
+        if rec is not None:
+            try:
+                rec.write_reset(stamp, message)
+            except Exception as exc:  # a broken recorder must not stop the joint
+                self._recorder_failed(exc)
         response.success = True
-        response.message = (f'reset to phi = {v["phi0"]} rad, dphi = {v["dphi0"]} rad/s at '
-                             f't = 0' + (f' (was stopped: {was_failed})' if was_failed else ''))
+        response.message = message
         return response
 
-    def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> Any:
+    def _pause(self, paused: bool) -> None:
         now = time.monotonic_ns()
-        t = self._stepper.t
-        if request.data == self._paused:
-            response.success = True
-            response.message = f'already {"paused" if self._paused else "running"} at t = {t} s'
-            return response
-        self._paused = bool(request.data)
-        if self._paused:
+        self._paused = paused
+        if paused:
             self._rate.pause(now)
         else:
             self._rate.resume(now)
-            self._schedule.rebase(now, self._stepper.steps)
-            if self._wall_anchored and self._h_ns_int:
-                # Keep stamps near the wall clock and on the grid of h.
-                lag = time.time_ns() - self._stamp_ns()
-                self._epoch_ns += round(lag / self._h_ns_int) * self._h_ns_int
+            self._schedule.rebase(now, self._joint.steps)
+            if self._sync and self._answered is not None:
+                self._sync_go()
+
+    def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> Any:
+        t = self._joint.time
+        if request.data == self._paused:
+            response.success = True
+            response.message = f'already {"paused" if self._paused else "running"} at t = {t:.9g} s'
+            return response
+        self._step_budget = 0
+        self._pause(bool(request.data))
         response.success = True
-        response.message = f'{"paused" if self._paused else "resumed"} at t = {t} s'
+        response.message = f'{"paused" if self._paused else "resumed"} at t = {t:.9g} s'
         return response
+
+    def _step(self, count: int) -> tuple[bool, str]:
+        """Queue ``count`` control periods while paused."""
+        if not self._paused:
+            return False, 'not paused: ~/step advances a paused simulation (call ~/pause true)'
+        if count < 1:
+            return False, f'the number of control periods must be >= 1, got {count}'
+        self._step_budget += count
+        k = self._joint.config.period_steps
+        target = (self._joint.steps // k + self._step_budget) * k
+        if self._sync and self._answered is not None:
+            self._sync_go()
+        return True, (f'stepping {count} control period(s) of {k * self._h:g} s to '
+                      f't = {target * self._h:.9g} s')
+
+    def _on_step_one(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        response.success, response.message = self._step(1)
+        return response
+
+    def _on_step_periods(self, msg: UInt32) -> None:
+        ok, message = self._step(int(msg.data))
+        if not ok:
+            self.get_logger().warning(f'~/step_periods: {message}')
 
     # ------------------------------------------------------------------ parameters
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
@@ -417,54 +667,33 @@ class PendulumNode(Node):
             if p.name in names:
                 self._values[p.name] = p.value
         v = self._values
-        if names & {'gamma', 'n'}:
-            self._stepper.set_params(self._stepper.params.with_changes(
-                gamma=float(v['gamma']), n=float(v['n'])))
+        joint = self._joint
+        joint.reconfigure(joint_config(v, joint.config.epoch_ns))
         if 'real_time_factor' in names:
             rtf = float(v['real_time_factor'])
             self._asap = self._lockstep and rtf == 0.0
-            self._schedule.rebase(time.monotonic_ns(), self._stepper.steps,
-                                  rtf if rtf > 0.0 else 1.0)
+            self._schedule.rebase(time.monotonic_ns(), joint.steps, rtf if rtf > 0.0 else 1.0)
             self._cap = max(1, math.ceil(CATCH_UP_SECONDS * max(rtf, 1.0) / self._h))
-        if names & {'sensor.position_noise', 'sensor.velocity_noise', 'sensor.resolution'}:
-            self._sensor.position_noise = float(v['sensor.position_noise'])
-            self._sensor.velocity_noise = float(v['sensor.velocity_noise'])
-            self._sensor.resolution = float(v['sensor.resolution'])
-        if 'sensor.delay' in names:
-            self._delay_ns = round(float(v['sensor.delay']) * 1e9)
-            if not self._delay_ns:
-                for msg in self._delay_line.pop_due(2**62):
-                    self._js_pub.publish(msg)
-        if 'command_timeout' in names:
-            self._timeout_steps = round(float(v['command_timeout']) / self._h)
-        if 'max_effort' in names:
-            limit = float(v['max_effort'])
-            self._command = min(max(self._command, -limit), limit)
         if self._recorder is not None:
+            stamp = joint.stamp_ns()
             event = ParameterEvent(node=self.get_fully_qualified_name())
-            event.stamp = _stamp(self._stamp_ns())
+            event.stamp = _stamp(stamp)
             event.changed_parameters = [p.to_parameter_msg() for p in params
                                         if p.name in names]
-            self._record('/parameter_events', event, self._stamp_ns())
+            self._record('/parameter_events', event, stamp)
 
     # ------------------------------------------------------------------ diagnostics
-    def _accumulate_guard_stats(self) -> None:
-        for key, value in self._stepper.stats.as_dict().items():
-            self._guard_before_reset[key] = self._guard_before_reset.get(key, 0) + int(value)
-
     def guard_stats(self) -> dict[str, int]:
         """Return the guard's counters over the whole run (across resets)."""
-        out = dict(self._guard_before_reset)
-        for key, value in self._stepper.stats.as_dict().items():
-            out[key] = out.get(key, 0) + int(value)
-        return out
+        return self._joint.guard_stats()
 
     def _estimate_error(self) -> float:
-        if self._failed is not None:
+        joint = self._joint
+        if joint.failed is not None:
             return self._last_error
         try:
-            err = self._stepper.local_error_estimate(self._command)
-        except PendulumError:
+            err = joint.stepper.local_error_estimate(joint.torque)
+        except (PendulumError, OverflowError, ZeroDivisionError):
             err = math.nan
         self._last_error = err
         if math.isfinite(err):
@@ -482,11 +711,18 @@ class PendulumNode(Node):
             return
         lat, spw = self._wakes.window()
         total = self._wakes.summary()
-        st = self._stepper
+        joint = self._joint
+        st = joint.stepper
+        c = joint.counters
+        try:
+            terms = joint.terms()
+            energy, residual = terms.energy, terms.residual
+        except JointError:
+            energy = residual = math.nan
         values: dict[str, object] = {
-            'sim_time': st.t,
-            'steps': self._steps_total,
-            'epoch_ns': self._epoch_ns,
+            'sim_time': joint.time,
+            'steps': joint.steps,
+            'epoch_ns': joint.config.epoch_ns,
             'paused': self._paused,
             'real_time_factor_target': float(self._values['real_time_factor']),
             'real_time_factor_achieved': self._rate.window(now),
@@ -503,38 +739,47 @@ class PendulumNode(Node):
             'missed_wakes': self._wakes.missed,
             'schedule_slips': self._slips,
             **{f'guard_{k}': val for k, val in self.guard_stats().items()},
-            'energy': st.energy(),
-            'energy_residual': st.residual,
+            'energy': energy,
+            'energy_residual': residual,
             'local_error_estimate': err,
             'local_error_max': self._max_error,
-            'commands_received': self._cmd_received,
-            'commands_rejected_nonfinite': self._cmd_rejected,
-            'commands_saturated': self._cmd_saturated,
-            'command_timeouts': self._cmd_timeouts,
-            'torque': self._torque,
+            'commands_received': c.received,
+            'commands_rejected_nonfinite': c.rejected_nonfinite,
+            'commands_saturated': c.saturated,
+            'commands_limited': c.limited,
+            'command_timeouts': c.timeouts,
+            'commands_dropped': sum(self._bad_commands.values()),
+            **{f'commands_dropped[{k}]': n for k, n in self._bad_commands.items()},
+            'torque': joint.torque,
+            'phase_time_since_reset': st.t,
         }
-        if self._failed is not None:
-            level, message = diag.ERROR, f'stopped: {self._failed}'
+        if self._sync:
+            values.update({f'sync_{k}': n for k, n in self._sync_stats.items()})
+        for topic, n in self._incompatible.items():
+            values[f'incompatible_qos[{topic}]'] = n
+        if joint.failed is not None:
+            level, message = diag.ERROR, f'stopped: {joint.failed}'
         elif self._paused:
             level, message = diag.OK, 'paused'
         else:
             level, message = diag.OK, 'running'
         name = f'{self.get_fully_qualified_name()}: simulation'
-        array = diag.status_array(_stamp(self._stamp_ns()), name, self._joint, level, message,
-                                  values)
+        array = diag.status_array(_stamp(joint.stamp_ns()), name, self._joint_name, level,
+                                  message, values)
         self._diag_pub.publish(array)
         if rec is not None:
-            self._record(self._diag_pub.topic_name, array, self._stamp_ns())
+            self._record(self._diag_pub.topic_name, array, joint.stamp_ns())
 
     def summary(self) -> dict[str, object]:
         """Return the figures printed at shutdown."""
         now = time.monotonic_ns()
         lat = self._wakes.summary()
-        st = self._stepper
+        joint = self._joint
         err = self._estimate_error()
         guard = self.guard_stats()
-        return {
-            'steps': self._steps_total,
+        c = joint.counters
+        out: dict[str, object] = {
+            'steps': joint.steps,
             'simulated time (s)': self._rate.sim_seconds,
             'wall time running (s)': self._rate.running_ns(now) / 1e9,
             'achieved real-time factor': self._rate.total(now),
@@ -548,18 +793,27 @@ class PendulumNode(Node):
                                                       f'{guard.get("reversals", 0)}',
             'guard sticks / energy rejections': f'{guard.get("sticks", 0)} / '
                                                 f'{guard.get("energy_rejections", 0)}',
-            'energy-balance residual (J)': st.residual,
+            'energy-balance residual (J)': joint.stepper.residual,
             'local error estimate (last / max)': f'{err:.3g} / {self._max_error:.3g}',
-            'effort commands received / rejected': f'{self._cmd_received} / '
-                                                   f'{self._cmd_rejected}',
-            'stopped by': self._failed or '-',
+            'commands received / rejected / dropped': f'{c.received} / '
+                                                      f'{c.rejected_nonfinite} / '
+                                                      f'{sum(self._bad_commands.values())}',
         }
+        if self._sync:
+            s = self._sync_stats
+            out['sync answered / timeouts / late / duplicates'] = (
+                f'{s["answered"]} / {s["timeouts"]} / {s["late"]} / {s["duplicates"]}')
+        out['stopped by'] = joint.failed or '-'
+        return out
 
     def close(self) -> None:
         """Print the summary and close the recording (call once, before destroy_node)."""
         if self._status is not None:
             self._status.finish()
-        print(summary_text(self.summary()), file=sys.stderr, flush=True)
+        try:
+            print(summary_text(self.summary()), file=sys.stderr, flush=True)
+        except Exception as exc:  # the summary must never hide the shutdown
+            print(f'pendulum_node: no summary ({type(exc).__name__}: {exc})', file=sys.stderr)
         rec, self._recorder = self._recorder, None
         if rec is not None:
             try:

@@ -46,7 +46,11 @@ class SensorModel:
         if self.velocity_noise > 0.0:
             dphi += self._rng.gauss(0.0, self.velocity_noise)
         if self.resolution > 0.0:
-            phi = self.resolution * round(phi / self.resolution)
+            counts = phi / self.resolution
+            # Counts beyond 2**52 are whole numbers already: a resolution finer than the spacing
+            # of doubles at this angle leaves it unchanged (and round() of an inf would raise).
+            if abs(counts) < 2.0**52:
+                phi = self.resolution * round(counts)
         return phi, dphi
 
 

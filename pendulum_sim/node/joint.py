@@ -1,0 +1,464 @@
+"""The simulated joint between two publications, without ROS.
+
+Everything that happens to the pendulum between two messages lives here, in simulated time
+(steps of h), so the same inputs give the same outputs whatever the wall clock or the DDS
+transport does:
+
+- the command path: non-finite commands refused, limits and saturation, a command delay of
+  ``round(command_delay / h)`` steps, a hold of ``command_timeout`` after which the command
+  returns to its safe value, and the joint-level servo of the velocity and position interfaces
+  (gains as parameters, as gz_ros2_control's joint servo has them);
+- the sensor path: a delay of ``round(sensor.delay / h)`` steps, seeded Gaussian noise, encoder
+  quantisation;
+- the stamp grid: step ``k`` is stamped ``epoch + k h``; the step count never goes back, not even
+  at a reset, so simulated time (and ``/clock``) is monotonic;
+- the values to publish: the measured joint state and the energy terms of the true state.
+
+:class:`SimulatedJoint` is built once from a frozen :class:`JointConfig`; live parameter changes
+build a new config and hand it to :meth:`SimulatedJoint.reconfigure`. The ROS node
+(``pendulum_node.py``) declares parameters, ticks the joint and publishes what it returns.
+Nothing here imports rclpy.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import NamedTuple
+
+from pendulum_sim.core import (
+    PendulumError,
+    PendulumParams,
+    Stepper,
+    dissipated_power,
+    kinetic_energy,
+    potential_energy,
+)
+
+from .errors import JointError
+from .sensors import SensorModel
+
+INTERFACES = ('effort', 'velocity', 'position')
+# Steps of delay are kept in memory (one entry per step), so a delay is bounded.
+MAX_DELAY_STEPS = 1_000_000
+NS = 1_000_000_000
+
+
+def steps_of(name: str, seconds: float, h: float) -> int:
+    """Return a duration in whole steps of ``h``: ``round(seconds / h)``.
+
+    The one timing rule of the joint: every duration given in seconds (delays, timeouts, the
+    control period) becomes a whole number of steps this way, so it is exact in simulated time.
+    """
+    if not (math.isfinite(seconds) and seconds >= 0.0):
+        raise JointError(f'{name} must be a finite number of seconds >= 0, got {seconds}')
+    return round(seconds / h)
+
+
+def timeout_steps(seconds: float, h: float) -> int:
+    """Return the command timeout in steps: 0 only for 0 s (hold for ever), else at least 1."""
+    steps = steps_of('command_timeout', seconds, h)
+    return max(1, steps) if seconds > 0.0 else 0
+
+
+@dataclass(frozen=True)
+class ServoGains:
+    """Gains of the joint-level servo that tracks velocity and position commands.
+
+    Position: τ = kp (φ_ref − φ) − kd φ'; velocity: τ = kv (φ'_ref − φ'); both saturated at
+    ``max_effort`` and applied through the same physics as an effort command.
+    """
+
+    position_p: float = 20.0
+    position_d: float = 2.0
+    velocity_p: float = 2.0
+
+
+@dataclass(frozen=True)
+class JointConfig:
+    """Everything the joint needs, fixed for its lifetime (live changes make a new one)."""
+
+    params: PendulumParams
+    h: float
+    phi0: float = 0.0
+    dphi0: float = 0.0
+    method: str = 'rk4'
+    guard: bool = True
+    period_steps: int = 1
+    epoch_ns: int = 0
+    max_effort: float = math.inf
+    timeout_steps: int = 0
+    command_delay_steps: int = 0
+    sensor_delay_steps: int = 0
+    sensor_seed: int = 0
+    position_noise: float = 0.0
+    velocity_noise: float = 0.0
+    resolution: float = 0.0
+    command_interface: str = 'effort'
+    servo: ServoGains = field(default_factory=ServoGains)
+    max_velocity: float = math.inf
+    position_min: float = -math.inf
+    position_max: float = math.inf
+
+    def __post_init__(self) -> None:
+        if self.command_interface not in INTERFACES:
+            raise JointError(f"command_interface must be one of {', '.join(INTERFACES)}, "
+                             f"got '{self.command_interface}'")
+        for name in ('command_delay_steps', 'sensor_delay_steps'):
+            steps = getattr(self, name)
+            if steps > MAX_DELAY_STEPS:
+                raise JointError(f'{name[:-6]} is {steps} steps of h = {self.h:g} s; at most '
+                                 f'{MAX_DELAY_STEPS} steps are kept')
+        if not self.position_min < self.position_max:
+            raise JointError(f'position_min must be < position_max, got {self.position_min} '
+                             f'and {self.position_max}')
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, object], params: PendulumParams,
+                    epoch_ns: int = 0) -> JointConfig:
+        """Build the config from a node's parameter values (names as the node declares them)."""
+        def num(name: str) -> float:
+            return float(values[name])  # type: ignore[arg-type]
+
+        h = num('h')
+        rate = num('publish_rate')
+        lo = num('position_min') if 'position_min' in values else -math.inf
+        hi = num('position_max') if 'position_max' in values else math.inf
+        return cls(
+            params=params, h=h, phi0=num('phi0'), dphi0=num('dphi0'),
+            method=str(values['integrator']), guard=bool(values['guard']),
+            period_steps=max(1, steps_of('1/publish_rate', 1.0 / rate, h)),
+            epoch_ns=epoch_ns, max_effort=num('max_effort'),
+            timeout_steps=timeout_steps(num('command_timeout'), h),
+            command_delay_steps=steps_of('command_delay', num('command_delay'), h),
+            sensor_delay_steps=steps_of('sensor.delay', num('sensor.delay'), h),
+            sensor_seed=int(values['sensor.seed']),  # type: ignore[call-overload]
+            position_noise=num('sensor.position_noise'),
+            velocity_noise=num('sensor.velocity_noise'),
+            resolution=num('sensor.resolution'),
+            command_interface=str(values.get('command_interface', 'effort')),
+            servo=ServoGains(*(num(f'servo.{k}') for k in ('position_p', 'position_d',
+                                                           'velocity_p'))
+                             ) if 'servo.position_p' in values else ServoGains(),
+            max_velocity=num('max_velocity') if 'max_velocity' in values else math.inf,
+            position_min=lo, position_max=hi,
+        )
+
+    @property
+    def has_position_limits(self) -> bool:
+        """Return True when the position command is limited."""
+        return math.isfinite(self.position_min) or math.isfinite(self.position_max)
+
+
+class Sample(NamedTuple):
+    """One measurement to publish: stamp (ns), angle, velocity, torque applied."""
+
+    stamp_ns: int
+    position: float
+    velocity: float
+    effort: float
+
+
+class EnergyTerms(NamedTuple):
+    """Energy of the true state, J (eq 23), and the power dissipated by damping, W."""
+
+    energy: float
+    kinetic: float
+    potential: float
+    dissipated_power: float
+    residual: float
+
+
+@dataclass
+class CommandCounters:
+    """What happened to commands: received, refused, limited, timed out."""
+
+    received: int = 0
+    rejected_nonfinite: int = 0
+    saturated: int = 0
+    limited: int = 0
+    timeouts: int = 0
+
+
+def energy_terms(params: PendulumParams, phi: float, dphi: float,
+                 residual: float = 0.0) -> EnergyTerms:
+    """Return the energy terms of a state; raise JointError if one is not a finite number."""
+    try:
+        kin = float(kinetic_energy(params, dphi))
+        pot = float(potential_energy(params, phi))
+        diss = float(dissipated_power(params, dphi))
+    except (OverflowError, ZeroDivisionError, ValueError) as exc:
+        raise JointError(f'the state phi = {phi}, dphi = {dphi} has no finite energy '
+                         f'({exc})') from None
+    terms = EnergyTerms(kin + pot, kin, pot, diss, residual)
+    for name, value in zip(EnergyTerms._fields, terms, strict=True):
+        if not math.isfinite(value):
+            raise JointError(f'the state phi = {phi}, dphi = {dphi} gives a non-finite {name} '
+                             f'({value}) with gamma = {params.gamma}, n = {params.n}')
+    return terms
+
+
+def check_config(config: JointConfig) -> None:
+    """Raise JointError if the joint cannot run ``config``: its start state must be publishable."""
+    energy_terms(config.params, config.phi0, config.dphi0)
+    try:
+        Stepper(config.params, config.phi0, config.dphi0, config.h, config.method,
+                guard=config.guard)
+    except PendulumError as exc:
+        raise JointError(str(exc)) from None
+
+
+class SimulatedJoint:
+    """The pendulum as a joint: commands in, measurements out, all timing in steps of h.
+
+    Parameters
+    ----------
+    config : JointConfig
+        The joint's configuration; :meth:`reconfigure` replaces it (live parameters).
+    """
+
+    def __init__(self, config: JointConfig) -> None:
+        check_config(config)
+        self._config = config
+        self._stepper = Stepper(config.params, config.phi0, config.dphi0, config.h,
+                                config.method, guard=config.guard)
+        self._sensor = SensorModel(config.sensor_seed, config.position_noise,
+                                   config.velocity_noise, config.resolution)
+        self.counters = CommandCounters()
+        self._base_steps = 0       # steps taken before the last reset
+        self._target = 0.0         # the command held, in the active interface's unit
+        self._target_step = 0      # the step at which it took effect
+        self._pending: deque[tuple[int, float]] = deque()   # (effective step, command)
+        self._history: deque[tuple[int, float, float, float]] = deque()
+        self._torque = 0.0
+        self._failed: str | None = None
+        self._guard_before_reset: dict[str, int] = {}
+        self._commanded = False
+
+    # ------------------------------------------------------------------ state
+    @property
+    def config(self) -> JointConfig:
+        """Return the joint's configuration."""
+        return self._config
+
+    @property
+    def stepper(self) -> Stepper:
+        """Return the core's integrator (read its state; step through the joint)."""
+        return self._stepper
+
+    @property
+    def steps(self) -> int:
+        """Return the steps taken since the start (never decreases, not even at a reset)."""
+        return self._base_steps + self._stepper.steps
+
+    @property
+    def periods(self) -> int:
+        """Return the number of whole control periods since the start."""
+        return self.steps // self._config.period_steps
+
+    @property
+    def torque(self) -> float:
+        """Return the torque applied in the last step, N m."""
+        return self._torque
+
+    @property
+    def target(self) -> float:
+        """Return the command held (N m, rad/s or rad by the interface)."""
+        return self._target
+
+    @property
+    def failed(self) -> str | None:
+        """Return why the simulation stopped, or None while it runs."""
+        return self._failed
+
+    @property
+    def time(self) -> float:
+        """Return the simulated time since the start, s (goes on through resets)."""
+        return self.steps * self._config.h
+
+    def stamp_ns(self, step: int | None = None) -> int:
+        """Return the stamp of step ``step`` (default: now): ``epoch + step h`` in ns."""
+        k = self.steps if step is None else step
+        h = self._config.h
+        h_ns = h * NS
+        if abs(h_ns - round(h_ns)) < 1e-6:   # whole nanoseconds: exact integer grid
+            return self._config.epoch_ns + k * round(h_ns)
+        return self._config.epoch_ns + round(k * h_ns)
+
+    def terms(self) -> EnergyTerms:
+        """Return the energy terms of the true state now (finite, or JointError)."""
+        st = self._stepper
+        return energy_terms(st.params, st.phi, st.dphi, st.residual)
+
+    def guard_stats(self) -> dict[str, int]:
+        """Return the guard's counters over the whole run (across resets)."""
+        out = dict(self._guard_before_reset)
+        for key, value in self._stepper.stats.as_dict().items():
+            out[key] = out.get(key, 0) + int(value)
+        return out
+
+    # ------------------------------------------------------------------ commands
+    def command(self, value: float) -> bool:
+        """Take a command in the active interface's unit; return False if it was refused.
+
+        Non-finite values are refused and counted. Effort is saturated at ±max_effort, velocity
+        at ±max_velocity, position to [position_min, position_max] (each counted). The command
+        takes effect ``command_delay_steps`` from now and holds for ``timeout_steps``.
+        """
+        c = self._config
+        if not math.isfinite(value):
+            self.counters.rejected_nonfinite += 1
+            return False
+        kind = c.command_interface
+        if kind == 'effort':
+            limited = min(max(value, -c.max_effort), c.max_effort)
+            if limited != value:
+                self.counters.saturated += 1
+        else:
+            lo, hi = ((-c.max_velocity, c.max_velocity) if kind == 'velocity'
+                      else (c.position_min, c.position_max))
+            limited = min(max(value, lo), hi)
+            if limited != value:
+                self.counters.limited += 1
+        self.counters.received += 1
+        if c.command_delay_steps:
+            self._pending.append((self.steps + c.command_delay_steps, limited))
+        else:
+            self._set_target(limited, self.steps)
+        return True
+
+    def _set_target(self, value: float, step: int) -> None:
+        self._target = value
+        self._target_step = step
+        self._commanded = True
+
+    def _safe_target(self) -> float:
+        """Return what a timed-out command returns to: no torque, no speed, or the same place."""
+        return self._target if self._config.command_interface == 'position' else 0.0
+
+    def _torque_for(self, phi: float, dphi: float) -> float:
+        c = self._config
+        kind = c.command_interface
+        if kind == 'effort':
+            tau = self._target
+        elif kind == 'velocity':
+            tau = c.servo.velocity_p * (self._target - dphi)
+        else:
+            tau = c.servo.position_p * (self._target - phi) - c.servo.position_d * dphi
+        tau = min(max(tau, -c.max_effort), c.max_effort)
+        # The velocity limit: no torque that drives the joint further past max_velocity.
+        if tau * dphi > 0.0 and abs(dphi) >= c.max_velocity:
+            self.counters.limited += 1
+            tau = 0.0
+        return tau
+
+    # ------------------------------------------------------------------ stepping
+    def advance(self, k: int) -> int:
+        """Take ``k`` steps (fewer if the simulation fails); return the number taken."""
+        if self._failed is not None or k <= 0:
+            return 0
+        c = self._config
+        st = self._stepper
+        step = st.step
+        timeout = c.timeout_steps
+        pending = self._pending
+        history = self._history if c.sensor_delay_steps else None
+        effort_mode = c.command_interface == 'effort'
+        done = 0
+        tau = self._torque
+        try:
+            while done < k:
+                now = self._base_steps + st.steps
+                while pending and pending[0][0] <= now:
+                    self._set_target(pending.popleft()[1], now)
+                if (timeout and self._commanded and now - self._target_step >= timeout):
+                    self._commanded = False
+                    self._target = self._safe_target()
+                    self.counters.timeouts += 1
+                if effort_mode and self._config.max_velocity == math.inf:
+                    tau = self._target
+                else:
+                    tau = self._torque_for(st.phi, st.dphi)
+                step(tau)
+                done += 1
+                if history is not None:
+                    history.append((now + 1, st.phi, st.dphi, tau))
+                    if len(history) > c.sensor_delay_steps + 1:
+                        history.popleft()
+        except PendulumError as exc:
+            self.fail(f'{type(exc).__name__}: {exc}')
+        self._torque = tau
+        if not (math.isfinite(st.phi) and math.isfinite(st.dphi)):
+            self.fail(f'non-finite state phi = {st.phi}, dphi = {st.dphi} at t = {st.t} s')
+        return done
+
+    def fail(self, reason: str) -> None:
+        """Stop the simulation with ``reason`` (kept until a reset)."""
+        if self._failed is None:
+            self._failed = reason
+
+    def sample(self) -> Sample | None:
+        """Return the measurement to publish now, or None while a sensor delay is filling.
+
+        With a sensor delay of d steps the measurement is the state of d steps ago, stamped with
+        the time it was taken (a real delayed sensor's stamp), measured through noise and
+        quantisation now.
+        """
+        d = self._config.sensor_delay_steps
+        st = self._stepper
+        if d == 0:
+            step, phi, dphi, tau = self.steps, st.phi, st.dphi, self._torque
+        else:
+            want = self.steps - d
+            hist = self._history
+            if not hist or hist[0][0] > want:
+                return None
+            # The history holds consecutive steps, the oldest d + 1 steps back at most.
+            step, phi, dphi, tau = hist[want - hist[0][0]]
+        if not self._sensor.ideal:
+            phi, dphi = self._sensor.measure(phi, dphi)
+        return Sample(self.stamp_ns(step), phi, dphi, tau)
+
+    # ------------------------------------------------------------------ control
+    def reset(self) -> str | None:
+        """Go back to the initial state; return why it was stopped before, if it was.
+
+        The step count (and so the stamps) goes on: simulated time never goes back.
+        """
+        c = self._config
+        for key, value in self._stepper.stats.as_dict().items():
+            self._guard_before_reset[key] = self._guard_before_reset.get(key, 0) + int(value)
+        self._base_steps = self.steps
+        self._stepper.reset(c.phi0, c.dphi0)
+        self._target = 0.0
+        self._commanded = False
+        self._torque = 0.0
+        self._pending.clear()
+        self._history.clear()
+        was, self._failed = self._failed, None
+        return was
+
+    def reconfigure(self, config: JointConfig) -> None:
+        """Apply a new config (live parameters): the state, the step count and stamps are kept.
+
+        Damping (γ, n) applies from the next step; a lower ``max_effort`` re-saturates the held
+        effort command; sensor settings apply to the next measurement; delays apply to what
+        is sampled or commanded from now on.
+        """
+        check_config(replace(config, phi0=config.phi0, dphi0=config.dphi0))
+        old = self._config
+        fixed = ('h', 'method', 'guard', 'period_steps', 'epoch_ns', 'command_interface',
+                 'sensor_seed')
+        for name in fixed:
+            if getattr(old, name) != getattr(config, name):
+                raise JointError(f'{name} is fixed for the joint lifetime')
+        if config.params != old.params:
+            self._stepper.set_params(config.params)
+        self._config = config
+        if config.command_interface == 'effort':
+            self._target = min(max(self._target, -config.max_effort), config.max_effort)
+        s = self._sensor
+        s.position_noise = config.position_noise
+        s.velocity_noise = config.velocity_noise
+        s.resolution = config.resolution
