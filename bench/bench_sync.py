@@ -1,0 +1,336 @@
+"""Benchmark the synchronous closed loop against a bare rclpy ping-pong, in one run; print both.
+
+(a) ping-pong: process A publishes a std_msgs/Float64 (reliable), process B answers each one at
+    once, A sends the next only when the answer is in: round trips per second. This is the
+    ceiling for any loop in which two rclpy processes take turns.
+(b) synchronous closed loop: ``pendulum_node --scene controller_test`` (synchronous lockstep,
+    a 10 ms control period) and ``pendulum_pd_controller`` in separate processes: control
+    periods per second, from the simulated time in the node's /diagnostics (1 Hz) over the wall
+    time between their arrivals here; the controller's own count of answers is printed beside.
+(b') the same with the controller not using sim time (it needs no /clock: its time is the
+    states' stamps).
+(c) free lockstep (scene ``lockstep``): real-time factor from the node's diagnostics, alone and
+    with ``pendulum_pd_controller`` (use_sim_time) answering every state.
+
+    .venv/bin/python bench/bench_sync.py --seconds 10
+
+Targets (issue 8): (b) >= 0.6 x (a); free lockstep >= 50x real time. Figures to read, not
+assertions. Every process uses the same rclpy executor (--executor, default 'events').
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(150, 199)))
+os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from node_harness import NodeProcess, Probe, unique_namespace
+from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Float64
+
+from pendulum_sim.node.diagnostics import values_of
+from pendulum_sim.reports.report import machine_info
+
+RELIABLE = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+CONTROLLER = 'pendulum_pd_controller'
+
+
+def executor(kind: str) -> Executor:
+    """Return the executor the node and the controller use by default (or the single one)."""
+    if kind == 'events':
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor()
+    return SingleThreadedExecutor()
+
+
+# ---------------------------------------------------------------------- (a) ping-pong roles
+def role_pong(ns: str, kind: str) -> None:
+    """Answer every Float64 on ``ping`` with one on ``pong`` until SIGINT/SIGTERM."""
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    stop: list[int] = []
+    signal.signal(signal.SIGINT, lambda *_: stop.append(1))
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+    node = rclpy.create_node('bench_pong', namespace=ns)
+    pub = node.create_publisher(Float64, 'pong', RELIABLE)
+    node.create_subscription(Float64, 'ping', lambda m: pub.publish(Float64(data=m.data)),
+                             RELIABLE)
+    ex = executor(kind)
+    ex.add_node(node)
+    print('ready', flush=True)
+    while not stop:
+        ex.spin_once(timeout_sec=0.1)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def role_ping(ns: str, kind: str, warmup: float, seconds: float) -> None:
+    """Play ping-pong for ``warmup`` + ``seconds``; print round trips of the measured part."""
+    rclpy.init()
+    node = rclpy.create_node('bench_ping', namespace=ns)
+    pub = node.create_publisher(Float64, 'ping', RELIABLE)
+    count = [0]
+
+    def on_pong(msg: Float64) -> None:
+        count[0] += 1
+        pub.publish(Float64(data=msg.data + 1.0))
+
+    sub = node.create_subscription(Float64, 'pong', on_pong, RELIABLE)
+    ex = executor(kind)
+    ex.add_node(node)
+    end = time.monotonic() + 30.0
+    while pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1:
+        if time.monotonic() > end:
+            raise SystemExit('ping: pong did not connect within 30 s')
+        ex.spin_once(timeout_sec=0.05)
+    pub.publish(Float64(data=0.0))
+    t_start = time.monotonic() + warmup
+    t_end = t_start + seconds
+    n0 = -1
+    now = time.monotonic()
+    while now < t_end:
+        ex.spin_once(timeout_sec=0.1)
+        now = time.monotonic()
+        if n0 < 0 and now >= t_start:
+            n0, t0 = count[0], now
+    print(json.dumps({'round_trips': count[0] - n0, 'seconds': now - t0}), flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def ping_pong(args: argparse.Namespace) -> float:
+    """Run (a) in two child processes; return round trips per second."""
+    ns = unique_namespace()
+    me = [sys.executable, str(Path(__file__).resolve())]
+    common = ['--ns', ns, '--executor', args.executor]
+    pong = subprocess.Popen([*me, '--role', 'pong', *common], stdout=subprocess.PIPE,
+                            text=True)
+    try:
+        assert pong.stdout is not None
+        if pong.stdout.readline().strip() != 'ready':
+            raise SystemExit('pong did not start')
+        ping = subprocess.run([*me, '--role', 'ping', *common, '--warmup', str(args.warmup),
+                               '--seconds', str(args.seconds)], capture_output=True,
+                              text=True, timeout=args.warmup + args.seconds + 60)
+        if ping.returncode != 0:
+            raise SystemExit(f'ping failed:\n{ping.stderr}')
+        result = json.loads(ping.stdout.strip().splitlines()[-1])
+    finally:
+        pong.send_signal(signal.SIGINT)
+        pong.wait(timeout=10)
+    return float(result['round_trips'] / result['seconds'])
+
+
+# ---------------------------------------------------------------------- (b), (c) the loop
+def controller_command() -> list[str]:
+    """Return the controller's command: the venv's entry point if installed."""
+    script = Path(sys.executable).parent / CONTROLLER
+    if script.is_file():
+        return [str(script)]
+    return [sys.executable, '-m', 'pendulum_sim.controller.pd_controller']
+
+
+class ControllerProcess:
+    """pendulum_pd_controller in its own process, in the node's namespace."""
+
+    def __init__(self, ns: str, kind: str, use_sim_time: bool, clock_topic: str) -> None:
+        self._log = tempfile.TemporaryFile(mode='w+')
+        cmd = [*controller_command(), '--executor', kind, '--ros-args', '-r', f'__ns:={ns}',
+               '-r', f'/clock:={clock_topic}',
+               '-p', f'use_sim_time:={"true" if use_sim_time else "false"}']
+        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT,
+                                     text=True)
+
+    def output(self) -> str:
+        """Return what it wrote so far."""
+        self._log.flush()
+        self._log.seek(0)
+        return self._log.read()
+
+    def stop(self) -> str:
+        """Stop it with SIGINT; return its output."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        out = self.output()
+        self._log.close()
+        return out
+
+
+def answers_of(output: str) -> int | None:
+    """Return the controller's count from its exit line ('answered N states, ...')."""
+    for line in output.splitlines():
+        if line.startswith(f'{CONTROLLER}: answered '):
+            return int(line.split()[2])
+    return None
+
+
+def run_loop(args: argparse.Namespace, scene: str, with_controller: bool,
+             use_sim_time: bool) -> dict[str, Any]:
+    """Run the node on ``scene`` (and the controller); measure simulated time per wall time.
+
+    Returns the node's parameters of interest, the windows (wall s, simulated s) between
+    diagnostics after the warm-up, the last diagnostics, the outputs and the controller's count.
+    """
+    ns = unique_namespace()
+    clock_topic = f'{ns}/clock'  # remapped, so no other run in the domain interferes
+    out: dict[str, Any] = {'ok': False}
+    ctl = ControllerProcess(ns, args.executor, use_sim_time, clock_topic) \
+        if with_controller else None
+    try:
+        with Probe('bench_sync', executor='events') as probe:
+            if ctl is not None:  # the controller waits for the joint, not the other way round
+                probe.spin_until(lambda: 'PD + gravity compensation' in ctl.output(), 30.0,
+                                 'the controller to start')
+            node = NodeProcess(scene, {'status_line': False}, namespace=ns,
+                               remap={'/clock': clock_topic},
+                               extra_args=['--executor', args.executor])
+            with node:
+                arrivals: list[tuple[float, dict[str, str]]] = []
+
+                def on_diag(msg: DiagnosticArray) -> None:
+                    if msg.status and msg.status[0].name.startswith(node.fqn):
+                        arrivals.append((time.monotonic(), values_of(msg)))
+
+                probe.subscribe(DiagnosticArray, '/diagnostics', 10, on_diag)
+                end = time.monotonic() + 30.0
+                while not arrivals:
+                    if not node.alive():
+                        out['node_output'] = node.output()
+                        return out
+                    if time.monotonic() > end:
+                        out['node_output'] = node.output()
+                        return out
+                    probe.spin_for(0.05)
+                params = probe.get_parameters(node.fqn, ['synchronous', 'lockstep',
+                                                         'publish_rate', 'h'])
+                out['params'] = params
+                probe.spin_for(args.warmup)
+                first = len(arrivals)
+                probe.spin_until(lambda: len(arrivals) - first >= args.seconds + 1,
+                                 args.seconds + 30.0, 'diagnostics')
+                window = arrivals[first:]
+                (w0, d0), (w1, d1) = window[0], window[-1]
+                out['wall'] = w1 - w0
+                out['sim'] = float(d1['sim_time']) - float(d0['sim_time'])
+                out['last'] = d1
+                out['node_alive'] = node.alive()
+                node.stop()
+                out['node_output'] = node.output()
+                out['ok'] = True
+    finally:
+        if ctl is not None:
+            text = ctl.stop()
+            out['controller_output'] = text
+            out['answers'] = answers_of(text)
+    return out
+
+
+def tail(text: str, n: int = 15) -> str:
+    """Return the last ``n`` lines of ``text``, indented."""
+    return '\n'.join('    ' + line for line in text.strip().splitlines()[-n:])
+
+
+def main() -> int:
+    """Run (a), (b) and (c); print the figures side by side."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser.add_argument('--seconds', type=float, default=10.0, help='measured time per phase')
+    parser.add_argument('--warmup', type=float, default=2.0, help='ignored start, s')
+    parser.add_argument('--executor', choices=('events', 'single'), default='events')
+    parser.add_argument('--skip-lockstep', action='store_true', help='skip (c)')
+    parser.add_argument('--role', choices=('ping', 'pong'), help=argparse.SUPPRESS)
+    parser.add_argument('--ns', help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.role == 'pong':
+        role_pong(args.ns, args.executor)
+        return 0
+    if args.role == 'ping':
+        role_ping(args.ns, args.executor, args.warmup, args.seconds)
+        return 0
+
+    load = ', '.join(f'{x:.2f}' for x in os.getloadavg())
+    print(f'machine: {machine_info()}; load average {load}')
+    print(f'executor: {args.executor} in every process; ROS_DOMAIN_ID='
+          f'{os.environ["ROS_DOMAIN_ID"]}; {args.seconds:g} s measured per phase after '
+          f'{args.warmup:g} s warm-up\n')
+
+    rate_pp = ping_pong(args)
+    print(f'(a) bare rclpy ping-pong, Float64 reliable, two processes: {rate_pp:.0f} round '
+          f'trips/s ({1e6 / rate_pp:.0f} us each)')
+
+    sync = run_loop(args, 'controller_test', with_controller=True, use_sim_time=True)
+    params = sync.get('params', {})
+    if not sync['ok'] or params.get('synchronous') is not True:
+        why = ('the node does not declare the parameter synchronous (this pendulum_node has '
+               'no synchronous mode yet)' if sync['ok'] else
+               'the node did not run the scene controller_test (rejected it or failed)')
+        print(f'(b) synchronous closed loop: NOT MEASURED: {why}')
+        if sync.get('node_output'):
+            print('  pendulum_node said:\n' + tail(sync['node_output']))
+    else:
+        rate = float(params['publish_rate'])
+        periods = sync['sim'] * rate
+        per_s = periods / sync['wall']
+        ratio = per_s / rate_pp
+        print(f'(b) synchronous closed loop, pendulum_node controller_test + {CONTROLLER} '
+              f'(use_sim_time): {per_s:.0f} control periods/s ({1e6 / per_s:.0f} us each; '
+              f'{rate:g} Hz control, so {per_s / rate:.1f}x real time)')
+        ok = 'met' if ratio >= 0.6 else 'NOT met'
+        print(f'    ratio (b)/(a) = {ratio:.2f}  [target >= 0.6: {ok}]')
+        last = sync['last']
+        print(f'    over {sync["wall"]:.1f} s wall: {periods:.0f} periods; controller answered '
+              f'{sync["answers"]} states over its whole run (simulated time at the end '
+              f'{float(last["sim_time"]):.2f} s = {float(last["sim_time"]) * rate:.0f} periods)')
+        extra = {k: v for k, v in last.items() if 'sync' in k or 'command' in k}
+        if extra:
+            print('    node diagnostics: ' + ', '.join(f'{k} {v}' for k, v in extra.items()))
+        settled = [ln for ln in sync.get('controller_output', '').splitlines()
+                   if 'settled at' in ln]
+        print('    ' + (settled[0].split(']: ', 1)[-1] if settled else 'the loop did not '
+                        'report settling'))
+        # The controller takes time from the states' stamps, so it needs no /clock: without
+        # use_sim_time it skips one message per period.
+        plain = run_loop(args, 'controller_test', with_controller=True, use_sim_time=False)
+        if plain['ok']:
+            per_s = plain['sim'] * rate / plain['wall']
+            print(f"(b') the same, controller without use_sim_time (no /clock subscription): "
+                  f'{per_s:.0f} control periods/s, ratio to (a) {per_s / rate_pp:.2f}')
+
+    if not args.skip_lockstep:
+        for label, with_ctl in (('alone', False), (f'with {CONTROLLER} answering', True)):
+            free = run_loop(args, 'lockstep', with_controller=with_ctl, use_sim_time=True)
+            if not free['ok']:
+                print(f'(c) free lockstep {label}: NOT MEASURED\n' + tail(
+                    free.get('node_output', '')))
+                continue
+            rtf = free['sim'] / free['wall']
+            ok = 'met' if rtf >= 50.0 else 'NOT met'
+            answered = f'; controller answered {free["answers"]} states' if with_ctl else ''
+            print(f'(c) free lockstep {label}: {rtf:.1f}x real time  [target >= 50x: {ok}]'
+                  f'{answered}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
