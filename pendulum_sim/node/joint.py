@@ -27,6 +27,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
+import numpy as np
+
 from pendulum_sim.core import (
     PendulumError,
     PendulumParams,
@@ -185,9 +187,10 @@ def energy_terms(params: PendulumParams, phi: float, dphi: float,
                  residual: float = 0.0) -> EnergyTerms:
     """Return the energy terms of a state; raise JointError if one is not a finite number."""
     try:
-        kin = float(kinetic_energy(params, dphi))
-        pot = float(potential_energy(params, phi))
-        diss = float(dissipated_power(params, dphi))
+        with np.errstate(over='ignore', invalid='ignore'):
+            kin = float(kinetic_energy(params, dphi))
+            pot = float(potential_energy(params, phi))
+            diss = float(dissipated_power(params, dphi))
     except (OverflowError, ZeroDivisionError, ValueError) as exc:
         raise JointError(f'the state phi = {phi}, dphi = {dphi} has no finite energy '
                          f'({exc})') from None
