@@ -22,7 +22,8 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
-        (os.path.join('share', package_name, 'config'), sorted(glob('config/*.yaml'))),
+        (os.path.join('share', package_name, 'config'),
+         sorted(glob('config/*.yaml')) + ['config/fastdds_localhost.xml']),
         (os.path.join('share', package_name, 'urdf'), sorted(glob('urdf/*.urdf'))),
     ],
     python_requires='>=3.10',
@@ -34,6 +35,7 @@ setup(
         'test': [
             'pytest>=8', 'wheel>=0.40', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10',
             'mcap-ros2-support>=0.5',
+            'mujoco>=3.2', 'urdf_parser_py>=0.0.4',
             'colcon-core>=0.17', 'colcon-ros>=0.5', 'colcon-python-setup-py>=0.2',
         ],
     },

@@ -5,8 +5,8 @@ sits ``l`` below the pivot. The link's inertia about its centre of mass follows 
 parallel-axis theorem, ``I_com = I − m l²``, written as an isotropic tensor (a ball's: ``ixx =
 iyy = izz = I_com``, positive definite whenever ``I > m l²``, as MuJoCo requires), so the inertia
 about the joint axis is exactly the paper's ``I`` (Quiroga & Ospina-Henao, Eur. J. Phys. 38 (2017)
-065005). ``I < m l²`` describes no rigid body and is refused; ``I = m l²`` (the paper's point
-mass) gives the zero tensor, which engines that need a positive one cannot load.
+065005). ``I < m l²`` describes no rigid body (PendulumParams refuses it); ``I = m l²`` (the
+paper's point mass) gives the zero tensor, which engines that need a positive one cannot load.
 
 The damping law ``γ I |φ'|^n sgn φ'`` has a URDF equivalent only for ``n = 1``: viscous damping
 ``<dynamics damping="γ I"/>`` in N m s/rad. For any other ``n`` no ``<dynamics>`` is written and a
@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 import re
-import sys
 from collections.abc import Mapping
 from xml.sax.saxutils import escape
 
@@ -63,18 +62,10 @@ def _finite(name: str, value: float, *, positive: bool = False) -> float:
 def com_inertia(params: PendulumParams) -> float:
     """Return the link's moment of inertia about its centre of mass, ``I − m l²`` (kg m²).
 
-    Raises ParameterError when ``I < m l²`` (no rigid body has it). A difference within a few
-    rounding errors of 0 (a point mass, as in the paper's set-up) is 0.
+    PendulumParams refuses ``I < m l²`` (the core's parallel-axis rule, within its round-off
+    tolerance), so only round-off below 0 is left: that is the point mass, 0.
     """
-    ml2 = params.m * params.l * params.l
-    i_com = params.inertia - ml2
-    if i_com < 0.0:
-        if -i_com <= 4.0 * sys.float_info.epsilon * max(params.inertia, ml2):
-            return 0.0
-        raise ParameterError(
-            f'inertia I = {params.inertia!r} kg m^2 is below m l^2 = {ml2!r} kg m^2: no rigid '
-            'body of that mass and centre of mass has it (I >= m l^2, parallel-axis theorem)')
-    return i_com
+    return max(params.inertia - params.m * params.l * params.l, 0.0)
 
 
 def pendulum_urdf(params: PendulumParams, joint_name: str = 'pendulum_joint', *,
@@ -108,7 +99,7 @@ def pendulum_urdf(params: PendulumParams, joint_name: str = 'pendulum_joint', *,
     Raises
     ------
     ParameterError
-        ``I < m l²``, a non-finite or negative limit, ``lower >= upper``, an unknown interface
+        A non-finite or negative limit, ``lower >= upper``, an unknown interface
         or a name XML cannot hold.
     """
     if command_interface not in INTERFACES:

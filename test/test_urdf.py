@@ -1,0 +1,246 @@
+"""The generated URDF, checked by independent parsers and by MuJoCo as a rigid-body engine.
+
+Issue 9 item 4 and issue 11 item 6: escaped names, full precision, a rigid body's inertia
+(I >= m l²), limits, viscous damping γ I where n = 1, a ros2_control block for
+topic_based_ros2_control; MuJoCo's joint inertia equals I and its swing matches simulate().
+"""
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pendulum_sim.core import ModelError, PendulumParams, simulate
+from pendulum_sim.node.errors import ParameterError
+from pendulum_sim.node.urdf import PLUGIN, default_urdf, pendulum_urdf
+
+REPO_URDF = Path(__file__).resolve().parents[1] / 'urdf' / 'pendulum.urdf'
+# A body with I > m l² (MuJoCo needs a positive inertia tensor about the centre of mass).
+BODY = PendulumParams(m=0.37, l=0.83, inertia=0.31, g=9.81, gamma=0.7, n=1.0)
+TEXT_ATTRIBUTES = ('a&b', 'x" type="fixed', "q'<j>", 'spaced name')
+
+
+def parse(urdf: str) -> ET.Element:
+    """Parse with the standard library's XML parser (validity)."""
+    return ET.fromstring(urdf)
+
+
+def one(root: ET.Element, path: str) -> ET.Element:
+    """Return the single element at ``path``."""
+    found = root.findall(path)
+    assert len(found) == 1, f'{len(found)} elements at {path}'
+    return found[0]
+
+
+@pytest.mark.parametrize('name', TEXT_ATTRIBUTES)
+def test_names_are_escaped(name: str) -> None:
+    """A hostile joint name stays one name attribute, of the joint and of its ros2_control."""
+    root = parse(pendulum_urdf(BODY, name))
+    joint = one(root, 'joint')
+    assert joint.get('name') == name and joint.get('type') == 'continuous'
+    assert one(root, 'ros2_control/joint').get('name') == name
+
+
+def test_xml_cannot_hold_control_characters() -> None:
+    """A name with a character XML 1.0 cannot hold is refused, not written."""
+    with pytest.raises(ParameterError, match='XML cannot represent'):
+        pendulum_urdf(BODY, 'a\x01b')
+
+
+def test_numbers_are_written_at_full_precision() -> None:
+    """Every number reads back as exactly the float it came from."""
+    params = PendulumParams(m=0.1234567890123456, l=0.7777777777777777, inertia=0.3141592653589793,
+                            gamma=0.123456789012345, n=1.0)
+    root = parse(pendulum_urdf(params, max_effort=1.0 / 3.0, max_velocity=2.0 / 3.0))
+    inertial = one(root, "link[@name='pendulum_link']/inertial")
+    assert float(one(inertial, 'mass').get('value') or '') == params.m
+    assert one(inertial, 'origin').get('xyz') == f'0 0 {-params.l!r}'
+    i_com = params.inertia - params.m * params.l ** 2
+    tensor = one(inertial, 'inertia')
+    assert [float(tensor.get(k) or 'nan') for k in ('ixx', 'iyy', 'izz')] == [i_com] * 3
+    assert [float(tensor.get(k) or 'nan') for k in ('ixy', 'ixz', 'iyz')] == [0.0] * 3
+    limit = one(root, 'joint/limit')
+    assert (float(limit.get('effort') or ''), float(limit.get('velocity') or '')) == (
+        1.0 / 3.0, 2.0 / 3.0)
+    assert float(one(root, 'joint/dynamics').get('damping') or '') == (
+        params.gamma * params.inertia)
+
+
+def test_point_mass_has_a_zero_tensor_and_no_body_below_m_l2() -> None:
+    """I = m l² (the paper's point mass): the zero tensor; I < m l² never reaches the URDF."""
+    tensor = one(parse(pendulum_urdf(PendulumParams())), 'link/inertial/inertia')
+    assert {tensor.get(k) for k in ('ixx', 'iyy', 'izz')} == {'0.0'}
+    with pytest.raises(ModelError, match='inertia must be >= m'):
+        pendulum_urdf(PendulumParams(m=0.2, l=1.0, inertia=0.1))
+
+
+def test_limits_and_joint_type() -> None:
+    """No position limits: continuous; both: revolute with lower/upper; bad limits refused."""
+    root = parse(pendulum_urdf(BODY, lower=-1.5, upper=2.25, max_effort=3.0, max_velocity=4.0))
+    joint = one(root, 'joint')
+    assert joint.get('type') == 'revolute'
+    assert one(joint, 'limit').attrib == {'lower': '-1.5', 'upper': '2.25', 'effort': '3.0',
+                                          'velocity': '4.0'}
+    infinite = parse(pendulum_urdf(BODY, lower=-math.inf, upper=math.inf))
+    assert one(infinite, 'joint').get('type') == 'continuous'
+    for bad in ({'lower': 1.0, 'upper': 1.0}, {'max_effort': math.inf},
+                {'max_velocity': -1.0}, {'command_interface': 'torque'}):
+        with pytest.raises(ParameterError):
+            pendulum_urdf(BODY, **bad)
+
+
+def test_damping_only_where_urdf_has_an_equivalent() -> None:
+    """n = 1: <dynamics damping = γ I>; n ≠ 1: no <dynamics>, a comment says why."""
+    quadratic = PendulumParams(m=0.2, l=1.0, inertia=0.2, gamma=0.5, n=2.0)
+    text = pendulum_urdf(quadratic)
+    assert parse(text).find('joint/dynamics') is None
+    assert 'gamma = 0.5, n = 2.0 has no URDF equivalent' in text
+
+
+@pytest.mark.parametrize('interface', ['effort', 'velocity', 'position'])
+def test_ros2_control_block(interface: str) -> None:
+    """topic_based_ros2_control: plugin, this node's topics, 3 state and 1 command interface."""
+    root = parse(pendulum_urdf(BODY, 'j', command_interface=interface, lower=-1.0, upper=1.0,
+                               max_effort=5.0, max_velocity=6.0,
+                               joint_commands_topic='/ns/joint_commands'))
+    block = one(root, 'ros2_control')
+    assert block.attrib == {'name': 'pendulum', 'type': 'system'}
+    assert one(block, 'hardware/plugin').text == PLUGIN == (
+        'topic_based_ros2_control/TopicBasedSystem')
+    params = {p.get('name'): p.text for p in block.findall('hardware/param')}
+    assert params == {'joint_commands_topic': '/ns/joint_commands',
+                      'joint_states_topic': 'joint_states',
+                      'trigger_joint_command_threshold': '-1'}
+    joint = one(block, 'joint')
+    assert [s.get('name') for s in joint.findall('state_interface')] == [
+        'position', 'velocity', 'effort']
+    command = one(joint, 'command_interface')
+    assert command.get('name') == interface
+    bounds = {'effort': ['-5.0', '5.0'], 'velocity': ['-6.0', '6.0'],
+              'position': ['-1.0', '1.0']}[interface]
+    assert [(p.get('name'), p.text) for p in command.findall('param')] == list(
+        zip(['min', 'max'], bounds, strict=True))
+
+
+def test_shipped_urdf_is_the_default_scene() -> None:
+    """urdf/pendulum.urdf is what the generator makes of config/default.yaml."""
+    assert REPO_URDF.read_text() == default_urdf()
+
+
+def test_urdf_parser_py_reads_it() -> None:
+    """An independent URDF parser (urdf_parser_py) reads the joint, limits, dynamics, inertia."""
+    urdf_parser = pytest.importorskip('urdf_parser_py.urdf')
+    robot = urdf_parser.URDF.from_xml_string(pendulum_urdf(BODY, 'a&b', max_effort=2.5,
+                                                           max_velocity=7.0))
+    (joint,) = robot.joints
+    assert (joint.name, joint.type, list(joint.axis)) == ('a&b', 'continuous', [0.0, 1.0, 0.0])
+    assert (joint.limit.effort, joint.limit.velocity) == (2.5, 7.0)
+    assert joint.dynamics.damping == BODY.gamma * BODY.inertia
+    link = robot.link_map['pendulum_link']
+    assert link.inertial.mass == BODY.m
+    assert link.inertial.inertia.iyy == BODY.inertia - BODY.m * BODY.l ** 2
+    assert list(link.inertial.origin.xyz) == [0.0, 0.0, -BODY.l]
+
+
+# ---------------------------------------------------------------- MuJoCo as the oracle
+def mujoco_model(urdf: str) -> Any:
+    """Load a URDF into MuJoCo (visuals discarded, as its URDF import requires meshes for them)."""
+    mujoco = pytest.importorskip('mujoco')
+    tagged = urdf.replace('<robot name="pendulum">', '<robot name="pendulum">\n  <mujoco>'
+                          '<compiler discardvisual="true"/></mujoco>', 1)
+    return mujoco.MjModel.from_xml_string(tagged)
+
+
+def joint_inertia(model: Any, phi: float = 0.0) -> float:
+    """Return MuJoCo's joint-space inertia (its mass matrix, 1x1) at angle ``phi``."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    data.qpos[0] = phi
+    mujoco.mj_forward(model, data)
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, full)
+    return float(full[0, 0])
+
+
+@pytest.mark.parametrize('params', [
+    BODY,
+    PendulumParams(m=2.0, l=0.25, inertia=0.2, gamma=0.1),
+    PendulumParams(m=0.2, l=1.0, inertia=0.2000001, gamma=1.0),
+], ids=['body', 'short-heavy', 'near-point-mass'])
+def test_mujoco_joint_inertia_is_i(params: PendulumParams) -> None:
+    """MuJoCo's inertia about the joint axis equals I (1e-12 relative), at any angle."""
+    model = mujoco_model(pendulum_urdf(params, 'hinge'))
+    assert model.njnt == 1 and model.nv == 1
+    for phi in (0.0, 1.0, -2.5):
+        assert joint_inertia(model, phi) == pytest.approx(params.inertia, rel=1e-12, abs=0.0)
+    assert model.dof_damping[0] == params.gamma * params.inertia
+
+
+def mujoco_swing(model: Any, g: float, phi0: float, t_end: float, h: float) -> np.ndarray:
+    """Integrate the loaded model with MuJoCo's RK4 and return φ at every step (from t = 0)."""
+    import mujoco
+
+    model.opt.gravity[:] = (0.0, 0.0, -g)
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    model.opt.timestep = h
+    assert model.dof_armature[0] == 0.0 and model.dof_frictionloss[0] == 0.0
+    data = mujoco.MjData(model)
+    data.qpos[0] = phi0
+    steps = round(t_end / h)
+    out = np.empty(steps + 1)
+    out[0] = data.qpos[0]
+    for k in range(steps):
+        mujoco.mj_step(model, data)
+        out[k + 1] = data.qpos[0]
+    return out
+
+
+def test_mujoco_swing_matches_simulate() -> None:
+    """n = 1, no torque, φ0 = 0.5 rad: MuJoCo (RK4, h = 1e-4 s) follows simulate() to 1e-6 rad."""
+    h, t_end, phi0 = 1e-4, 3.0, 0.5
+    model = mujoco_model(pendulum_urdf(BODY))
+    theirs = mujoco_swing(model, BODY.g, phi0, t_end, h)
+    ours = simulate(BODY, phi0, 0.0, t_end, h, 'rk4')
+    assert len(ours.phi) == len(theirs)
+    assert np.max(np.abs(ours.phi - theirs)) < 1e-6
+    # The swing is a real one: it decays (γ = 0.7 s⁻¹) and crosses zero several times.
+    assert np.count_nonzero(np.diff(np.sign(theirs)) != 0) >= 2
+    assert 0.1 < np.max(np.abs(theirs[-10000:])) < 0.8 * phi0
+
+
+def test_mujoco_notices_a_different_pendulum() -> None:
+    """The comparison can fail: 1% more damping in the URDF moves the swing far beyond 1e-6."""
+    h, t_end, phi0 = 1e-4, 3.0, 0.5
+    other = PendulumParams(m=BODY.m, l=BODY.l, inertia=BODY.inertia, g=BODY.g,
+                           gamma=BODY.gamma * 1.01, n=1.0)
+    theirs = mujoco_swing(mujoco_model(pendulum_urdf(other)), BODY.g, phi0, t_end, h)
+    ours = simulate(BODY, phi0, 0.0, t_end, h, 'rk4')
+    assert np.max(np.abs(ours.phi - theirs)) > 1e-4
+
+
+@pytest.mark.ros
+def test_live_robot_description_loads_in_mujoco() -> None:
+    """The running node's robot_description (default scene): MuJoCo reads I, m, γ I, the name."""
+    from node_harness import NodeProcess, Probe
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    # I > m l² so that MuJoCo (which needs a positive tensor) can load the body.
+    overrides = {'inertia': 0.25, 'gamma': 0.3, 'joint_name': 'swing&sway'}
+    with NodeProcess('default', overrides) as node, Probe() as probe:
+        got = probe.subscribe(String, f'{node.namespace}/robot_description', latched)
+        probe.spin_until(lambda: len(got) >= 1 or not node.alive(), 20.0, 'robot_description')
+        assert node.alive(), node.output()
+        urdf = got.msgs[0].data
+    assert one(parse(urdf), 'joint').get('name') == 'swing&sway'
+    model = mujoco_model(urdf)
+    assert joint_inertia(model) == pytest.approx(0.25, rel=1e-12, abs=0.0)
+    assert model.body_mass[-1] == 0.2
+    assert model.dof_damping[0] == pytest.approx(0.3 * 0.25, rel=1e-15)
