@@ -10,13 +10,14 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from pendulum_sim.recording.errors import RecorderError
-    from pendulum_sim.recording.loader import Recording, load
+    from pendulum_sim.recording.events import RESET_TOPIC
+    from pendulum_sim.recording.loader import Recording, Segment, load
     from pendulum_sim.recording.writer import McapRecorder
 
-__all__ = ['McapRecorder', 'RecorderError', 'Recording', 'load']
+__all__ = ['RESET_TOPIC', 'McapRecorder', 'RecorderError', 'Recording', 'Segment', 'load']
 
 _WHERE = {'McapRecorder': 'writer', 'RecorderError': 'errors', 'Recording': 'loader',
-          'load': 'loader'}
+          'Segment': 'loader', 'load': 'loader', 'RESET_TOPIC': 'events'}
 
 
 def __getattr__(name: str) -> Any:

@@ -33,10 +33,12 @@ from typing import Any, Final, NoReturn
 import mcap
 from rclpy.qos import QoSProfile
 from rclpy.serialization import serialize_message
+from std_msgs.msg import String
 
 from pendulum_sim import __version__
 from pendulum_sim.recording import sink
 from pendulum_sim.recording.errors import RecorderError
+from pendulum_sim.recording.events import RESET_TOPIC
 from pendulum_sim.recording.rosbag2 import offered_qos, qos_profiles_yaml
 from pendulum_sim.recording.schemas import ros2msg_schema, type_hash, type_name_of
 
@@ -46,6 +48,7 @@ MAX_BACKLOG: Final = 64 << 20       # bytes kept here beyond that before giving 
 _F_SETPIPE_SZ: Final = getattr(fcntl, 'F_SETPIPE_SZ', 1031)
 _CREATE: Final = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
 _NAME_TRIES: Final = 16
+RESET_QOS: Final = QoSProfile(depth=10)
 
 
 @dataclass(frozen=True)
@@ -364,6 +367,16 @@ class McapRecorder:
             self._refuse(topic)
         self._send(sink.MESSAGE_HEAD.pack(sink.MESSAGE, 10 + len(data), channel.id, stamp_ns)
                    + data)
+
+    def write_reset(self, stamp_ns: int, message: str) -> None:
+        """Record a reset of the simulation: a ``std_msgs/msg/String`` on :data:`RESET_TOPIC`.
+
+        The event is kept in write order, so :func:`~pendulum_sim.recording.load` splits the run
+        into segments there. The channel is created on the first reset. Cheap, never blocks.
+        """
+        if RESET_TOPIC not in self._channels:
+            self.add_channel(RESET_TOPIC, String, RESET_QOS)
+        self.write(RESET_TOPIC, String(data=message), stamp_ns)
 
     def _refuse(self, topic: str) -> NoReturn:
         if self._state != 'open':
