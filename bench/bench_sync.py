@@ -51,6 +51,7 @@ RELIABLE = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
 CONTROLLER = 'pendulum_pd_controller'
+CLK_TCK = os.sysconf('SC_CLK_TCK')
 
 
 def executor(kind: str) -> Executor:
@@ -81,8 +82,8 @@ def role_pong(ns: str, kind: str) -> None:
     rclpy.try_shutdown()
 
 
-def role_ping(ns: str, kind: str, warmup: float, seconds: float) -> None:
-    """Play ping-pong for ``warmup`` + ``seconds``; print round trips of the measured part."""
+def role_ping(ns: str, kind: str, warmup: float, seconds: float, peer: int) -> None:
+    """Play ping-pong for ``warmup`` + ``seconds``; print round trips and CPU of that part."""
     rclpy.init()
     node = rclpy.create_node('bench_ping', namespace=ns)
     pub = node.create_publisher(Float64, 'ping', RELIABLE)
@@ -110,13 +111,17 @@ def role_ping(ns: str, kind: str, warmup: float, seconds: float) -> None:
         now = time.monotonic()
         if n0 < 0 and now >= t_start:
             n0, t0 = count[0], now
-    print(json.dumps({'round_trips': count[0] - n0, 'seconds': now - t0}), flush=True)
+            cpu0 = (time.process_time(), cpu_seconds(peer))
+    cpu1 = (time.process_time(), cpu_seconds(peer))
+    print(json.dumps({'round_trips': count[0] - n0, 'seconds': now - t0,
+                      'cpu_ping': cpu1[0] - cpu0[0], 'cpu_pong': cpu1[1] - cpu0[1]}),
+          flush=True)
     node.destroy_node()
     rclpy.try_shutdown()
 
 
-def ping_pong(args: argparse.Namespace) -> float:
-    """Run (a) in two child processes; return round trips per second."""
+def ping_pong(args: argparse.Namespace) -> dict[str, float]:
+    """Run (a) in two child processes; return round trips, seconds and CPU seconds."""
     ns = unique_namespace()
     me = [sys.executable, str(Path(__file__).resolve())]
     common = ['--ns', ns, '--executor', args.executor]
@@ -127,7 +132,8 @@ def ping_pong(args: argparse.Namespace) -> float:
         if pong.stdout.readline().strip() != 'ready':
             raise SystemExit('pong did not start')
         ping = subprocess.run([*me, '--role', 'ping', *common, '--warmup', str(args.warmup),
-                               '--seconds', str(args.seconds)], capture_output=True,
+                               '--seconds', str(args.seconds), '--peer', str(pong.pid)],
+                              capture_output=True,
                               text=True, timeout=args.warmup + args.seconds + 60)
         if ping.returncode != 0:
             raise SystemExit(f'ping failed:\n{ping.stderr}')
@@ -135,7 +141,7 @@ def ping_pong(args: argparse.Namespace) -> float:
     finally:
         pong.send_signal(signal.SIGINT)
         pong.wait(timeout=10)
-    return float(result['round_trips'] / result['seconds'])
+    return {k: float(v) for k, v in result.items()}
 
 
 # ---------------------------------------------------------------------- (b), (c) the loop
@@ -176,6 +182,17 @@ class ControllerProcess:
         out = self.output()
         self._log.close()
         return out
+
+
+def cpu_seconds(pid: int) -> float:
+    """Return user + system CPU time of process ``pid`` in s, from /proc/<pid>/stat."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLK_TCK
+
+
+def cpu_text(run: dict[str, Any], periods: float) -> str:
+    """Return the processes' CPU per control period (approximate: the window ends differ)."""
+    return ', '.join(f'{k} {1e6 * v / periods:.0f} us' for k, v in run['cpu'].items())
 
 
 def answers_of(output: str) -> int | None:
@@ -228,12 +245,19 @@ def run_loop(args: argparse.Namespace, scene: str, with_controller: bool,
                 out['params'] = params
                 probe.spin_for(args.warmup)
                 first = len(arrivals)
-                probe.spin_until(lambda: len(arrivals) - first >= args.seconds + 1,
+                pids = {'node': node.proc.pid if node.proc else 0,
+                        'controller': ctl.proc.pid if ctl is not None else 0}
+                pids = {k: v for k, v in pids.items() if v}
+                probe.spin_until(lambda: len(arrivals) > first, 10.0, 'diagnostics')
+                cpu0 = {k: cpu_seconds(v) for k, v in pids.items()}
+                probe.spin_until(lambda: len(arrivals) - first >= args.seconds + 2,
                                  args.seconds + 30.0, 'diagnostics')
-                window = arrivals[first:]
+                cpu1 = {k: cpu_seconds(v) for k, v in pids.items()}
+                window = arrivals[first + 1:]
                 (w0, d0), (w1, d1) = window[0], window[-1]
                 out['wall'] = w1 - w0
                 out['sim'] = float(d1['sim_time']) - float(d0['sim_time'])
+                out['cpu'] = {k: cpu1[k] - cpu0[k] for k in pids}
                 out['last'] = d1
                 out['node_alive'] = node.alive()
                 node.stop()
@@ -261,12 +285,13 @@ def main() -> int:
     parser.add_argument('--skip-lockstep', action='store_true', help='skip (c)')
     parser.add_argument('--role', choices=('ping', 'pong'), help=argparse.SUPPRESS)
     parser.add_argument('--ns', help=argparse.SUPPRESS)
+    parser.add_argument('--peer', type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.role == 'pong':
         role_pong(args.ns, args.executor)
         return 0
     if args.role == 'ping':
-        role_ping(args.ns, args.executor, args.warmup, args.seconds)
+        role_ping(args.ns, args.executor, args.warmup, args.seconds, args.peer)
         return 0
 
     load = ', '.join(f'{x:.2f}' for x in os.getloadavg())
@@ -275,48 +300,55 @@ def main() -> int:
           f'{os.environ["ROS_DOMAIN_ID"]}; {args.seconds:g} s measured per phase after '
           f'{args.warmup:g} s warm-up\n')
 
-    rate_pp = ping_pong(args)
+    pp = ping_pong(args)
+    rate_pp = pp['round_trips'] / pp['seconds']
     print(f'(a) bare rclpy ping-pong, Float64 reliable, two processes: {rate_pp:.0f} round '
-          f'trips/s ({1e6 / rate_pp:.0f} us each)')
+          f'trips/s ({1e6 / rate_pp:.0f} us each); CPU per round trip: ping '
+          f'{1e6 * pp["cpu_ping"] / pp["round_trips"]:.0f} us, pong '
+          f'{1e6 * pp["cpu_pong"] / pp["round_trips"]:.0f} us')
 
-    sync = run_loop(args, 'controller_test', with_controller=True, use_sim_time=True)
-    params = sync.get('params', {})
-    if not sync['ok'] or params.get('synchronous') is not True:
-        why = ('the node does not declare the parameter synchronous (this pendulum_node has '
-               'no synchronous mode yet)' if sync['ok'] else
-               'the node did not run the scene controller_test (rejected it or failed)')
-        print(f'(b) synchronous closed loop: NOT MEASURED: {why}')
-        if sync.get('node_output'):
-            print('  pendulum_node said:\n' + tail(sync['node_output']))
-    else:
+    first_run = True
+    for use_sim_time in (False, True):
+        label = "(b')" if use_sim_time else '(b)'
+        how = ('use_sim_time:=true, so it also takes every /clock tick' if use_sim_time else
+               "without use_sim_time: its time is the states' stamps, it needs no /clock")
+        sync = run_loop(args, 'controller_test', with_controller=True,
+                        use_sim_time=use_sim_time)
+        params = sync.get('params', {})
+        if not sync['ok'] or params.get('synchronous') is not True:
+            why = ('the node does not declare the parameter synchronous (this pendulum_node '
+                   'has no synchronous mode yet)' if sync['ok'] else
+                   'the node did not run the scene controller_test (rejected it or failed)')
+            print(f'{label} synchronous closed loop: NOT MEASURED: {why}')
+            if sync.get('node_output'):
+                print('  pendulum_node said:\n' + tail(sync['node_output']))
+            break
         rate = float(params['publish_rate'])
         periods = sync['sim'] * rate
         per_s = periods / sync['wall']
         ratio = per_s / rate_pp
-        print(f'(b) synchronous closed loop, pendulum_node controller_test + {CONTROLLER} '
-              f'(use_sim_time): {per_s:.0f} control periods/s ({1e6 / per_s:.0f} us each; '
-              f'{rate:g} Hz control, so {per_s / rate:.1f}x real time)')
         ok = 'met' if ratio >= 0.6 else 'NOT met'
-        print(f'    ratio (b)/(a) = {ratio:.2f}  [target >= 0.6: {ok}]')
-        last = sync['last']
-        print(f'    over {sync["wall"]:.1f} s wall: {periods:.0f} periods; controller answered '
-              f'{sync["answers"]} states over its whole run (simulated time at the end '
-              f'{float(last["sim_time"]):.2f} s = {float(last["sim_time"]) * rate:.0f} periods)')
-        extra = {k: v for k, v in last.items() if 'sync' in k or 'command' in k}
-        if extra:
-            print('    node diagnostics: ' + ', '.join(f'{k} {v}' for k, v in extra.items()))
-        settled = [ln for ln in sync.get('controller_output', '').splitlines()
-                   if 'settled at' in ln]
-        print('    ' + (settled[0].split(']: ', 1)[-1] if settled else 'the loop did not '
-                        'report settling'))
-        # The controller takes time from the states' stamps, so it needs no /clock: without
-        # use_sim_time it skips one message per period.
-        plain = run_loop(args, 'controller_test', with_controller=True, use_sim_time=False)
-        if plain['ok']:
-            per_s = plain['sim'] * rate / plain['wall']
-            print(f"(b') the same, controller without use_sim_time (no /clock subscription): "
-                  f'{per_s:.0f} control periods/s, ratio to (a) {per_s / rate_pp:.2f}')
-
+        print(f'{label} synchronous closed loop, pendulum_node --scene controller_test + '
+              f'{CONTROLLER} ({how}):\n'
+              f'    {per_s:.0f} control periods/s ({1e6 / per_s:.0f} us each; {rate:g} Hz '
+              f'control, so {per_s / rate:.1f}x real time); ratio to (a) {ratio:.2f}  '
+              f'[target >= 0.6: {ok}]')
+        print(f'    CPU per control period: {cpu_text(sync, periods)}')
+        if first_run:
+            first_run = False
+            last = sync['last']
+            print(f'    {periods:.0f} periods in {sync["wall"]:.1f} s; the controller answered '
+                  f'{sync["answers"]} states in its whole run, the node reached t = '
+                  f'{float(last["sim_time"]):.2f} s = {float(last["sim_time"]) * rate:.0f} '
+                  'periods')
+            extra = {k: v for k, v in last.items() if k.startswith('sync_')}
+            if extra:
+                print('    node diagnostics: ' + ', '.join(f'{k} {v}' for k, v in
+                                                        extra.items()))
+            settled = [ln for ln in sync.get('controller_output', '').splitlines()
+                       if 'settled at' in ln]
+            print('    ' + (settled[0].split(']: ', 1)[-1] if settled else 'the loop did not '
+                            'report settling'))
     if not args.skip_lockstep:
         for label, with_ctl in (('alone', False), (f'with {CONTROLLER} answering', True)):
             free = run_loop(args, 'lockstep', with_controller=with_ctl, use_sim_time=True)
