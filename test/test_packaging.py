@@ -19,7 +19,7 @@ def test_wheel_installs_the_ament_marker_package_xml_scenes_and_executables(
     assert data + 'share/ament_index/resource_index/packages/pendulum_sim' in names
     assert data + 'share/pendulum_sim/package.xml' in names
     scenes = {Path(n).name for n in names if n.startswith(data + 'share/pendulum_sim/config/')}
-    assert {p.name for p in (ROOT / 'config').glob('*.yaml')} == scenes
+    assert {p.name for p in (ROOT / 'config').glob('*.yaml')} | {'fastdds_localhost.xml'} == scenes
     assert 'pendulum_sim/py.typed' in names
     entry = zipfile.ZipFile(wheel).read('pendulum_sim-0.1.0.dist-info/entry_points.txt').decode()
     for exe in ('pendulum_node', 'pendulum_replay', 'pendulum_report', 'pendulum_demo',
