@@ -223,6 +223,14 @@ def _message_indexes(data: bytes, chunk: Any) -> list[Any]:
     (['--rate', 'fast'], "argument --rate: must be a number, got 'fast'"),
     (['--start', '-1'], 'argument --start: must be >= 0, got -1'),
     (['--start', '2', '--end', '1'], 'argument --end: must be after --start (2.0 s), got 1.0'),
+    # Every number must be finite and small enough for int64 nanoseconds (issue 11, item 12).
+    (['--end', 'inf'], 'argument --end: must be a finite number, got inf'),
+    (['--start', '1e300'], 'argument --start: must be <= 9.2e+09, got 1e300'),
+    (['--rate', 'inf', '--clock'], 'argument --rate: must be a finite number, got inf'),
+    (['--rate', '1e300'], 'argument --rate: must be <= 1e+06, got 1e300'),
+    (['--clock', 'nan'], 'argument --clock: must be a finite number, got nan'),
+    (['--wait-for-subscribers', '-inf'],
+     'argument --wait-for-subscribers: must be a finite number, got -inf'),
     (['--topics', '/nope'], 'argument --topics: /nope not in {path} (it has /diagnostics, '
      '/effort_command, /energy, /joint_states, /parameter_events)'),
 ])
@@ -231,6 +239,7 @@ def test_argument_errors(recording: tuple[Path, list[Any]], args: list[str],
     path, _ = recording
     result = run_replay(str(path), *args)
     assert result.returncode == 2
+    assert 'Traceback' not in result.stderr
     assert result.stderr.splitlines()[-1] == (
         f'pendulum_replay: error: {message.format(path=path)}')
 

@@ -235,7 +235,7 @@ class McapRecorder:
             if exc.errno == errno.ELOOP:
                 raise RecorderError(f'cannot replace recording {path}: it is a symbolic link; '
                                     f'a recording is never written through one') from None
-            raise RecorderError(f'cannot replace recording {path}: {_reason(exc)}') from exc
+            raise RecorderError(f'cannot create recording {path}: {_reason(exc)}') from exc
         try:
             if stat.S_ISDIR(os.fstat(old).st_mode):
                 raise RecorderError(f'cannot create recording {path}: it is a folder')
