@@ -229,7 +229,7 @@ def _message_indexes(data: bytes, chunk: Any) -> list[Any]:
     (['--rate', 'inf', '--clock'], 'argument --rate: must be a finite number, got inf'),
     (['--rate', '1e300'], 'argument --rate: must be <= 1e+06, got 1e300'),
     (['--clock', 'nan'], 'argument --clock: must be a finite number, got nan'),
-    (['--wait-for-subscribers', '-inf'],
+    (['--wait-for-subscribers=-inf'],
      'argument --wait-for-subscribers: must be a finite number, got -inf'),
     (['--topics', '/nope'], 'argument --topics: /nope not in {path} (it has /diagnostics, '
      '/effort_command, /energy, /joint_states, /parameter_events)'),
