@@ -186,3 +186,24 @@ def test_bad_start_up_value_exits_2_with_the_reason() -> None:
     assert result.returncode == 2
     assert f'{NAME}: max_effort must be > 0, got 0.0' in result.stderr
     assert 'Traceback' not in result.stderr
+
+
+def test_settles_against_the_real_time_joint() -> None:
+    """Real-time scene default (200 Hz, starts at 0.3 rad): the loop reaches the target."""
+    ns = unique_namespace()
+    with NodeProcess('default', {'status_line': False}, namespace=ns) as node, \
+            Controller(params={'target': 0.5, 'use_sim_time': True}, namespace=ns) as ctl, \
+            Probe('pd_probe') as probe:
+        states = probe.subscribe(JointState, f'{ns}/joint_states', RELIABLE)
+        probe.spin_until(lambda: 'settled at' in ctl.output(), 30.0, 'the loop to settle')
+        n = len(states)
+        probe.spin_until(lambda: len(states) >= n + 20, 10.0, 'more states')
+        last = states.msgs[-1]
+        assert abs(last.position[0] - 0.5) < 0.01
+        assert abs(last.velocity[0]) < 0.01
+        # The joint applies the controller's torque, computed from a state in the band:
+        # |τ − m g l sin 0.5| < m g l·0.01 + kp·0.01 + kd·0.01 (|sin a − sin b| <= |a − b|).
+        bound = (1.96 + 4.0 + 1.0) * 0.01
+        assert abs(last.effort[0] - 1.96 * math.sin(0.5)) < bound
+        assert ctl.stop() == 0
+        assert node.stop() == 0
