@@ -17,7 +17,7 @@ from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
-from test_recording_support import read_independently, ros_node, spin_until
+from test_recording_support import assert_same, read_independently, ros_node, spin_until
 
 from pendulum_sim import __version__
 from pendulum_sim.core import PendulumParams, simulate
@@ -101,6 +101,7 @@ def test_a_recorded_run_is_the_core_trajectory_and_sigterm_finalises(tmp_path: P
 
     rec = load(path)                       # no TruncatedRecordingWarning: finalised
     assert rec.complete and rec.problems == ()
+    assert_same(rec, load(path, fast=False))   # the fast decoder on the node's own bytes
     assert rec.scene['recording.path'] == str(path) and rec.scene['gamma'] == '0.1'
     assert rec.metadata['pendulum_sim'] == {'version': __version__}
     summary, decoded = read_independently(path)

@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
@@ -112,6 +113,27 @@ def read_independently(path: Path) -> tuple[Any, list[tuple[Any, Any, Any, Any]]
         summary = reader.get_summary()
         decoded = list(reader.iter_decoded_messages(log_time_order=False))
     return summary, decoded
+
+
+def assert_same(a: Any, b: Any, where: str = 'rec') -> None:
+    """Assert two loaded values are identical: arrays bit for bit (NaN payloads too)."""
+    if isinstance(a, np.ndarray):
+        assert isinstance(b, np.ndarray) and a.dtype == b.dtype and a.shape == b.shape, where
+        assert a.tobytes() == b.tobytes(), where
+    elif hasattr(a, '__dataclass_fields__'):
+        assert type(a) is type(b), where
+        for name in a.__dataclass_fields__:
+            assert_same(getattr(a, name), getattr(b, name), f'{where}.{name}')
+    elif isinstance(a, dict):
+        assert a.keys() == b.keys(), where
+        for key in a:
+            assert_same(a[key], b[key], f'{where}[{key!r}]')
+    elif isinstance(a, tuple) and a and hasattr(a[0], 'joint_states'):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            assert_same(x, y, f'{where}[{i}]')
+    else:
+        assert a == b, where
 
 
 @contextlib.contextmanager

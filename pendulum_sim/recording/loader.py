@@ -267,13 +267,13 @@ def _joint_state_layout(data: bytes) -> tuple[dict[str, int], int | None, tuple[
         for array in ('position', 'velocity', 'effort'):
             pos = aligned(pos, 4)
             count = uint32(pos)
-            pos += 4
+            if count > 1:
+                return None
+            # Fast CDR aligns a sequence of doubles to 8 even when it is empty.
+            pos = aligned(pos + 4, 8)
             if count == 1:
-                pos = aligned(pos, 8)
                 fields[array] = pos
                 pos += 8
-            elif count != 0:
-                return None
     except (IndexError, UnicodeDecodeError):
         return None
     if pos != len(data):
