@@ -442,6 +442,14 @@ class SimulatedJoint:
         was, self._failed = self._failed, None
         return was
 
+    def check_params(self, params: PendulumParams) -> None:
+        """Raise JointError if the current state would have no finite energy under ``params``."""
+        st = self._stepper
+        try:
+            energy_terms(params, st.phi, st.dphi)
+        except JointError as exc:
+            raise JointError(f'{exc} (the current state; ~/reset first)') from None
+
     def reconfigure(self, config: JointConfig) -> None:
         """Apply a new config (live parameters): the state, the step count and stamps are kept.
 

@@ -39,7 +39,15 @@ from pendulum_sim.core import PendulumError
 from . import diagnostics as diag
 from .errors import JointError, ParameterError
 from .joint import SimulatedJoint
-from .parameters import SPEC_BY_NAME, Value, check, declare_all, joint_config, merged
+from .parameters import (
+    SPEC_BY_NAME,
+    Value,
+    check,
+    declare_all,
+    joint_config,
+    merged,
+    physics,
+)
 from .realtime import RateMeter, Schedule, WakeStats
 from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 from .status import StatusLine, status_text, summary_text
@@ -210,19 +218,25 @@ class PendulumNode(Node):
 
     def _subscribe(self, msg_type: Any, topic: str, callback: Any, qos: QoSProfile) -> Any:
         """Create a command subscription that says when a publisher cannot connect."""
+        created: list[Any] = []
+
         def incompatible(event: Any) -> None:
-            count = self._incompatible.get(topic, 0) + 1
-            self._incompatible[topic] = count
+            name = created[0].topic_name if created else topic
+            count = self._incompatible.get(name, 0) + 1
+            self._incompatible[name] = count
             if count == 1 or count % 100 == 0:
+                kind = getattr(event.last_policy_kind, 'name', str(event.last_policy_kind))
                 need = ('reliable (synchronous mode loses no command)' if self._sync
                         else 'a compatible QoS')
                 self.get_logger().warning(
-                    f'a publisher on {topic} cannot connect: its QoS is incompatible '
-                    f'({event.last_policy_kind}); publish {need} ({count} so far)')
+                    f'a publisher on {name} cannot connect: its QoS is incompatible '
+                    f"({kind.removeprefix('RMW_QOS_POLICY_')}); publish {need} "
+                    f'({count} so far)')
 
         events = SubscriptionEventCallbacks(incompatible_qos=incompatible)
-        return self.create_subscription(msg_type, topic, callback, qos,
-                                        event_callbacks=events)
+        created.append(self.create_subscription(msg_type, topic, callback, qos,
+                                                event_callbacks=events))
+        return created[0]
 
     # ------------------------------------------------------------------ recording
     def _open_recorder(self, path: str, overwrite: bool) -> None:
@@ -620,7 +634,8 @@ class PendulumNode(Node):
         t = self._joint.time
         if request.data == self._paused:
             response.success = True
-            response.message = f'already {"paused" if self._paused else "running"} at t = {t:.9g} s'
+            state = 'paused' if self._paused else 'running'
+            response.message = f'already {state} at t = {t:.9g} s'
             return response
         self._step_budget = 0
         self._pause(bool(request.data))
@@ -655,6 +670,11 @@ class PendulumNode(Node):
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         proposed = merged(self._values, ((p.name, p.value) for p in params))
         reason = check(proposed)
+        if reason is None:
+            try:
+                self._joint.check_params(physics(proposed))
+            except (JointError, PendulumError) as exc:
+                reason = str(exc)
         if reason is not None:
             return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
