@@ -1,7 +1,8 @@
 """Benchmark MCAP recording: bytes on disk, write() cost, and what it does to a 1 kHz loop.
 
-Run: ``.venv/bin/python bench/bench_recording.py [--seconds S] [--node]``. Prints figures; asserts
-nothing. Parts:
+Run: ``.venv/bin/python bench/bench_recording.py [--seconds S] [--node]``, or
+``.venv/bin/python bench/bench_recording.py --load [--minutes M] [--file PATH]`` for part 5 alone.
+Prints figures; asserts nothing. Parts:
 
 1. bytes per JointState on disk (``/joint_states`` alone, and per loop tick with every topic the
    node records), for zstd, lz4 and no compression;
@@ -9,11 +10,19 @@ nothing. Parts:
 3. a 1 kHz Python loop (sleep to the next tick, measure how late it wakes) with and without a
    recorder taking four messages per tick: wake-latency p50/p99/max and process CPU;
 4. with ``--node`` and the node installed: ``pendulum_node`` CPU (and its recording writer
-   process's) and its own wake-latency p99 (from /diagnostics) with and without recording.
+   process's) and its own wake-latency p99 (from /diagnostics) with and without recording;
+5. with ``--load``: ``load()`` of an hour-long 1 kHz recording (3.6 M joint_states and 3.6 M
+   energy messages, written by ``McapRecorder`` from rclpy-serialized messages as the node's),
+   in a fresh process: messages per second, and peak memory (RSS growth and the tracemalloc
+   peak, which numpy reports to) against the bytes of the arrays it returns; the per-message
+   decoder (``fast=False``) on the first minutes for comparison. ``--file`` keeps the recording
+   (and reuses it when it exists).
 """
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
 import platform
 import resource
@@ -243,13 +252,115 @@ def _children(pid: int) -> list[int]:
     return found
 
 
+def synthesize(path: Path, minutes: float) -> None:
+    """Record ``minutes`` of 1 kHz joint_states and energy, serialized by rclpy, one by one."""
+    from rclpy.serialization import serialize_message
+    ticks = round(minutes * 60 * RATE_HZ)
+    msg = joint_state(0, 0)
+    energy = Float64()
+    t0 = time.perf_counter()
+    with McapRecorder(path) as rec:
+        rec.add_channel('/joint_states', JointState, QoSProfile(depth=10))
+        rec.add_channel('/energy', Float64, 10)
+        write = rec.write_serialized
+        for k in range(ticks):
+            ns = 1_700_000_000_000_000_000 + k * 1_000_000
+            t = k / RATE_HZ
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
+            msg.position[0] = math.exp(-0.1 * t) * math.cos(7.0 * t)
+            msg.velocity[0] = -7.0 * math.exp(-0.1 * t) * math.sin(7.0 * t)
+            energy.data = math.exp(-0.2 * t)
+            write('/joint_states', serialize_message(msg), ns)
+            write('/energy', serialize_message(energy), ns)
+            if k % 20_000 == 0:   # stay within the writer's backlog
+                while 2 * k - rec.messages_written > 400_000 and rec.error is None:
+                    time.sleep(0.01)
+    if rec.error is not None:
+        raise SystemExit(f'recording failed: {rec.error}')
+    print(f'   synthesized {2 * ticks} messages in {time.perf_counter() - t0:.0f} s: '
+          f'{path.stat().st_size / 1e6:.1f} MB')
+
+
+MEASURE_LOAD = """
+import json, resource, sys, time, tracemalloc
+import numpy as np
+from pendulum_sim.recording import load
+path, mode = sys.argv[1], sys.argv[2]
+load(sys.argv[3], fast=True)   # a tiny file: the message types are imported and loaded now
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+if mode == 'traced':
+    tracemalloc.start()
+t0 = time.perf_counter()
+rec = load(path, fast=mode != 'slow')
+seconds = time.perf_counter() - t0
+peak = tracemalloc.get_traced_memory()[1] if mode == 'traced' else 0
+after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+arrays = 0
+for part in (rec.joint_states, rec.energy):
+    for value in vars(part).values():
+        if isinstance(value, np.ndarray):
+            arrays += value.nbytes
+count = sum(info.message_count for info in rec.topics.values())
+print(json.dumps({'seconds': seconds, 'messages': count, 'arrays': arrays,
+                  'rss_growth': (after - before) * 1024, 'traced_peak': peak}))
+"""
+
+
+def measure_load(path: Path, mode: str, warm: Path) -> dict[str, float]:
+    """Load in a fresh process (so the memory figures are its own); return the figures.
+
+    ``mode``: ``'fast'``, ``'slow'`` (the per-message decoder) or ``'traced'`` (fast, under
+    tracemalloc, which slows Python down: for the memory peak only).
+    """
+    out = subprocess.run([sys.executable, '-c', MEASURE_LOAD, str(path), mode, str(warm)],
+                         capture_output=True, text=True, check=True).stdout
+    result: dict[str, float] = json.loads(out)
+    return result
+
+
+def load_figures(minutes: float, keep: Path | None, folder: Path) -> None:
+    print(f'5. load() of a {minutes:g}-minute 1 kHz recording (joint_states + energy)')
+    warm = folder / 'warm.mcap'
+    synthesize(warm, 0.001)
+    path = keep or folder / 'long.mcap'
+    if not path.exists():
+        synthesize(path, minutes)
+    for _ in range(2):
+        r = measure_load(path, 'fast', warm)
+        print(f'   fast path: {r["messages"] / 1e6:.2f} M messages in {r["seconds"]:.2f} s = '
+              f'{r["messages"] / r["seconds"] / 1e3:.0f} k messages/s; returned arrays '
+              f'{r["arrays"] / 2**20:.0f} MiB, peak RSS growth {r["rss_growth"] / 2**20:.0f} '
+              f'MiB = {r["rss_growth"] / r["arrays"]:.2f} x the arrays')
+    r = measure_load(path, 'traced', warm)
+    print(f'   fast path under tracemalloc: peak {r["traced_peak"] / 2**20:.0f} MiB = '
+          f'{r["traced_peak"] / r["arrays"]:.2f} x the arrays')
+    short = folder / 'short.mcap'
+    short_minutes = min(minutes, 1.0)
+    synthesize(short, short_minutes)
+    for mode in ('slow', 'fast'):
+        r = measure_load(short, mode, warm)
+        label = 'fast path' if mode == 'fast' else 'per-message decoder'
+        print(f'   {short_minutes:g} min, {label:19s} {r["messages"] / r["seconds"] / 1e3:.0f} k '
+              f'messages/s ({r["seconds"]:.2f} s)')
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--seconds', type=float, default=10.0)
     parser.add_argument('--node', action='store_true', help='also measure pendulum_node')
+    parser.add_argument('--load', action='store_true',
+                        help='measure load() on a long recording only (part 5)')
+    parser.add_argument('--minutes', type=float, default=60.0,
+                        help='length of the recording --load reads (default 60)')
+    parser.add_argument('--file', type=Path, default=None,
+                        help='keep the --load recording here (reused if it exists)')
     args = parser.parse_args()
     print(f'machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, '
           f'Python {platform.python_version()}, {platform.platform()}')
+    if args.load:
+        with tempfile.TemporaryDirectory() as tmp:
+            load_figures(args.minutes, args.file, Path(tmp))
+        return
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         bytes_on_disk(60.0, folder)

@@ -205,8 +205,8 @@ def _type_of(cls: type) -> str:
 
 
 def _gather(u8: _U8, starts: IntArray, width: int) -> _U8:
-    """Return the ``width`` bytes at each start as rows of a (N, width) array."""
-    return u8[starts[:, None] + np.arange(width)]
+    """Return the ``width`` bytes at each start as rows of a (N, width) array (a copy)."""
+    return np.lib.stride_tricks.sliding_window_view(u8, width)[starts]
 
 
 def _column(rows: _U8, at: int, dtype: str) -> NDArray[Any]:
@@ -426,7 +426,7 @@ class _Topic:
             return _diagnostics(self.messages)
         a = self.arrays()
         stamp_ns = a.get('stamp_ns', np.empty(0, dtype=np.int64))
-        t = stamp_ns * 1e-9
+        t = _seconds(stamp_ns)
         if self.kind != 'joint_states':
             return Series(t=t, stamp_ns=stamp_ns, value=a.get('value', np.empty(0)))
         names = self.names or ()
@@ -440,6 +440,10 @@ class _Topic:
                            header_stamp_ns=a.get('header_stamp_ns', np.empty(0, np.int64)),
                            name=names, position=columns[0], velocity=columns[1],
                            effort=columns[2])
+
+
+def _seconds(stamp_ns: IntArray) -> FloatArray:
+    return stamp_ns.astype(np.float64) * 1e-9
 
 
 def _float_or_nan(text: str) -> float:
@@ -459,7 +463,7 @@ def _diagnostics(msgs: list[tuple[int, Any]]) -> Diagnostics:
                 if key not in values:
                     values[key] = np.full(len(msgs), np.nan)
                 values[key][row] = _float_or_nan(pair.value)
-    return Diagnostics(t=stamp_ns * 1e-9, stamp_ns=stamp_ns, values=values,
+    return Diagnostics(t=_seconds(stamp_ns), stamp_ns=stamp_ns, values=values,
                        messages=tuple(m for _, m in msgs))
 
 
@@ -571,8 +575,8 @@ def _locate_batch(walker: Walker, blocks: list[Block]) -> _Batch | None:
         base += len(block.data)
     if not parts:
         return None
-    return (b''.join(datas), *(np.concatenate([p[i] for p in parts]) for i in range(3)),
-            np.array(bases, dtype=np.int64))
+    offsets, lengths, channels = (np.concatenate([p[i] for p in parts]) for i in range(3))
+    return b''.join(datas), offsets, lengths, channels, np.array(bases, dtype=np.int64)
 
 
 def _locate(walker: Walker, block: Block) -> tuple[IntArray, IntArray, IntArray]:
