@@ -12,7 +12,10 @@
 (c) free lockstep (scene ``lockstep``): real-time factor from the node's diagnostics, alone and
     with ``pendulum_pd_controller`` (use_sim_time) answering every state.
 
-    .venv/bin/python bench/bench_sync.py --seconds 10
+    .venv/bin/python bench/bench_sync.py --rounds 3 --seconds 5
+
+(a), (b) and (b') run in turn, round after round, and the ratio printed is the median of the
+rounds' ratios: on a shared machine the load moves between phases.
 
 Targets (issue 8): (b) >= 0.6 x (a); free lockstep >= 50x real time. Figures to read, not
 assertions. Every process uses the same rclpy executor (--executor, default 'events').
@@ -24,6 +27,7 @@ import json
 import os
 import random
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -276,10 +280,33 @@ def tail(text: str, n: int = 15) -> str:
     return '\n'.join('    ' + line for line in text.strip().splitlines()[-n:])
 
 
+def sync_figures(args: argparse.Namespace, use_sim_time: bool) -> dict[str, Any] | None:
+    """Run (b) or (b') once; print why and return None when it cannot be measured."""
+    sync = run_loop(args, 'controller_test', with_controller=True, use_sim_time=use_sim_time)
+    params = sync.get('params', {})
+    if not sync['ok'] or params.get('synchronous') is not True:
+        why = ('the node does not declare the parameter synchronous (this pendulum_node has '
+               'no synchronous mode yet)' if sync['ok'] else
+               'the node did not run the scene controller_test (rejected it or failed)')
+        print(f'    synchronous closed loop: NOT MEASURED: {why}')
+        if sync.get('node_output'):
+            print('    pendulum_node said:\n' + tail(sync['node_output']))
+        return None
+    rate = float(params['publish_rate'])
+    sync['rate'] = rate
+    sync['periods'] = sync['sim'] * rate
+    sync['per_s'] = sync['periods'] / sync['wall']
+    return sync
+
+
 def main() -> int:
-    """Run (a), (b) and (c); print the figures side by side."""
+    """Run (a), (b), (b') in alternating rounds, then (c); print the figures side by side."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    parser.add_argument('--seconds', type=float, default=10.0, help='measured time per phase')
+    parser.add_argument('--seconds', type=float, default=5.0, help='measured time per phase')
+    parser.add_argument('--rounds', type=int, default=3,
+                        help="rounds of (a), (b), (b') in turn; the ratio is the median of "
+                        "the rounds' ratios, so a change of machine load between phases "
+                        'shows as spread instead of bias')
     parser.add_argument('--warmup', type=float, default=2.0, help='ignored start, s')
     parser.add_argument('--executor', choices=('events', 'single'), default='events')
     parser.add_argument('--skip-lockstep', action='store_true', help='skip (c)')
@@ -297,58 +324,48 @@ def main() -> int:
     load = ', '.join(f'{x:.2f}' for x in os.getloadavg())
     print(f'machine: {machine_info()}; load average {load}')
     print(f'executor: {args.executor} in every process; ROS_DOMAIN_ID='
-          f'{os.environ["ROS_DOMAIN_ID"]}; {args.seconds:g} s measured per phase after '
-          f'{args.warmup:g} s warm-up\n')
-
-    pp = ping_pong(args)
-    rate_pp = pp['round_trips'] / pp['seconds']
-    print(f'(a) bare rclpy ping-pong, Float64 reliable, two processes: {rate_pp:.0f} round '
-          f'trips/s ({1e6 / rate_pp:.0f} us each); CPU per round trip: ping '
-          f'{1e6 * pp["cpu_ping"] / pp["round_trips"]:.0f} us, pong '
-          f'{1e6 * pp["cpu_pong"] / pp["round_trips"]:.0f} us')
-
-    first_run = True
-    for use_sim_time in (False, True):
-        label = "(b')" if use_sim_time else '(b)'
-        how = ('use_sim_time:=true, so it also takes every /clock tick' if use_sim_time else
-               "without use_sim_time: its time is the states' stamps, it needs no /clock")
-        sync = run_loop(args, 'controller_test', with_controller=True,
-                        use_sim_time=use_sim_time)
-        params = sync.get('params', {})
-        if not sync['ok'] or params.get('synchronous') is not True:
-            why = ('the node does not declare the parameter synchronous (this pendulum_node '
-                   'has no synchronous mode yet)' if sync['ok'] else
-                   'the node did not run the scene controller_test (rejected it or failed)')
-            print(f'{label} synchronous closed loop: NOT MEASURED: {why}')
-            if sync.get('node_output'):
-                print('  pendulum_node said:\n' + tail(sync['node_output']))
-            break
-        rate = float(params['publish_rate'])
-        periods = sync['sim'] * rate
-        per_s = periods / sync['wall']
-        ratio = per_s / rate_pp
-        ok = 'met' if ratio >= 0.6 else 'NOT met'
-        print(f'{label} synchronous closed loop, pendulum_node --scene controller_test + '
-              f'{CONTROLLER} ({how}):\n'
-              f'    {per_s:.0f} control periods/s ({1e6 / per_s:.0f} us each; {rate:g} Hz '
-              f'control, so {per_s / rate:.1f}x real time); ratio to (a) {ratio:.2f}  '
+          f'{os.environ["ROS_DOMAIN_ID"]}; {args.rounds} rounds, {args.seconds:g} s measured '
+          f'per phase after {args.warmup:g} s warm-up')
+    print('(a)  bare rclpy ping-pong: A publishes Float64 (reliable), B answers each at once, A '
+          'sends the next on the answer')
+    print('(b)  synchronous closed loop: pendulum_node --scene controller_test + '
+          f"{CONTROLLER} (no use_sim_time: its time is the states' stamps)")
+    print("(b') the same with use_sim_time:=true (the controller also takes every /clock tick)\n")
+    ratios: dict[str, list[float]] = {'b': [], "b'": []}
+    shown = False
+    for r in range(1, args.rounds + 1):
+        pp = ping_pong(args)
+        rate_pp = pp['round_trips'] / pp['seconds']
+        print(f'round {r}: (a) {rate_pp:.0f} round trips/s ({1e6 / rate_pp:.0f} us each; CPU '
+              f'per round trip ping {1e6 * pp["cpu_ping"] / pp["round_trips"]:.0f} us, pong '
+              f'{1e6 * pp["cpu_pong"] / pp["round_trips"]:.0f} us)')
+        for key, use_sim_time in (('b', False), ("b'", True)):
+            sync = sync_figures(args, use_sim_time)
+            if sync is None:
+                return 1
+            ratio = sync['per_s'] / rate_pp
+            ratios[key].append(ratio)
+            print(f'         ({key}){" " if key == "b" else ""} {sync["per_s"]:.0f} control '
+                  f'periods/s ({1e6 / sync["per_s"]:.0f} us each, '
+                  f'{sync["per_s"] / sync["rate"]:.1f}x real time), ratio to (a) {ratio:.2f}; '
+                  f'CPU per period {cpu_text(sync, sync["periods"])}')
+            if not shown:
+                shown = True
+                last = sync['last']
+                extra = {k: v for k, v in last.items() if k.startswith('sync_')}
+                print(f'         node diagnostics at t = {float(last["sim_time"]):.2f} s '
+                      f'(simulated): ' + ', '.join(f'{k} {v}' for k, v in extra.items()))
+                print(f'         the controller answered {sync["answers"]} states; ' + next(
+                    (ln.split(']: ', 1)[-1] for ln in sync.get('controller_output', '')
+                     .splitlines() if 'settled at' in ln), 'the loop did not report settling'))
+    print()
+    for key, values in ratios.items():
+        med = statistics.median(values)
+        ok = 'met' if med >= 0.6 else 'NOT met'
+        spread = ', '.join(f'{v:.2f}' for v in values)
+        print(f'ratio ({key}) / (a), median of {len(values)} rounds: {med:.2f} ({spread})  '
               f'[target >= 0.6: {ok}]')
-        print(f'    CPU per control period: {cpu_text(sync, periods)}')
-        if first_run:
-            first_run = False
-            last = sync['last']
-            print(f'    {periods:.0f} periods in {sync["wall"]:.1f} s; the controller answered '
-                  f'{sync["answers"]} states in its whole run, the node reached t = '
-                  f'{float(last["sim_time"]):.2f} s = {float(last["sim_time"]) * rate:.0f} '
-                  'periods')
-            extra = {k: v for k, v in last.items() if k.startswith('sync_')}
-            if extra:
-                print('    node diagnostics: ' + ', '.join(f'{k} {v}' for k, v in
-                                                        extra.items()))
-            settled = [ln for ln in sync.get('controller_output', '').splitlines()
-                       if 'settled at' in ln]
-            print('    ' + (settled[0].split(']: ', 1)[-1] if settled else 'the loop did not '
-                            'report settling'))
+
     if not args.skip_lockstep:
         for label, with_ctl in (('alone', False), (f'with {CONTROLLER} answering', True)):
             free = run_loop(args, 'lockstep', with_controller=with_ctl, use_sim_time=True)
@@ -361,8 +378,9 @@ def main() -> int:
             answered = f'; controller answered {free["answers"]} states' if with_ctl else ''
             print(f'(c) free lockstep {label}: {rtf:.1f}x real time  [target >= 50x: {ok}]'
                   f'{answered}')
+    load = ', '.join(f'{x:.2f}' for x in os.getloadavg())
+    print(f'load average at the end: {load}')
     return 0
-
 
 if __name__ == '__main__':
     sys.exit(main())
