@@ -177,8 +177,7 @@ def physics(values: Mapping[str, Value]) -> PendulumParams:
 def check(values: Mapping[str, Value]) -> str | None:
     """Return why the complete parameter set ``values`` is unusable, or None if it is fine."""
     try:
-        physics(values)
-        validate_state(float(values['phi0']), float(values['dphi0']))
+        validate_state(float(values['phi0']), float(values['dphi0']), physics(values))
     except ModelError as exc:
         return str(exc)
     if values['integrator'] not in METHODS:
