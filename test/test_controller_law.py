@@ -22,6 +22,7 @@ from pendulum_sim.controller import (
     pd_torque,
     wrap_angle,
 )
+from pendulum_sim.controller.pd_law import REARM_FACTOR
 from pendulum_sim.core import PendulumParams, Stepper
 
 BODY = PendulumParams(m=0.2, l=1.0, inertia=0.2, g=9.8, gamma=0.1, n=1.0)
@@ -157,8 +158,20 @@ def test_settle_is_measured_in_stamps_and_reported_once() -> None:
     assert det.settled_at_ns == 500 * MS
     assert det.inside_since_ns == 0
     assert det.update(510 * MS, 0.0, 0.0) is SettleEvent.NONE  # once only
-    assert det.update(520 * MS, 0.5, 0.0) is SettleEvent.NONE  # leaving does not re-report
+    # Leaving the band by less than REARM_FACTOR times a tolerance (noise) is not news …
+    assert det.update(520 * MS, 0.099, 0.0) is SettleEvent.NONE
+    assert det.update(530 * MS, 0.0, -0.099) is SettleEvent.NONE
     assert det.settled_at_ns == 500 * MS
+    for k in range(54, 110):
+        assert det.update(k * 10 * MS, 0.0, 0.0) is SettleEvent.NONE
+    # … beyond it (a reset, a push) detection starts over and the next settling is reported.
+    assert REARM_FACTOR == 10.0
+    assert det.update(1100 * MS, 0.0, 0.101) is SettleEvent.LEFT
+    assert det.settled_at_ns is None
+    events = [det.update(k * 10 * MS, 0.0, 0.0) for k in range(111, 162)]  # 1.11 … 1.61 s
+    assert events[:-1] == [SettleEvent.NONE] * 50
+    assert events[-1] is SettleEvent.SETTLED
+    assert det.settled_at_ns == 1610 * MS
 
 
 def test_leaving_the_band_restarts_the_hold() -> None:

@@ -137,9 +137,12 @@ def test_settling_is_judged_by_stamps_not_wall_time() -> None:
         assert 'settled at' not in ctl.output()
         loop.answer(500_000_000, 0.5 + 0.009, -0.009)
         assert ctl.output().count('settled at t = 0.500 s (state stamp)') == 1
-        loop.answer(600_000_000, 0.5, 0.0)
+        loop.answer(600_000_000, 0.5 + 0.05, 0.0)  # off, but not 10x the tolerance: noise
         assert ctl.output().count('settled at') == 1
-        loop.answer(0, 1.0, 0.0)  # time went back: a reset
+        assert 'left the target' not in ctl.output()
+        loop.answer(700_000_000, 0.7, 0.0)  # far off (a reset with time going on, a push)
+        assert 'left the target at t = 0.700 s (state stamp)' in ctl.output()
+        loop.answer(0, 1.0, 0.0)  # time went back
         assert 'simulated time went back to t = 0.000 s' in ctl.output()
         for k in range(1, 6):  # inside from 0.1 s: not settled at 0.5 s …
             loop.answer(k * 100_000_000, 0.5, 0.0)

@@ -171,6 +171,10 @@ class PDControllerNode(Node):
                 f'{lim.position:g} rad and |velocity| < {lim.velocity:g} rad/s since '
                 f't = {since / 1e9:.3f} s; angle {phi:.6f} rad, target '
                 f'{self._gains.target:g} rad')
+        elif event is SettleEvent.LEFT:
+            self.get_logger().info(
+                f'left the target at t = {stamp_ns / 1e9:.3f} s (state stamp): angle '
+                f'{phi:.6f} rad, velocity {dphi:.6f} rad/s; settle detection starts over')
         elif event is SettleEvent.RESTARTED:
             self.get_logger().info(
                 f'simulated time went back to t = {stamp_ns / 1e9:.3f} s (a reset): '

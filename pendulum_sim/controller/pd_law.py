@@ -98,7 +98,14 @@ class SettleEvent(enum.Enum):
 
     NONE = 'none'
     SETTLED = 'settled'         # the first state at which the hold time has been met
+    LEFT = 'left'               # after settling, far outside the band: detection starts over
     RESTARTED = 'restarted'     # simulated time went back (a reset): detection starts over
+
+
+# After settling, a state this many times outside a tolerance (a reset, a push, a new target)
+# starts the detection over; leaving the band by less (sensor noise at the band's edge) does
+# not, so a noisy loop is not reported as settling again and again.
+REARM_FACTOR = 10.0
 
 
 @dataclass(frozen=True)
@@ -130,8 +137,8 @@ class SettleDetector:
 
     The loop has settled at stamp t when every state from stamp t − hold to t was within the
     limits (the stamps, not the wall clock, measure the hold, so the verdict is the same at any
-    real-time factor). It is reported once; a stamp earlier than the previous one (a reset of the
-    simulation) starts the detection over.
+    real-time factor). It is reported once; a state :data:`REARM_FACTOR` times outside a limit
+    after that, or a stamp earlier than the previous one, starts the detection over.
     """
 
     def __init__(self, limits: SettleLimits) -> None:
@@ -150,6 +157,11 @@ class SettleDetector:
             event = SettleEvent.RESTARTED
         self._last_ns = stamp_ns
         lim = self.limits
+        if self.settled_at_ns is not None and (abs(error) > REARM_FACTOR * lim.position
+                                               or abs(dphi) > REARM_FACTOR * lim.velocity):
+            self.inside_since_ns = None
+            self.settled_at_ns = None
+            return SettleEvent.LEFT
         if abs(error) < lim.position and abs(dphi) < lim.velocity:
             if self.inside_since_ns is None:
                 self.inside_since_ns = stamp_ns
