@@ -3,6 +3,8 @@
 (a) ping-pong: process A publishes a std_msgs/Float64 (reliable), process B answers each one at
     once, A sends the next only when the answer is in: round trips per second. This is the
     ceiling for any loop in which two rclpy processes take turns.
+(a') the same with ``pendulum_pd_controller`` as B, pinged with JointState messages: what the
+    controller's side of the loop costs against a bare echo.
 (b) synchronous closed loop: ``pendulum_node --scene controller_test`` (synchronous lockstep,
     a 10 ms control period) and ``pendulum_pd_controller`` in separate processes: control
     periods per second, from the simulated time in the node's /diagnostics (1 Hz) over the wall
@@ -45,7 +47,9 @@ from diagnostic_msgs.msg import DiagnosticArray
 from node_harness import NodeProcess, Probe, unique_namespace
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import serialize_message
 from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from pendulum_sim.node.diagnostics import values_of
@@ -86,18 +90,37 @@ def role_pong(ns: str, kind: str) -> None:
     rclpy.try_shutdown()
 
 
-def role_ping(ns: str, kind: str, warmup: float, seconds: float, peer: int) -> None:
-    """Play ping-pong for ``warmup`` + ``seconds``; print round trips and CPU of that part."""
+def role_ping(ns: str, kind: str, warmup: float, seconds: float, peer: int,
+              states: bool) -> None:
+    """Play ping-pong for ``warmup`` + ``seconds``; print round trips and CPU of that part.
+
+    With ``states`` the ping is a JointState on ``joint_states`` (serialized once) and the
+    answer a Float64 on ``effort_command``: the peer is then the controller.
+    """
     rclpy.init()
     node = rclpy.create_node('bench_ping', namespace=ns)
-    pub = node.create_publisher(Float64, 'ping', RELIABLE)
     count = [0]
+    if states:
+        state = JointState(name=['pendulum_joint'], position=[0.7], velocity=[0.1],
+                           effort=[0.0])
+        data = serialize_message(state)
+        pub = node.create_publisher(JointState, 'joint_states', RELIABLE)
 
-    def on_pong(msg: Float64) -> None:
-        count[0] += 1
-        pub.publish(Float64(data=msg.data + 1.0))
+        def on_answer(msg: Float64) -> None:
+            count[0] += 1
+            pub.publish(data)
 
-    sub = node.create_subscription(Float64, 'pong', on_pong, RELIABLE)
+        sub = node.create_subscription(Float64, 'effort_command', on_answer, RELIABLE)
+        first: Any = data
+    else:
+        pub = node.create_publisher(Float64, 'ping', RELIABLE)
+
+        def on_pong(msg: Float64) -> None:
+            count[0] += 1
+            pub.publish(Float64(data=msg.data + 1.0))
+
+        sub = node.create_subscription(Float64, 'pong', on_pong, RELIABLE)
+        first = Float64(data=0.0)
     ex = executor(kind)
     ex.add_node(node)
     end = time.monotonic() + 30.0
@@ -105,7 +128,7 @@ def role_ping(ns: str, kind: str, warmup: float, seconds: float, peer: int) -> N
         if time.monotonic() > end:
             raise SystemExit('ping: pong did not connect within 30 s')
         ex.spin_once(timeout_sec=0.05)
-    pub.publish(Float64(data=0.0))
+    pub.publish(first)
     t_start = time.monotonic() + warmup
     t_end = t_start + seconds
     n0 = -1
@@ -124,27 +147,47 @@ def role_ping(ns: str, kind: str, warmup: float, seconds: float, peer: int) -> N
     rclpy.try_shutdown()
 
 
-def ping_pong(args: argparse.Namespace) -> dict[str, float]:
-    """Run (a) in two child processes; return round trips, seconds and CPU seconds."""
+def ping_pong(args: argparse.Namespace, controller: bool = False) -> dict[str, float]:
+    """Run (a) in two child processes; return round trips, seconds and CPU seconds.
+
+    With ``controller`` the answering process is pendulum_pd_controller, pinged with
+    JointState messages: (a') in the output.
+    """
     ns = unique_namespace()
     me = [sys.executable, str(Path(__file__).resolve())]
     common = ['--ns', ns, '--executor', args.executor]
-    pong = subprocess.Popen([*me, '--role', 'pong', *common], stdout=subprocess.PIPE,
-                            text=True)
+    ctl: ControllerProcess | None = None
+    pong: subprocess.Popen[str] | None = None
     try:
-        assert pong.stdout is not None
-        if pong.stdout.readline().strip() != 'ready':
-            raise SystemExit('pong did not start')
+        if controller:
+            ctl = ControllerProcess(ns, args.executor, False, f'{ns}/clock')
+            end = time.monotonic() + 30.0
+            while 'PD + gravity compensation' not in ctl.output():
+                if time.monotonic() > end or ctl.proc.poll() is not None:
+                    raise SystemExit(f'the controller did not start:\n{ctl.output()}')
+                time.sleep(0.05)
+            peer = ctl.proc.pid
+        else:
+            pong = subprocess.Popen([*me, '--role', 'pong', *common], stdout=subprocess.PIPE,
+                                    text=True)
+            assert pong.stdout is not None
+            if pong.stdout.readline().strip() != 'ready':
+                raise SystemExit('pong did not start')
+            peer = pong.pid
         ping = subprocess.run([*me, '--role', 'ping', *common, '--warmup', str(args.warmup),
-                               '--seconds', str(args.seconds), '--peer', str(pong.pid)],
+                               '--seconds', str(args.seconds), '--peer', str(peer),
+                               *(['--states'] if controller else [])],
                               capture_output=True,
                               text=True, timeout=args.warmup + args.seconds + 60)
         if ping.returncode != 0:
             raise SystemExit(f'ping failed:\n{ping.stderr}')
         result = json.loads(ping.stdout.strip().splitlines()[-1])
     finally:
-        pong.send_signal(signal.SIGINT)
-        pong.wait(timeout=10)
+        if pong is not None:
+            pong.send_signal(signal.SIGINT)
+            pong.wait(timeout=10)
+        if ctl is not None:
+            ctl.stop()
     return {k: float(v) for k, v in result.items()}
 
 
@@ -313,12 +356,13 @@ def main() -> int:
     parser.add_argument('--role', choices=('ping', 'pong'), help=argparse.SUPPRESS)
     parser.add_argument('--ns', help=argparse.SUPPRESS)
     parser.add_argument('--peer', type=int, help=argparse.SUPPRESS)
+    parser.add_argument('--states', action='store_true', help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.role == 'pong':
         role_pong(args.ns, args.executor)
         return 0
     if args.role == 'ping':
-        role_ping(args.ns, args.executor, args.warmup, args.seconds, args.peer)
+        role_ping(args.ns, args.executor, args.warmup, args.seconds, args.peer, args.states)
         return 0
 
     load = ', '.join(f'{x:.2f}' for x in os.getloadavg())
@@ -330,8 +374,9 @@ def main() -> int:
           'sends the next on the answer')
     print('(b)  synchronous closed loop: pendulum_node --scene controller_test + '
           f"{CONTROLLER} (no use_sim_time: its time is the states' stamps)")
+    print("(a') ping-pong with pendulum_pd_controller as B, pinged with JointState (its share)")
     print("(b') the same with use_sim_time:=true (the controller also takes every /clock tick)\n")
-    ratios: dict[str, list[float]] = {'b': [], "b'": []}
+    ratios: dict[str, list[float]] = {"a'": [], 'b': [], "b'": []}
     shown = False
     for r in range(1, args.rounds + 1):
         pp = ping_pong(args)
@@ -339,6 +384,13 @@ def main() -> int:
         print(f'round {r}: (a) {rate_pp:.0f} round trips/s ({1e6 / rate_pp:.0f} us each; CPU '
               f'per round trip ping {1e6 * pp["cpu_ping"] / pp["round_trips"]:.0f} us, pong '
               f'{1e6 * pp["cpu_pong"] / pp["round_trips"]:.0f} us)')
+        pc = ping_pong(args, controller=True)
+        rate_pc = pc['round_trips'] / pc['seconds']
+        ratios["a'"].append(rate_pc / rate_pp)
+        print(f"         (a') {rate_pc:.0f} round trips/s with {CONTROLLER} answering "
+              f'JointState pings, ratio to (a) {rate_pc / rate_pp:.2f} (CPU per round trip '
+              f'ping {1e6 * pc["cpu_ping"] / pc["round_trips"]:.0f} us, controller '
+              f'{1e6 * pc["cpu_pong"] / pc["round_trips"]:.0f} us)')
         for key, use_sim_time in (('b', False), ("b'", True)):
             sync = sync_figures(args, use_sim_time)
             if sync is None:
@@ -361,10 +413,10 @@ def main() -> int:
     print()
     for key, values in ratios.items():
         med = statistics.median(values)
-        ok = 'met' if med >= 0.6 else 'NOT met'
+        target = '' if key == "a'" else f"  [target >= 0.6: {'met' if med >= 0.6 else 'NOT met'}]"
         spread = ', '.join(f'{v:.2f}' for v in values)
-        print(f'ratio ({key}) / (a), median of {len(values)} rounds: {med:.2f} ({spread})  '
-              f'[target >= 0.6: {ok}]')
+        print(f'ratio ({key}) / (a), median of {len(values)} rounds: {med:.2f} ({spread})'
+              f'{target}')
 
     if not args.skip_lockstep:
         for label, with_ctl in (('alone', False), (f'with {CONTROLLER} answering', True)):
