@@ -1,16 +1,16 @@
 """``pendulum_pd_controller``: the example controller, an rclpy node answering every state.
 
-Each ``joint_states`` message (sensor_msgs/JointState) is answered with exactly one
-``effort_command`` (std_msgs/Float64, N·m, reliable), computed only from that message by
-:func:`pendulum_sim.controller.pd_law.pd_torque`. The node has no timer and reads no clock: its
-output is a function of the states it receives, so in the joint's synchronous mode, where the
-joint waits for the answer to each state, a run is reproducible bit for bit. Time, for the
-settle report, is the states' ``header.stamp`` (simulated time in lockstep), so the controller
-behaves the same with or without ``use_sim_time`` and at any real-time factor.
+Each ``joint_states`` message (sensor_msgs/JointState) that holds the joint is answered with
+exactly one ``effort_command`` (std_msgs/Float64, N·m, reliable), computed only from that
+message by :func:`pendulum_sim.controller.pd_law.pd_torque`. The node has no timer and reads no
+clock: its output is a function of the states it receives, so in the joint's synchronous mode,
+where the joint waits for the answer to each state, a run is reproducible bit for bit. Time, for
+the settle report, is the states' ``header.stamp`` (simulated time in lockstep), so the
+controller behaves the same with or without ``use_sim_time`` and at any real-time factor.
 
 Run it as::
 
-    pendulum_pd_controller --ros-args -p target:=0.5 -p use_sim_time:=true
+    pendulum_pd_controller --ros-args -p target:=0.5 -p kp:=4.0
     ros2 run pendulum_sim pendulum_pd_controller --count 1000
 """
 from __future__ import annotations
@@ -137,7 +137,7 @@ class PDControllerNode(Node):
         self._joint = str(self._values['joint_name'])
 
     # ------------------------------------------------------------------ the loop
-    def _warn_once(self, key: str, text: str) -> None:
+    def _error_once(self, key: str, text: str) -> None:
         if key not in self._warned:
             self._warned.add(key)
             self.get_logger().error(text)
@@ -148,7 +148,7 @@ class PDControllerNode(Node):
             phi, dphi = float(msg.position[i]), float(msg.velocity[i])
         except (ValueError, IndexError):
             self.skipped += 1
-            self._warn_once(f'joint {self._joint} in {list(msg.name)}',
+            self._error_once(f'joint {self._joint} in {list(msg.name)}',
                             f'joint_states has no position and velocity for joint '
                             f'{self._joint!r} (names {list(msg.name)}, {len(msg.position)} '
                             f'positions, {len(msg.velocity)} velocities): not answered; set '
@@ -158,7 +158,7 @@ class PDControllerNode(Node):
             tau = pd_torque(self._gains, phi, dphi)
         except ControllerError as exc:
             self.skipped += 1
-            self._warn_once('nonfinite', f'{exc}: not answered (reported once)')
+            self._error_once('nonfinite', f'{exc}: not answered (reported once)')
             return
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         error = wrap_angle(phi - self._gains.target)
