@@ -224,7 +224,7 @@ def test_effort_timeout_reset() -> None:
     assert np.all(phi[:first_on] == 0.0)
     # The torque started at some step after the last message without it; exactly one start
     # step makes the whole record equal to a run with 0.5 N m held for 0.3 s = 300 steps.
-    params_ = PendulumParams(gamma=0.5)
+    params_ = PendulumParams(gamma=0.5, inertia=0.2002)   # the default scene's body
     matches = []
     for k_on in range(ks[first_on - 1], ks[first_on]):
         def torque(t: float, phi: float, dphi: float, k_on: int = k_on) -> float:

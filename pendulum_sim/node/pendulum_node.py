@@ -51,7 +51,7 @@ from .parameters import (
 from .realtime import RateMeter, Schedule, WakeStats
 from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 from .status import StatusLine, status_text, summary_text
-from .urdf import pendulum_urdf
+from .urdf import urdf_from_values
 
 # Reliable, volatile, depth 10: the default profile, which matches both reliable and best-effort
 # subscriptions (robot_state_publisher, RViz, Foxglove, plain rclpy defaults).
@@ -214,7 +214,10 @@ class PendulumNode(Node):
         return self._stop_requested
 
     def _urdf(self) -> str:
-        return pendulum_urdf(self._joint.config.params, self._joint_name)
+        """Return the URDF of this joint, its ros2_control block naming this node's topics."""
+        commands = self.resolve_topic_name('joint_commands')
+        return urdf_from_values(self._values, joint_commands_topic=commands,
+                                joint_states_topic=self._js_pub.topic_name)
 
     def _subscribe(self, msg_type: Any, topic: str, callback: Any, qos: QoSProfile) -> Any:
         """Create a command subscription that says when a publisher cannot connect."""

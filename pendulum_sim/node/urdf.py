@@ -205,10 +205,13 @@ izz="{_num(i_com)}"/>
 """
 
 
-def urdf_from_values(values: Mapping[str, object]) -> str:
+def urdf_from_values(values: Mapping[str, object], *,
+                     joint_commands_topic: str = 'joint_commands',
+                     joint_states_topic: str = 'joint_states') -> str:
     """Return the URDF of a node parameter set (names as the node declares them).
 
-    Missing names take the declared defaults (``pendulum_sim.node.parameters.SPECS``).
+    Missing names take the declared defaults (``pendulum_sim.node.parameters.SPECS``); the
+    topics are the node's resolved topic names for the ``<ros2_control>`` block.
     """
     from .parameters import SPEC_BY_NAME
 
@@ -224,7 +227,9 @@ def urdf_from_values(values: Mapping[str, object]) -> str:
     return pendulum_urdf(params, str(full['joint_name']), max_effort=num('max_effort'),
                          max_velocity=num('max_velocity') if 'max_velocity' in full else 100.0,
                          lower=lower, upper=upper,
-                         command_interface=str(full.get('command_interface', 'effort')))
+                         command_interface=str(full.get('command_interface', 'effort')),
+                         joint_commands_topic=joint_commands_topic,
+                         joint_states_topic=joint_states_topic)
 
 
 def default_urdf() -> str:
