@@ -101,12 +101,23 @@ def start_recorder(path: Path, overwrite: bool, count: int, marker: float,
 
 def go(proc: subprocess.Popen[str]) -> None:
     assert proc.stdin is not None
-    proc.stdin.write('\n')
-    proc.stdin.flush()
+    try:
+        proc.stdin.write('\n')
+        proc.stdin.flush()
+    except BrokenPipeError:
+        pass   # it refused already and is gone; finish() reads why
 
 
 def finish(proc: subprocess.Popen[str]) -> dict[str, Any]:
-    out, err = proc.communicate(timeout=60)
+    # Read through the same buffered stream as start_recorder's readline, which may hold the
+    # last line already.
+    assert proc.stdin is not None and proc.stdout is not None and proc.stderr is not None
+    try:
+        proc.stdin.close()
+    except BrokenPipeError:
+        pass
+    out, err = proc.stdout.read(), proc.stderr.read()
+    proc.wait(timeout=60)
     assert proc.returncode == 0, err
     assert 'Traceback' not in err, err
     result: dict[str, Any] = json.loads(out.strip().splitlines()[-1])
