@@ -2,8 +2,11 @@
 per-message one (rclpy) and the independent reader (mcap-ros2-support) on every layout."""
 from __future__ import annotations
 
+import json
 import math
 import struct
+import subprocess
+import sys
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -11,13 +14,16 @@ from typing import Any
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from mcap.writer import Writer
 from rclpy.qos import QoSProfile
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from test_recording_support import assert_same, read_independently, record, scripted_messages
 
 from pendulum_sim.recording import RESET_TOPIC, McapRecorder, Recording, Segment, load
 from pendulum_sim.recording import loader as loader_module
+from pendulum_sim.recording.schemas import ros2msg_schema
 
 SEGMENT_FIELDS = [f.name for f in fields(Segment)]
 
@@ -234,3 +240,53 @@ def test_an_index_that_leaves_messages_out_is_not_trusted(tmp_path: Path) -> Non
     assert_same(load(damaged).energy, load(path).energy)
     rec = load(damaged)
     assert rec.energy is not None and len(rec.energy.value) == 2000
+
+
+# -- load() at scale (issue 11, item 16) ---------------------------------------------------------
+
+_CDR_HEADER = b'\x00\x01\x00\x00'
+MEASURE = """
+import json, resource, sys
+import numpy as np
+from pendulum_sim.recording import load
+load(sys.argv[2])                     # message types imported, type support loaded
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+rec = load(sys.argv[1])
+grown = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) * 1024
+arrays = sum(v.nbytes for part in (rec.joint_states, rec.energy)
+             for v in vars(part).values() if isinstance(v, np.ndarray))
+exact = (np.array_equal(rec.joint_states.position, np.arange(300_000) * 1e-3)
+         and np.array_equal(rec.energy.value, np.arange(300_000) * 0.5))
+print(json.dumps({'grown': grown, 'arrays': arrays, 'count': len(rec.energy.value),
+                  'exact': bool(exact)}))
+"""
+
+
+@pytest.mark.slow
+def test_a_long_recording_loads_within_three_times_its_arrays(tmp_path: Path) -> None:
+    # The issue's case: 300k joint_states + 300k energy in 0.25 s chunks, as the node records
+    # them (the bytes rclpy serializes, written here with mcap's own writer for speed).
+    path, small = tmp_path / 'long.mcap', tmp_path / 'small.mcap'
+    record_run(small, 10)
+    state = bytearray(serialize_message(node_like(1000, 0)))
+    at = state.index(struct.pack('<d', math.sin(1.0)))   # where the position is
+    with open(path, 'wb') as stream:
+        writer = Writer(stream, chunk_size=1 << 20)
+        writer.start(profile='ros2', library='test')
+        js = writer.register_channel('/joint_states', 'cdr', writer.register_schema(
+            'sensor_msgs/msg/JointState', 'ros2msg', ros2msg_schema(
+                'sensor_msgs/msg/JointState').encode()))
+        energy = writer.register_channel('/energy', 'cdr', writer.register_schema(
+            'std_msgs/msg/Float64', 'ros2msg', ros2msg_schema('std_msgs/msg/Float64').encode()))
+        for k in range(300_000):
+            struct.pack_into('<d', state, at, 1e-3 * k)
+            writer.add_message(js, log_time=k * 10**6, publish_time=k * 10**6,
+                               data=bytes(state))
+            writer.add_message(energy, log_time=k * 10**6, publish_time=k * 10**6,
+                               data=_CDR_HEADER + struct.pack('<d', 0.5 * k))
+        writer.finish()
+    out = subprocess.run([sys.executable, '-c', MEASURE, str(path), str(small)],
+                         capture_output=True, text=True, check=True).stdout
+    figures = json.loads(out)
+    assert figures['count'] == 300_000 and figures['exact']
+    assert figures['grown'] <= 3 * figures['arrays'], figures
