@@ -17,6 +17,7 @@ from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
 from test_recording_support import assert_same, read_independently, ros_node, spin_until
 
 from pendulum_sim import __version__
@@ -194,3 +195,50 @@ def test_a_full_disk_stops_the_recording_not_the_simulation(tmp_path: Path) -> N
     last_recorded = rec.joint_states.stamp_ns[-1]
     stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in received]
     assert max(stamps) > last_recorded + 500_000_000      # it went on after the error
+
+
+def test_a_reset_is_recorded_and_the_run_loads_as_two_segments(tmp_path: Path) -> None:
+    path = tmp_path / 'reset.mcap'
+    proc = start_node(path, '-p', 'effort_input:=false')
+    with ros_node('reset_recording_test') as (node, executor):
+        joint_states: list[JointState] = []
+        node.create_subscription(JointState, '/joint_states', joint_states.append, 100)
+        assert spin_until(executor, lambda: len(joint_states) >= 100, timeout=30.0)
+        client = node.create_client(Trigger, '/pendulum_node/reset')
+        assert client.wait_for_service(timeout_sec=10.0)
+        future = client.call_async(Trigger.Request())
+        assert spin_until(executor, future.done, timeout=10.0)
+        answer = future.result()
+        assert answer is not None and answer.success
+        count = len(joint_states)
+        assert spin_until(executor, lambda: len(joint_states) >= count + 100, timeout=30.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+
+    rec = load(path)
+    assert rec.complete and len(rec.resets) == 1 and len(rec.segments) == 2
+    assert rec.reset_messages == (answer.message,)
+    reset_ns = int(rec.resets[0])
+    js = rec.joint_states
+    assert js is not None
+    # Simulated time goes on through the reset: stamps never go back, in write order.
+    assert np.all(np.diff(js.stamp_ns) > 0)
+    first, second = (s.joint_states for s in rec.segments)
+    assert first is not None and second is not None
+    assert len(first.t) >= 100 and len(second.t) >= 100
+    assert first.stamp_ns[-1] <= reset_ns <= second.stamp_ns[0]
+    np.testing.assert_array_equal(np.concatenate([first.position, second.position]),
+                                  js.position)
+    # After the reset the state starts over from the initial state at the reset stamp: the
+    # second segment is the core's trajectory from (phi0, dphi0), step for step.
+    h_ns = round(float(rec.scene['h']) * 1e9)
+    steps = (second.stamp_ns - reset_ns) // h_ns
+    assert np.all((second.stamp_ns - reset_ns) % h_ns == 0)
+    run = simulate(scene_params(rec), float(rec.scene['phi0']), float(rec.scene['dphi0']),
+                   t_end=int(steps[-1]) * h_ns * 1e-9, h=h_ns * 1e-9,
+                   method=rec.scene['integrator'])
+    np.testing.assert_allclose(second.position, run.phi[steps], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(second.velocity, run.dphi[steps], rtol=0, atol=1e-12)
+    assert rec.energy is not None and rec.segments[1].energy is not None
+    assert rec.segments[1].energy.stamp_ns[0] >= reset_ns
