@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -203,13 +203,12 @@ def energy_terms(params: PendulumParams, phi: float, dphi: float,
 
 
 def check_config(config: JointConfig) -> None:
-    """Raise JointError if the joint cannot run ``config``: its start state must be publishable."""
+    """Raise JointError if the joint cannot run ``config``: its start state must be publishable.
+
+    Cheap enough for every parameter change (the core validates the rest when the joint is
+    built).
+    """
     energy_terms(config.params, config.phi0, config.dphi0)
-    try:
-        Stepper(config.params, config.phi0, config.dphi0, config.h, config.method,
-                guard=config.guard)
-    except PendulumError as exc:
-        raise JointError(str(exc)) from None
 
 
 class SimulatedJoint:
@@ -224,8 +223,11 @@ class SimulatedJoint:
     def __init__(self, config: JointConfig) -> None:
         check_config(config)
         self._config = config
-        self._stepper = Stepper(config.params, config.phi0, config.dphi0, config.h,
-                                config.method, guard=config.guard)
+        try:
+            self._stepper = Stepper(config.params, config.phi0, config.dphi0, config.h,
+                                    config.method, guard=config.guard)
+        except PendulumError as exc:
+            raise JointError(str(exc)) from None
         self._sensor = SensorModel(config.sensor_seed, config.position_noise,
                                    config.velocity_noise, config.resolution)
         self.counters = CommandCounters()
@@ -457,7 +459,7 @@ class SimulatedJoint:
         effort command; sensor settings apply to the next measurement; delays apply to what
         is sampled or commanded from now on.
         """
-        check_config(replace(config, phi0=config.phi0, dphi0=config.dphi0))
+        check_config(config)
         old = self._config
         fixed = ('h', 'method', 'guard', 'period_steps', 'epoch_ns', 'command_interface',
                  'sensor_seed')
