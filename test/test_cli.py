@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -136,6 +137,28 @@ def test_sigint_and_sigterm_exit_0_in_every_scene(tmp_path: Path, scene: str,
             out = node.output()
             assert code == 0, out
             assert 'Traceback' not in out and 'FATAL' not in out, out
+
+
+def _catches_sigterm(pid: int) -> bool:
+    """Return True once process ``pid`` handles SIGTERM (its SigCgt mask in /proc says so)."""
+    with open(f'/proc/{pid}/status') as fh:
+        mask = next(int(line.split()[1], 16) for line in fh if line.startswith('SigCgt:'))
+    return bool(mask >> (signal.SIGTERM - 1) & 1)
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_a_signal_during_start_up_exits_0(sig: int) -> None:
+    """A signal as soon as main() handles signals (before rclpy is even imported): exit 0."""
+    node = NodeProcess('default').start()
+    assert node.proc is not None
+    end = time.monotonic() + 30.0
+    while not _catches_sigterm(node.proc.pid):
+        assert node.alive() and time.monotonic() < end, node.output()
+        time.sleep(0.001)
+    code = node.stop(sig)
+    out = node.output()
+    assert code == 0, out
+    assert 'Traceback' not in out and 'FATAL' not in out, out
 
 
 def test_other_nodes_sections_are_not_checked(tmp_path: Path) -> None:

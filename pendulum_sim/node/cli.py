@@ -7,27 +7,26 @@ Run it as::
 
 Every command-line and parameter-file error is found before ``rclpy.init`` where possible (and
 what rcl still refuses is caught): the process exits 2 with the reason on stderr, never a
-traceback. Ctrl-C (SIGINT) and SIGTERM end it with exit 0 after the summary.
+traceback. Ctrl-C (SIGINT) and SIGTERM end it with exit 0 after the summary: ``main`` handles
+both from its first line (rclpy and the node are imported after that), a signal during start-up
+ends it before the node runs, and a signal while it runs only asks the loop to stop, so nothing
+is interrupted inside a callback.
 """
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import rclpy
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation
-from rclpy.utilities import remove_ros_args
+from types import FrameType
+from typing import TYPE_CHECKING, Any
 
 from pendulum_sim.core import PendulumError
 
 from .errors import NodeError, SceneError
-from .pendulum_node import PendulumNode
 from .scenes import (
     available_scenes,
     find_scene,
@@ -36,10 +35,16 @@ from .scenes import (
     unknown_parameter,
     use_loopback_profile,
 )
-from .status import StatusLine
+
+if TYPE_CHECKING:
+    from rclpy.executors import Executor
+
+    from .pendulum_node import PendulumNode
 
 
 def _executor(kind: str) -> Executor:
+    from rclpy.executors import SingleThreadedExecutor
+
     if kind == 'events':
         try:
             from rclpy.experimental import EventsExecutor
@@ -67,8 +72,34 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-# rcl's errors (RCLInvalidROSArgsError, UnknownROSArgsError, ...) derive from RCLError.
-RCLError: type[Exception] = rclpy_implementation.RCLError
+def _rcl_error() -> type[Exception]:
+    """Return rcl's error class (RCLInvalidROSArgsError and UnknownROSArgsError derive from it)."""
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+
+    error: type[Exception] = rclpy_implementation.RCLError
+    return error
+
+
+class Signals:
+    """SIGINT and SIGTERM: abort the start-up, or ask the running loop to stop.
+
+    Installed before rclpy, which chains its own handlers (shut the context down) to these.
+    """
+
+    def __init__(self) -> None:
+        self.running = False
+        self.received: int | None = None
+
+    def install(self) -> None:
+        """Handle SIGINT and SIGTERM in this process from now on."""
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self)
+
+    def __call__(self, signum: int, frame: FrameType | None) -> None:
+        self.received = signum
+        if not self.running:
+            raise KeyboardInterrupt
+
 
 # ---------------------------------------------------------------- ROS arguments, checked
 PROG = 'pendulum_node'
@@ -180,14 +211,25 @@ def main(args: list[str] | None = None) -> int:
 
     Returns 0 after a signal, 2 for a command line, scene or parameter the node cannot use.
     """
-    argv = list(sys.argv if args is None else args)
+    signals = Signals()
+    signals.install()
+    try:
+        return _main(list(sys.argv if args is None else args), signals)
+    except KeyboardInterrupt:  # a signal before the node ran: nothing to close or summarise
+        return 0
+
+
+def _main(argv: list[str], signals: Signals) -> int:
+    from rclpy.utilities import remove_ros_args
+
+    rcl_error = _rcl_error()
     try:
         ros = check_ros_args(argv[1:])
         check_parameters(ros)
         user_args = remove_ros_args(argv)[1:]
     except (UsageError, SceneError) as exc:
         return _fail(exc)
-    except RCLError as exc:  # what rcl refuses beyond the checks above
+    except rcl_error as exc:  # what rcl refuses beyond the checks above
         return _fail(f'invalid ROS arguments: {_rcl_reason(exc)}')
     opts = _parser().parse_args(user_args)
     if opts.list_scenes:
@@ -214,26 +256,38 @@ def main(args: list[str] | None = None) -> int:
         except (OSError, ValueError) as exc:
             print(f'{PROG}: cannot use SCHED_FIFO priority {opts.rt_priority} ({exc}); '
                   'running with the normal scheduler', file=sys.stderr)
+    import rclpy
+
     try:
         rclpy.init(args=ros_argv)
-    except KeyboardInterrupt:
-        return 0
-    except RCLError as exc:
+    except rcl_error as exc:
         return _fail(f'invalid ROS arguments: {_rcl_reason(exc)}')
-    return _run(opts.executor)
+    except KeyboardInterrupt:
+        rclpy.try_shutdown()
+        return 0
+    return _run(opts.executor, signals)
 
 
-def _run(executor_kind: str) -> int:
-    """Create the node and spin until shutdown; return the exit code."""
+def _run(executor_kind: str, signals: Signals) -> int:
+    """Create the node and spin until a signal or shutdown; return the exit code."""
+    import rclpy
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+    from rclpy.executors import ExternalShutdownException
+
+    from .pendulum_node import PendulumNode
+    from .status import StatusLine
+
     node: PendulumNode | None = None
     code = 0
     try:
         executor = _executor(executor_kind)
         node = PendulumNode(status=StatusLine())
         executor.add_node(node)
+        signals.running = True
         # spin_once in a loop rather than spin(): the EventsExecutor's spin() does not return
-        # to Python, so it would miss Ctrl-C.
-        while rclpy.ok():
+        # to Python, so it would miss Ctrl-C. rclpy's handler shuts the context down and wakes
+        # the executor; ours records the signal, so the loop ends either way.
+        while rclpy.ok() and signals.received is None:
             executor.spin_once(timeout_sec=0.25)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -243,27 +297,22 @@ def _run(executor_kind: str) -> int:
         code = _fail(f'{exc}{hint}')
     except PendulumError as exc:  # e.g. RecorderError: the recording cannot be opened
         code = _fail(exc)
-    except RCLError as exc:  # e.g. a parameter override rcl parsed but rclpy cannot use
+    except _rcl_error() as exc:  # e.g. a parameter override rcl parsed but rclpy cannot use
         code = _fail(_rcl_reason(exc))
     finally:
-        code = _close(node, code)
+        signals.running = True  # a signal while closing must not interrupt the close
+        _close(node)
     return code
 
 
-def _close(node: PendulumNode | None, code: int) -> int:
-    """Close the node and shut rclpy down; a second Ctrl-C while closing skips to the end."""
-    try:
-        if node is not None:
-            node.close()
-            node.destroy_node()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        try:
-            rclpy.try_shutdown()
-        except KeyboardInterrupt:
-            rclpy.try_shutdown()
-    return code
+def _close(node: Any) -> None:
+    """Close the node (summary, recording) and shut rclpy down."""
+    import rclpy
+
+    if node is not None:
+        node.close()
+        node.destroy_node()
+    rclpy.try_shutdown()
 
 
 if __name__ == '__main__':
