@@ -35,7 +35,7 @@ setup(
         'test': [
             'pytest>=8', 'wheel>=0.40', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10',
             'mcap-ros2-support>=0.5',
-            'mujoco>=3.2', 'urdf_parser_py>=0.0.4',
+            'mujoco>=3.2', 'urdf_parser_py>=0.0.4', 'types-PyYAML>=6',
             'colcon-core>=0.17', 'colcon-ros>=0.5', 'colcon-python-setup-py>=0.2',
         ],
     },
