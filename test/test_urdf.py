@@ -225,22 +225,32 @@ def test_mujoco_notices_a_different_pendulum() -> None:
 
 @pytest.mark.ros
 def test_live_robot_description_loads_in_mujoco() -> None:
-    """The running node's robot_description (default scene): MuJoCo reads I, m, γ I, the name."""
+    """The live node's robot_description (default scene): MuJoCo reads I, m, γ I from it.
+
+    It is the generator's URDF of the node's parameters, naming the node's resolved topics.
+    """
     from node_harness import NodeProcess, Probe
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from std_msgs.msg import String
 
+    from pendulum_sim.node.scenes import find_scene, read_params_file
+    from pendulum_sim.node.urdf import urdf_from_values
+
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    # I > m l² so that MuJoCo (which needs a positive tensor) can load the body.
-    overrides = {'inertia': 0.25, 'gamma': 0.3, 'joint_name': 'swing&sway'}
+    overrides = {'joint_name': 'swing&sway', 'max_effort': 3.5}
     with NodeProcess('default', overrides) as node, Probe() as probe:
         got = probe.subscribe(String, f'{node.namespace}/robot_description', latched)
         probe.spin_until(lambda: len(got) >= 1 or not node.alive(), 20.0, 'robot_description')
         assert node.alive(), node.output()
         urdf = got.msgs[0].data
+    values = {**read_params_file(find_scene('default')), **overrides}
+    assert urdf == urdf_from_values(values,
+                                    joint_commands_topic=f'{node.namespace}/joint_commands',
+                                    joint_states_topic=f'{node.namespace}/joint_states')
     assert one(parse(urdf), 'joint').get('name') == 'swing&sway'
     model = mujoco_model(urdf)
-    assert joint_inertia(model) == pytest.approx(0.25, rel=1e-12, abs=0.0)
-    assert model.body_mass[-1] == 0.2
-    assert model.dof_damping[0] == pytest.approx(0.3 * 0.25, rel=1e-15)
+    inertia, gamma = float(values['inertia']), float(values['gamma'])
+    assert joint_inertia(model) == pytest.approx(inertia, rel=1e-12, abs=0.0)
+    assert model.body_mass[-1] == float(values['m'])
+    assert model.dof_damping[0] == gamma * inertia
