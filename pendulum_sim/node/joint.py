@@ -291,6 +291,15 @@ class SimulatedJoint:
             return self._config.epoch_ns + k * round(h_ns)
         return self._config.epoch_ns + round(k * h_ns)
 
+    def energy(self) -> float:
+        """Return the energy of the true state now, J (finite, or JointError)."""
+        e = self._stepper.energy()
+        if not math.isfinite(e):
+            st = self._stepper
+            raise JointError(f'the state phi = {st.phi}, dphi = {st.dphi} gives a non-finite '
+                             f'energy ({e})')
+        return e
+
     def terms(self) -> EnergyTerms:
         """Return the energy terms of the true state now (finite, or JointError)."""
         st = self._stepper
@@ -370,25 +379,34 @@ class SimulatedJoint:
         pending = self._pending
         history = self._history if c.sensor_delay_steps else None
         effort_mode = c.command_interface == 'effort'
+        max_v = c.max_velocity
+        base = self._base_steps
         done = 0
         tau = self._torque
         try:
             while done < k:
-                now = self._base_steps + st.steps
-                while pending and pending[0][0] <= now:
-                    self._set_target(pending.popleft()[1], now)
-                if (timeout and self._commanded and now - self._target_step >= timeout):
-                    self._commanded = False
-                    self._target = self._safe_target()
-                    self.counters.timeouts += 1
-                if effort_mode and self._config.max_velocity == math.inf:
+                if pending or (timeout and self._commanded):
+                    now = base + st.steps
+                    while pending and pending[0][0] <= now:
+                        self._set_target(pending.popleft()[1], now)
+                    if timeout and self._commanded and now - self._target_step >= timeout:
+                        self._commanded = False
+                        self._target = self._safe_target()
+                        self.counters.timeouts += 1
+                if effort_mode:
                     tau = self._target
+                    # The velocity limit, inline for the common case (see _torque_for).
+                    if tau != 0.0:
+                        v = st.dphi
+                        if tau * v > 0.0 and abs(v) >= max_v:
+                            self.counters.limited += 1
+                            tau = 0.0
                 else:
                     tau = self._torque_for(st.phi, st.dphi)
                 step(tau)
                 done += 1
                 if history is not None:
-                    history.append((now + 1, st.phi, st.dphi, tau))
+                    history.append((base + st.steps, st.phi, st.dphi, tau))
                     if len(history) > c.sensor_delay_steps + 1:
                         history.popleft()
         except PendulumError as exc:

@@ -491,7 +491,7 @@ class PendulumNode(Node):
     # ------------------------------------------------------------------ publishing
     def _energy_or_nan(self) -> float:
         try:
-            return self._joint.terms().energy
+            return self._joint.energy()
         except JointError:
             return math.nan
 
@@ -515,17 +515,18 @@ class PendulumNode(Node):
         if self._energy_pub is None and not self._terms_pubs:
             return
         try:
-            terms = joint.terms()
+            energy = joint.energy()
+            terms = joint.terms() if self._terms_pubs else None
         except JointError as exc:
             joint.fail(str(exc))
             self._after_steps(0)
             return
         if self._energy_pub is not None:
-            e = self._float_bytes.pack(terms.energy)
+            e = self._float_bytes.pack(energy)
             self._energy_pub.publish(e)
             if rec is not None:
                 self._record(self._energy_pub.topic_name, e, stamp_ns)
-        if self._terms_pubs:
+        if terms is not None:
             pack = self._float_bytes.pack
             values = (terms.kinetic, terms.potential, terms.dissipated_power, terms.residual)
             for pub, value in zip(self._terms_pubs, values, strict=True):
