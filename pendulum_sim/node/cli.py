@@ -286,8 +286,9 @@ def _run(executor_kind: str, signals: Signals) -> int:
         signals.running = True
         # spin_once in a loop rather than spin(): the EventsExecutor's spin() does not return
         # to Python, so it would miss Ctrl-C. rclpy's handler shuts the context down and wakes
-        # the executor; ours records the signal, so the loop ends either way.
-        while rclpy.ok() and signals.received is None:
+        # the executor; ours records the signal, so the loop ends either way (as it does when
+        # the node saw a KeyboardInterrupt inside a callback, raised by another handler).
+        while rclpy.ok() and signals.received is None and not node.stop_requested:
             executor.spin_once(timeout_sec=0.25)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
