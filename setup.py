@@ -23,7 +23,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         (os.path.join('share', package_name, 'config'),
-         sorted(glob('config/*.yaml')) + ['config/fastdds_localhost.xml']),
+         [*sorted(glob('config/*.yaml')), 'config/fastdds_localhost.xml']),
         (os.path.join('share', package_name, 'urdf'), sorted(glob('urdf/*.urdf'))),
     ],
     python_requires='>=3.10',
