@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import json
 import math
+import random
 import struct
 import subprocess
 import sys
+import warnings
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -290,3 +292,47 @@ def test_a_long_recording_loads_within_three_times_its_arrays(tmp_path: Path) ->
     figures = json.loads(out)
     assert figures['count'] == 300_000 and figures['exact']
     assert figures['grown'] <= 3 * figures['arrays'], figures
+
+
+# -- damaged files: a RecorderError or a warning, never anything else ----------------------------
+
+
+@pytest.mark.parametrize('compression', ['zstd', 'none'])
+def test_random_damage_gives_a_recorder_error_or_the_same_result_both_ways(
+        tmp_path: Path, compression: str) -> None:
+    from pendulum_sim.recording import RecorderError
+    from pendulum_sim.recording.reader import scan
+    path = tmp_path / 'run.mcap'
+    record(path, scripted_messages(300), chunk_size=2048, compression=compression)
+    data = path.read_bytes()
+    rng = random.Random(11)
+    damaged = tmp_path / 'damaged.mcap'
+    outcomes = {'loaded': 0, 'refused': 0}
+    for _ in range(100):
+        flipped = bytearray(data)
+        for _ in range(rng.choice([1, 2, 8])):
+            flipped[rng.randrange(len(flipped))] = rng.randrange(256)
+        if rng.random() < 0.3:
+            flipped = flipped[:rng.randrange(len(flipped))]
+        damaged.write_bytes(bytes(flipped))
+        results = []
+        for fast in (True, False):
+            with warnings.catch_warnings():
+                warnings.simplefilter('ignore')
+                try:
+                    results.append(load(damaged, fast=fast))
+                except RecorderError as exc:
+                    results.append(str(exc))
+        if isinstance(results[0], str):
+            assert results[0] == results[1]
+            outcomes['refused'] += 1
+        else:
+            assert_same(results[0], results[1])
+            outcomes['loaded'] += 1
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            try:
+                scan(damaged, corrupt='skip')
+            except RecorderError:
+                pass
+    assert outcomes['loaded'] > 10 and outcomes['refused'] > 10, outcomes

@@ -639,8 +639,8 @@ def _indexed(walker: Walker, blocks: list[Block]) -> _Batch | None:
                     return None   # a message the index leaves out
                 if opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
                     walker.define(opcode, memoryview(data)[start + RECORD_HEAD.size:stop])
-        except ValueError:
-            return None
+        except Exception:
+            return None   # block by block, a malformed record is reported with its offset
     channels = _column(_gather(u8, offsets + 9, 2), 0, '<u2').astype(np.int64)
     return data, offsets, lengths, channels, bases
 
