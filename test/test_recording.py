@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import signal
@@ -441,6 +442,11 @@ def test_misuse_is_refused_with_clear_errors(tmp_path: Path) -> None:
     with pytest.raises(RecorderError,
                        match=r'^topic /b has no channel; call add_channel first$'):
         rec.write('/b', TOPICS['/energy'][0](data=1.0), 0)
+    for stamp in (-1, 2**64, 1.5):
+        with pytest.raises(RecorderError, match=re.escape(
+                'a message stamp must be an integer number of nanoseconds in [0, 2**64), got '
+                f'{stamp!r}')):
+            rec.write('/a', TOPICS['/energy'][0](data=1.0), stamp)  # type: ignore[arg-type]
     rec.write('/a', TOPICS['/energy'][0](data=2.0), 5)
     rec.close()
     rec.close()
@@ -452,6 +458,10 @@ def test_misuse_is_refused_with_clear_errors(tmp_path: Path) -> None:
     with pytest.raises(RecorderError, match=re.escape(
             "metadata record 'scene' must map str to str, got 'gamma': 1.0")):
         McapRecorder(tmp_path / 'x.mcap', metadata={'scene': {'gamma': 1.0}})  # type: ignore
+    for interval in (0.0, math.inf, math.nan):
+        with pytest.raises(RecorderError, match=re.escape(
+                f'chunk_interval must be a finite number > 0 s, got {interval}')):
+            McapRecorder(tmp_path / 'x.mcap', chunk_interval=interval)
 
 
 # -- damaged files ------------------------------------------------------------------------------

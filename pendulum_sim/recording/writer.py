@@ -12,15 +12,23 @@ recording process dies, the writer process sees its input end and finalises the 
 channels, statistics, chunk, metadata and summary-offset indexes) and the footer. A write error
 (full disk, file size limit) stops the recording only: it shows in :attr:`McapRecorder.error`,
 further writes are dropped, and the chunks already written stay readable.
+
+The file is created exclusively (``O_CREAT | O_EXCL | O_NOFOLLOW``) and ``flock``-ed while it
+is written; in a folder its name (:func:`generated_name`) is unique per process. Every
+file-system error is a :class:`RecorderError` naming the path and the reason.
+:meth:`McapRecorder.write_reset` records a reset as an event in write order
+(:data:`~pendulum_sim.recording.events.RESET_TOPIC`).
 """
 from __future__ import annotations
 
 import errno
 import fcntl
 import json
+import math
 import os
 import secrets
 import stat
+import struct
 import subprocess
 import sys
 import threading
@@ -121,8 +129,9 @@ class McapRecorder:
                 if not isinstance(key, str) or not isinstance(value, str):
                     raise RecorderError(f'metadata record {name!r} must map str to str, got '
                                         f'{key!r}: {value!r}')
-        if not chunk_interval > 0:
-            raise RecorderError(f'chunk_interval must be > 0 s, got {chunk_interval}')
+        if not (math.isfinite(chunk_interval) and chunk_interval > 0):
+            raise RecorderError(f'chunk_interval must be a finite number > 0 s, got '
+                                f'{chunk_interval}')
         if chunk_size < 1:
             raise RecorderError(f'chunk_size must be >= 1 byte, got {chunk_size}')
         if compression not in sink.COMPRESSIONS:
@@ -354,9 +363,7 @@ class McapRecorder:
         channel = self._channels.get(topic)
         if channel is None or self._state != 'open':
             self._refuse(topic)
-        data = serialize_message(msg)
-        self._send(sink.MESSAGE_HEAD.pack(sink.MESSAGE, 10 + len(data), channel.id, stamp_ns)
-                   + data)
+        self._send(self._message(channel.id, serialize_message(msg), stamp_ns))
 
     def write_serialized(self, topic: str, data: bytes, stamp_ns: int) -> None:
         """Record one already serialized (CDR) message; cheap, never blocks."""
@@ -365,8 +372,16 @@ class McapRecorder:
         channel = self._channels.get(topic)
         if channel is None or self._state != 'open':
             self._refuse(topic)
-        self._send(sink.MESSAGE_HEAD.pack(sink.MESSAGE, 10 + len(data), channel.id, stamp_ns)
-                   + data)
+        self._send(self._message(channel.id, data, stamp_ns))
+
+    @staticmethod
+    def _message(channel_id: int, data: bytes, stamp_ns: int) -> bytes:
+        try:
+            head = sink.MESSAGE_HEAD.pack(sink.MESSAGE, 10 + len(data), channel_id, stamp_ns)
+        except struct.error:
+            raise RecorderError(f'a message stamp must be an integer number of nanoseconds in '
+                                f'[0, 2**64), got {stamp_ns!r}') from None
+        return head + data
 
     def write_reset(self, stamp_ns: int, message: str) -> None:
         """Record a reset of the simulation: a ``std_msgs/msg/String`` on :data:`RESET_TOPIC`.
