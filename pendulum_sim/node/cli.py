@@ -7,10 +7,12 @@ Run it as::
 
 Every command-line and parameter-file error is found before ``rclpy.init`` where possible (and
 what rcl still refuses is caught): the process exits 2 with the reason on stderr, never a
-traceback. Ctrl-C (SIGINT) and SIGTERM end it with exit 0 after the summary: ``main`` handles
-both from its first line (rclpy and the node are imported after that), a signal during start-up
-ends it before the node runs, and a signal while it runs only asks the loop to stop, so nothing
-is interrupted inside a callback.
+traceback. Ctrl-C (SIGINT) and SIGTERM end it with exit 0 after the summary. This module is the
+executable's entry point and takes both signals as soon as it is imported, before numpy and
+rclpy load: a signal during the imports is remembered and ``main`` returns at once, one during
+start-up aborts it, and one while the node runs only asks the loop to stop, so nothing is
+interrupted inside a callback. (Only the interpreter's own start-up, before this module, is
+left: there the ROS wheels' bootstrap re-executes Python, and a signal is lost or kills.)
 """
 from __future__ import annotations
 
@@ -18,16 +20,44 @@ import argparse
 import os
 import signal
 import sys
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
 from typing import TYPE_CHECKING, Any
 
-from pendulum_sim.core import PendulumError
 
-from .errors import NodeError, SceneError
-from .scenes import (
+class Signals:
+    """SIGINT and SIGTERM: remember them, and raise KeyboardInterrupt only while starting up.
+
+    Installed before rclpy, which chains its own handlers (shut the context down) to these.
+    ``abort`` is True only between the start of ``main`` and the start of the loop.
+    """
+
+    def __init__(self) -> None:
+        self.abort = False
+        self.received: int | None = None
+
+    def install(self) -> None:
+        """Handle SIGINT and SIGTERM in this process from now on (main thread only)."""
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, self)
+
+    def __call__(self, signum: int, frame: FrameType | None) -> None:
+        self.received = signum
+        if self.abort:
+            raise KeyboardInterrupt
+
+
+SIGNALS = Signals()
+SIGNALS.install()  # before the imports below take their half second
+
+from pendulum_sim.core import PendulumError  # noqa: E402 - after the signal handlers
+
+from .errors import NodeError, SceneError  # noqa: E402
+from .scenes import (  # noqa: E402
     available_scenes,
     find_scene,
     known_parameters,
@@ -78,27 +108,6 @@ def _rcl_error() -> type[Exception]:
 
     error: type[Exception] = rclpy_implementation.RCLError
     return error
-
-
-class Signals:
-    """SIGINT and SIGTERM: abort the start-up, or ask the running loop to stop.
-
-    Installed before rclpy, which chains its own handlers (shut the context down) to these.
-    """
-
-    def __init__(self) -> None:
-        self.running = False
-        self.received: int | None = None
-
-    def install(self) -> None:
-        """Handle SIGINT and SIGTERM in this process from now on."""
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, self)
-
-    def __call__(self, signum: int, frame: FrameType | None) -> None:
-        self.received = signum
-        if not self.running:
-            raise KeyboardInterrupt
 
 
 # ---------------------------------------------------------------- ROS arguments, checked
@@ -211,12 +220,17 @@ def main(args: list[str] | None = None) -> int:
 
     Returns 0 after a signal, 2 for a command line, scene or parameter the node cannot use.
     """
-    signals = Signals()
+    signals = SIGNALS
     signals.install()
+    if signals.received is not None:  # a signal while this module loaded
+        return 0
+    signals.abort = True
     try:
         return _main(list(sys.argv if args is None else args), signals)
     except KeyboardInterrupt:  # a signal before the node ran: nothing to close or summarise
         return 0
+    finally:
+        signals.abort = False
 
 
 def _main(argv: list[str], signals: Signals) -> int:
@@ -283,7 +297,7 @@ def _run(executor_kind: str, signals: Signals) -> int:
         executor = _executor(executor_kind)
         node = PendulumNode(status=StatusLine())
         executor.add_node(node)
-        signals.running = True
+        signals.abort = False
         # spin_once in a loop rather than spin(): the EventsExecutor's spin() does not return
         # to Python, so it would miss Ctrl-C. rclpy's handler shuts the context down and wakes
         # the executor; ours records the signal, so the loop ends either way (as it does when
@@ -301,7 +315,7 @@ def _run(executor_kind: str, signals: Signals) -> int:
     except _rcl_error() as exc:  # e.g. a parameter override rcl parsed but rclpy cannot use
         code = _fail(_rcl_reason(exc))
     finally:
-        signals.running = True  # a signal while closing must not interrupt the close
+        signals.abort = False  # a signal while closing must not interrupt the close
         _close(node)
     return code
 
