@@ -11,7 +11,8 @@ import pytest
 
 from pendulum_sim.core import IntegratorError, ModelError, PendulumParams, simulate
 from pendulum_sim.core import sweep as sweep_module
-from pendulum_sim.core.sweep import SUBSTEP_CAP, sweep
+from pendulum_sim.core.engine import guard_for, hermite_root
+from pendulum_sim.core.sweep import sweep
 from pendulum_sim.core.tableaus import TABLEAUS
 
 EPS = np.finfo(float).eps
@@ -72,7 +73,9 @@ def test_sweep_agrees_with_plain_python_rk_to_roundoff() -> None:
         for t_end, h in sorted({(c[7], c[8]) for c in cases}):
             group = [c for c in cases if (c[7], c[8]) == (t_end, h)]
             cols = np.array([c[1:7] for c in group]).T
-            res = sweep(*cols[:5], t_end, h, method=method, torque=cols[5])
+            # No energy check: a plain loop does not redo Euler's energy-raising steps.
+            res = sweep(*cols[:5], t_end, h, method=method, torque=cols[5],
+                        energy_check=False)
             steps = round(t_end / h)
             assert res.steps == steps
             for i, (_, w2, g, n, p0, v0, tau, _, _) in enumerate(group):
@@ -155,7 +158,7 @@ def test_stiff_cells_stay_finite_and_never_gain_energy() -> None:
     assert np.isfinite(res.phi_record).all() and np.isfinite(res.dphi_record).all()
     e = energy_per_inertia(res, W2)
     assert np.all(np.diff(e, axis=0) <= 0.0)
-    assert np.array_equal(res.energy, e[-1])
+    np.testing.assert_allclose(res.energy, e[-1], rtol=1e-14)
     # The guard acted and says how: substeps for γ = 1000 (n = 1), the fallback at γ = 1e6.
     assert res.substeps[0] > 0 and res.fallbacks[0] == 0
     assert res.fallbacks[2] > 0
@@ -166,21 +169,19 @@ def test_stiff_cells_stay_finite_and_never_gain_energy() -> None:
     # Coulomb friction of 1e6 rad/s² stops the pendulum at once and holds it.
     assert res.dphi[4] == 0.0 and res.sticks[4] > 0
     # Without the guard the same γ = 1000 cell explodes: the guard is what keeps it finite.
-    bare = sweep(W2, 1000.0, 1.0, 2.0, 0.0, 2.0, h, guard=False)
-    assert not np.isfinite(bare.phi[0])
+    with pytest.raises(IntegratorError, match=r'^the unguarded rk4 step diverged beyond float64'):
+        sweep(W2, 1000.0, 1.0, 2.0, 0.0, 2.0, h, guard=False, energy_check=False)
 
 
 def guard_substeps(w2: float, gamma: float, phi: float, h: float) -> int:
-    """Return the fewest m with |R(SAFETY h λ / m)| ≤ 1 for n = 1, computed independently."""
+    """Return the fewest m with h |λ| / m inside the guard's share of RK4's real interval.
+
+    n = 1, γ = 1000: both eigenvalues are real (overdamped), so the interval [−2.785, 0]
+    (MODEL.md) times the guard's safety factor decides; computed here independently.
+    """
     c = w2 * math.cos(phi)
-    disc = complex(gamma * gamma - 4.0 * c)
-    lams = [(-gamma + disc ** 0.5) / 2.0, (-gamma - disc ** 0.5) / 2.0]
-    rk4 = TABLEAUS['rk4']
-    m = 1
-    while any(lam.real < 0.0 and abs(rk4.stability_function(sweep_module.SAFETY * h * lam / m))
-              > 1.0 for lam in lams):
-        m += 1
-    return m
+    lam = (gamma + math.sqrt(gamma * gamma - 4.0 * c)) / 2.0
+    return math.ceil(h * lam / (2.785293563405 * guard_for(TABLEAUS['rk4']).safety))
 
 
 def test_guard_substeps_are_plain_rk4_substeps_and_reported() -> None:
@@ -224,8 +225,7 @@ def test_coulomb_friction_sticks_where_static_friction_holds() -> None:
     assert np.all(res.phi_record[still:, 0] == res.phi[0])
 
 
-def test_order_blocks_and_grouping_do_not_change_results(monkeypatch: pytest.MonkeyPatch
-                                                         ) -> None:
+def test_order_and_grouping_do_not_change_results() -> None:
     rng = np.random.default_rng(7)
     size = 60
     ns = rng.choice([0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0], size)
@@ -237,15 +237,6 @@ def test_order_blocks_and_grouping_do_not_change_results(monkeypatch: pytest.Mon
     shuffled = sweep(W2, gs[perm], ns[perm], p0[perm], v0[perm], 0.5, 1e-2)
     assert np.array_equal(shuffled.phi, whole.phi[perm])
     assert np.array_equal(shuffled.dphi, whole.dphi[perm])
-    # Blocks of 4 pendulums instead of one block: the same method; only the length of the sin
-    # polynomials (chosen per block from the largest angle increment) may differ, so the
-    # results agree to round-off.
-    monkeypatch.setattr(sweep_module, 'BLOCK', 4)
-    small = sweep(W2, gs, ns, p0, v0, 0.5, 1e-2)
-    scale = np.maximum(1.0, np.abs(whole.dphi))
-    assert np.all(np.abs(small.phi - whole.phi) <= roundoff_tol(50, 1.0) * scale)
-    assert np.all(np.abs(small.dphi - whole.dphi) <= roundoff_tol(50, 1.0) * scale)
-    assert np.array_equal(small.reversals, whole.reversals)
 
 
 def test_extreme_inputs_stay_finite() -> None:
@@ -258,7 +249,6 @@ def test_extreme_inputs_stay_finite() -> None:
     assert np.isfinite(res.phi).all() and np.isfinite(res.dphi).all()
     assert np.isfinite(res.energy).all()
     assert res.guarded > 0 and res.capped > 0
-    assert np.all(res.substeps <= res.steps * (SUBSTEP_CAP - 1))
 
 
 BAD = [
@@ -331,7 +321,7 @@ def test_hermite_root_is_a_root_in_the_step() -> None:
     # Wiggly cubics too, where Newton from the linear guess leaves [0, 1] (bisection safeguard).
     dv0[:20] = -8.0 * slope[:20]
     dv1[:20] = -8.0 * slope[:20]
-    th = sweep_module._hermite_root(v0, v1, dv0, dv1)
+    th = np.array([hermite_root(*args) for args in zip(v0, v1, dv0, dv1, strict=True)])
     assert np.all((th >= 0.0) & (th <= 1.0))
     scale = np.abs(v0) + np.abs(v1) + np.abs(dv0) + np.abs(dv1)
     assert np.all(np.abs(hermite(th, v0, v1, dv0, dv1)) <= 16 * EPS * scale)

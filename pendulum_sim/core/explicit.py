@@ -1,51 +1,85 @@
-"""One generic explicit Runge-Kutta step, compiled from a tableau for the pendulum's vector field.
+"""Explicit Runge-Kutta steps generated from a tableau: the fast path of both drivers.
 
-A method is data (``tableaus.py``); this module turns a tableau and a damping law into a plain
-Python function with the stages unrolled and zero coefficients dropped, so that the same data
-gives both the reference semantics and a step fast enough for a 1 kHz real-time loop
-(no per-step loops over arrays, no attribute look-ups).
+A method is data (``tableaus.py``); this module turns a tableau and a damping exponent into
+Python source with the stages unrolled and zero coefficients dropped, and compiles that one
+source twice: with ``math`` (a scalar step for :class:`~pendulum_sim.core.stepper.Stepper`,
+fast enough for a 1 kHz real-time loop) and with ``numpy`` (the same step over arrays, for
+:func:`~pendulum_sim.core.sweep.sweep`). The plain reference :func:`~pendulum_sim.core.rk.rk_step`
+defines the semantics both are tested against.
 
-The compiled step advances ``(φ, φ')`` by ``h`` under a constant input acceleration ``a_in = τ/I``
-and returns ``(φ₁, φ'₁, w, a₀)``: the new state, the work done by damping per unit inertia
+A generated step is ``step(p0, v0, h, ain, w2, gamma, s)``: it advances ``(φ, φ')`` by ``h``
+under ``φ'' = a_in − D(φ') − ω0² sin φ`` (Quiroga and Ospina-Henao 2017, eq 16 with input) and
+returns ``(φ₁, φ'₁, w, a₀)``: the new state, the damping work per unit inertia
 ``w = h Σ bᵢ vᵢ Dᵢ`` (the same quadrature as the state, so the energy balance closes to the
-method's own accuracy), and the acceleration at the start ``a₀`` (kept for reversal location).
+method's own accuracy) and the acceleration at the start. ``s`` selects the damping branch of a
+*branch* step, ``D(v) = s γ |v|^n`` (the smooth continuation of one direction of motion, used on
+either side of a velocity reversal); the plain law ignores it.
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
+from typing import Any
+
+import numpy as np
 
 from .tableaus import Tableau
 
-StepFn = Callable[[float, float, float, float], tuple[float, float, float, float]]
-ErrStepFn = Callable[[float, float, float, float],
-                     tuple[float, float, float, float, float, float]]
+StepFn = Callable[..., tuple[Any, Any, Any, Any]]
+ErrStepFn = Callable[..., tuple[Any, Any, Any, Any, Any, Any]]
 DampingFn = Callable[[float], float]
 
 
-def damping_expression(n: float) -> str:
-    """Return Python source for D(v) = γ v|v|^(n−1) specialised for the exponent ``n``.
+def _sign(x: float) -> float:
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
-    Integer exponents use multiplications (a power call costs as much as a whole stage); the
-    expression reads the names ``v`` and ``gamma``. For n = 0 the value at v = 0 is 0: sticking
-    is decided by the caller, never by this expression.
+
+SCALAR_ENV: dict[str, object] = {'sin': math.sin, 'copysign': math.copysign, 'sign': _sign,
+                                 'abs': abs}
+VECTOR_ENV: dict[str, object] = {'sin': np.sin, 'copysign': np.copysign, 'sign': np.sign,
+                                 'abs': np.abs}
+
+
+def _power(n: int, odd_abs: bool) -> str:
+    """Return v^n as multiplications; |v|^n instead where ``odd_abs`` and n is odd."""
+    if n == 0:
+        return '1.0'
+    if n % 2 == 1 and odd_abs:
+        return ' * '.join(['v'] * (n - 1) + ['abs(v)'])
+    return ' * '.join(['v'] * n)
+
+
+def damping_expression(n: float, branch: bool = False) -> str:
+    """Return source for the damping law D(v) specialised for the exponent ``n`` (eq 15).
+
+    The plain law is γ v|v|^(n−1) (D(0) = 0 for every n, also n = 0: sticking is decided by the
+    caller); the branch law is s γ |v|^n. Integer exponents up to 8 use multiplications (a
+    power call costs as much as a whole stage). Names read: ``v``, ``gamma``, ``n``, ``s``.
+    This is the one definition of the law in the core; everything that evaluates it compiles it.
     """
+    whole = n == int(n) and 1.0 <= n <= 8.0
+    if branch:
+        if n == 0.0:
+            return 's * gamma'
+        if whole:
+            return f's * gamma * {_power(int(n), odd_abs=True)}'
+        return 's * gamma * abs(v) ** n'
     if n == 0.0:
-        return '(gamma if v > 0.0 else (-gamma if v < 0.0 else 0.0))'
-    if n == 1.0:
-        return 'gamma * v'
-    if n == int(n) and n <= 8:
+        return 'gamma * sign(v)'
+    if whole:
         k = int(n)
-        prod = ' * '.join(['v'] * k) if k % 2 == 1 else ' * '.join(['v'] * (k - 1)) + ' * abs(v)'
-        return f'gamma * {prod}'
+        # v|v|^(k−1): v^k for odd k, v^(k−1)|v| for even k.
+        return f'gamma * {_power(k, False) if k % 2 else _power(k - 1, False) + " * abs(v)"}'
     return 'copysign(gamma * abs(v) ** n, v)'
 
 
-def compile_damping(gamma: float, n: float) -> DampingFn:
-    """Return D(v) = γ v|v|^(n−1) as a compiled function (D(0) = 0 for every n)."""
-    src = f'def damping(v):\n    return {damping_expression(n)}\n'
-    env: dict[str, object] = {'gamma': gamma, 'n': n, 'copysign': math.copysign}
-    exec(src, env)
+@functools.lru_cache(maxsize=256)
+def compile_damping(n: float, branch: bool = False) -> Callable[[float, float, float], float]:
+    """Return the scalar damping law ``D(v, gamma, s)`` for exponent ``n``."""
+    src = f'def damping(v, gamma, s):\n    return {damping_expression(n, branch)}\n'
+    env: dict[str, object] = dict(SCALAR_ENV, n=n)
+    exec(compile(src, f'<damping n={n}>', 'exec'), env)
     return env['damping']  # type: ignore[return-value]
 
 
@@ -53,10 +87,11 @@ def _num(x: float) -> str:
     return repr(float(x))
 
 
-def _stage_source(tableau: Tableau, damping: str, with_error: bool) -> str:
+def step_source(tableau: Tableau, damping: str, with_error: bool = False) -> str:
+    """Return the unrolled source of one explicit step of ``tableau`` with the law ``damping``."""
     s = tableau.stages
     A, B = tableau.A, tableau.B
-    lines = ['def step(p0, v0, h, ain):']
+    lines = ['def step(p0, v0, h, ain, w2, gamma, s):']
     for i in range(s):
         if i == 0:
             lines.append('    p_0 = p0; v_0 = v0')
@@ -87,33 +122,19 @@ def _stage_source(tableau: Tableau, damping: str, with_error: bool) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def compile_step(tableau: Tableau, omega0_sq: float, gamma: float, n: float,
-                 damping: DampingFn | None = None) -> StepFn:
-    """Compile one explicit step of ``tableau`` for the pendulum with these parameters.
+@functools.lru_cache(maxsize=512)
+def compile_step(tableau: Tableau, n: float, branch: bool = False, vector: bool = False,
+                 with_error: bool = False) -> Any:
+    """Compile one explicit step of ``tableau`` for damping exponent ``n``.
 
-    ``damping`` overrides the damping law (used for Coulomb break-away, where the friction
-    keeps one sign over the step); otherwise the law is specialised for ``n``.
+    ``vector`` compiles the same source with numpy (arrays of pendulums); ``with_error`` adds
+    the embedded pair's error estimate ``(e_φ, e_φ')`` to the result.
     """
-    return _compile(tableau, omega0_sq, gamma, n, damping, with_error=False)  # type: ignore
-
-
-def compile_error_step(tableau: Tableau, omega0_sq: float, gamma: float, n: float,
-                       damping: DampingFn | None = None) -> ErrStepFn:
-    """Compile an embedded-pair step that also returns the local error estimate (eφ, eφ')."""
-    if tableau.E is None:
-        raise ValueError(f'{tableau.name} has no embedded error estimate')
-    return _compile(tableau, omega0_sq, gamma, n, damping, with_error=True)  # type: ignore
-
-
-def _compile(tableau: Tableau, omega0_sq: float, gamma: float, n: float,
-             damping: DampingFn | None, with_error: bool) -> object:
     if not tableau.explicit:
         raise ValueError(f'{tableau.name} is not an explicit method')
-    expr = 'dmp(v)' if damping is not None else damping_expression(n)
-    src = _stage_source(tableau, expr, with_error)
-    env: dict[str, object] = {
-        'sin': math.sin, 'copysign': math.copysign, 'w2': omega0_sq, 'gamma': gamma, 'n': n,
-        'dmp': damping,
-    }
-    exec(compile(src, f'<{tableau.name} step>', 'exec'), env)
+    if with_error and tableau.E is None:
+        raise ValueError(f'{tableau.name} has no embedded error estimate')
+    src = step_source(tableau, damping_expression(n, branch), with_error)
+    env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV, n=n)
+    exec(compile(src, f'<{tableau.name} step n={n}>', 'exec'), env)
     return env['step']

@@ -172,8 +172,10 @@ class StabilityGuard:
             m = max(1, math.ceil(max(abs(lam) for lam in lams) * h / self.real))
         else:
             m = self._search(h, lams)
-        m = max(m, m_angle)
-        return m if m <= self.max_substeps else FALLBACK
+        if m > self.max_substeps:
+            return FALLBACK
+        # The angle limit alone never calls for the fallback: explicit substeps resolve it.
+        return max(m, m_angle)
 
     def _ok(self, h: float, lams: list[complex]) -> bool:
         return all(abs(self.tableau.stability_function(h * lam)) <= 1.0 for lam in lams)
@@ -195,3 +197,40 @@ class StabilityGuard:
             else:
                 lo = mid
         return m
+
+
+def safe_speed_range(guard: StabilityGuard, omega0_sq: float, gamma: float, n: float, h: float,
+                     ain_bound: float) -> tuple[float, float]:
+    """Return (lo, hi): one plain step of h is safe for every state with lo <= |φ'| <= hi.
+
+    Safe means the cheap sufficient test of the module docstring holds at the speed the step can
+    reach: ``h (d(speed) + ω0) <= r`` and ``h · speed <= MAX_ANGLE``, with ``speed = |φ'| +
+    margin`` and the margin the speed an input acceleration up to ``ain_bound`` plus gravity can
+    add in h (:func:`max_speed`). For n > 1 the slope d = γ n s^(n−1) grows with the speed, so
+    the range has an upper end; for n < 1 it falls, so it has a lower end (the slowest speed in
+    the step is |φ'| − h · force); for n = 0 and n = 1 it is constant. This is the guard's one
+    fast-path decision: ``Stepper`` compares a float with it, ``sweep`` an array.
+    """
+    force = ain_bound + omega0_sq
+    omega0 = math.sqrt(omega0_sq)
+    margin = max_speed(gamma, n, 0.0, h, force)
+    hi = guard.max_angle / h - margin
+    room = guard.disk / h - omega0  # the largest slope d the step tolerates
+    empty = (math.inf, -math.inf)
+    if room < 0.0 or hi < 0.0:
+        return empty
+    if gamma == 0.0 or n == 0.0:
+        return 0.0, hi
+    if n == 1.0:
+        return (0.0, hi) if gamma <= room else empty
+    if room == 0.0:
+        return empty
+    try:
+        s = (room / (gamma * n)) ** (1.0 / (n - 1.0))
+    except (OverflowError, ZeroDivisionError):
+        s = math.inf if n > 1.0 else 0.0
+    if n > 1.0:
+        hi = min(hi, s - margin)
+        return (0.0, hi) if hi >= 0.0 else empty
+    lo = s + h * force
+    return (lo, hi) if lo <= hi else empty

@@ -14,13 +14,44 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import ModelError
+from .errors import IntegratorError, ModelError
 
 FloatArray = npt.NDArray[np.float64]
 
 
+MAX_SPEED = 1e4
+"""The largest |φ'| (rad/s) an initial state may have: the core's state bound.
+
+Far above any physical joint (95 000 rpm), it keeps the kinetic energy, the guard's substep
+counts and the angle swept per step finite and resolvable in float64."""
+
+MAX_DAMPING_POWER = 1e250
+"""Bound on the specific damping power γ |φ'|^(n+1) of an initial state (W per kg m²).
+
+For large n the damping law itself overflows float64 long before the speed bound (5^1000);
+refusing such states keeps the damping, its work and its slope finite."""
+
+MAX_INPUT_ACCEL = 1e8
+"""The largest |τ/I| (rad/s²) accepted as input: the speed it adds per step stays bounded."""
+
+MAX_PHASE_PER_STEP = 100.0
+"""The largest h ω0 accepted: a step may span at most this many radians of small-oscillation
+phase (it is then cut into substeps that each resolve it, so the bound caps their number)."""
+
+MAX_STEPS = 100_000_000
+"""The default largest number of steps of one run (``simulate``, ``sweep``)."""
+
+INERTIA_RTOL = 1e-12
+"""Round-off allowed in the parallel-axis test I >= m l²."""
+
+
 def check_finite(name: str, value: float) -> float:
-    """Return ``value`` as a float, or raise ModelError naming it if not a finite real."""
+    """Return ``value`` as a float, or raise ModelError naming it if not a finite real.
+
+    Booleans and strings are refused (``True`` is not a number of anything).
+    """
+    if isinstance(value, (bool, str, bytes)):
+        raise ModelError(f'{name} must be a real number, got {value!r}')
     try:
         x = float(value)
     except (TypeError, ValueError):
@@ -82,6 +113,11 @@ class PendulumParams:
         set_(self, 'g', _check_nonneg('g', self.g, ' m/s^2'))
         set_(self, 'gamma', _check_nonneg('gamma', self.gamma, ' s^(n-2)'))
         set_(self, 'n', _check_nonneg('n', self.n, ''))
+        # Parallel-axis theorem: I = I_cm + m l² >= m l² for every rigid body.
+        limit = self.m * self.l * self.l
+        if self.inertia < limit * (1.0 - INERTIA_RTOL):
+            raise ModelError(f'inertia must be >= m*l**2 = {limit:.6g} kg m^2 for a rigid body '
+                             f'(parallel-axis theorem), got {self.inertia:.6g}')
 
     @classmethod
     def from_omega0_sq(cls, omega0_sq: float, gamma: float, n: float) -> PendulumParams:
@@ -187,6 +223,93 @@ def input_power(dphi: Any, torque: Any) -> Any:
     return np.multiply(torque, dphi)
 
 
-def validate_state(phi0: float, dphi0: float) -> tuple[float, float]:
-    """Check an initial state (finite angle and velocity) and return it as floats."""
-    return check_finite('phi0', phi0), check_finite('dphi0', dphi0)
+def speed_limit(gamma: float, n: float) -> float:
+    """Return the largest |φ'| accepted in a state for damping ``γ``, ``n`` (rad/s).
+
+    The smaller of :data:`MAX_SPEED` and the speed where γ |φ'|^(n+1) reaches
+    :data:`MAX_DAMPING_POWER` (computed in logarithms, so it never overflows itself).
+    """
+    if gamma <= 0.0:
+        return MAX_SPEED
+    log_v = (math.log(MAX_DAMPING_POWER) - math.log(gamma)) / (n + 1.0)
+    return MAX_SPEED if log_v >= math.log(MAX_SPEED) else math.exp(log_v)
+
+
+def validate_state(phi0: float, dphi0: float,
+                   params: PendulumParams | None = None) -> tuple[float, float]:
+    """Check an initial state and return it as floats: the core's one state validation.
+
+    The angle must be finite, the velocity finite and within ``±MAX_SPEED`` (and, given
+    ``params``, within :func:`speed_limit` of its damping), so that energy, damping and
+    every quantity derived from them stay finite in float64.
+    """
+    phi = check_finite('phi0', phi0)
+    dphi = check_finite('dphi0', dphi0)
+    if abs(dphi) > MAX_SPEED:
+        raise ModelError(f'dphi0 must be within +-{MAX_SPEED:g} rad/s (the state bound that '
+                         f'keeps energy and damping finite), got {dphi:g}')
+    if params is not None:
+        lim = speed_limit(params.gamma, params.n)
+        if abs(dphi) > lim:
+            raise ModelError(
+                f'dphi0 must be within +-{lim:.6g} rad/s for gamma = {params.gamma:g} and '
+                f'n = {params.n:g} (keeps gamma*|dphi|**(n+1) below {MAX_DAMPING_POWER:g}), '
+                f'got {dphi:g}')
+    return phi, dphi
+
+
+def check_torque(torque: float, params: PendulumParams) -> float:
+    """Return the input torque as a float: finite and |τ/I| <= :data:`MAX_INPUT_ACCEL`."""
+    tau = check_finite('torque', torque)
+    if abs(tau) > MAX_INPUT_ACCEL * params.inertia:
+        raise ModelError(f'torque must be within +-{MAX_INPUT_ACCEL * params.inertia:g} N m '
+                         f'(|torque/I| <= {MAX_INPUT_ACCEL:g} rad/s^2), got {tau:g}')
+    return tau
+
+
+def check_step(h: float, params: PendulumParams | None = None) -> float:
+    """Return the step ``h`` as a float: finite, > 0 and, given ``params``, h ω0 <= 100."""
+    if isinstance(h, (bool, str, bytes)):
+        raise IntegratorError(f'h must be a finite step > 0 s, got {h!r}')
+    try:
+        x = float(h)
+    except (TypeError, ValueError):
+        raise IntegratorError(f'h must be a finite step > 0 s, got {h!r}') from None
+    if not (math.isfinite(x) and x > 0.0):
+        raise IntegratorError(f'h must be a finite step > 0 s, got {h!r}')
+    if params is not None and params.omega0_sq > 0.0:
+        limit = MAX_PHASE_PER_STEP / math.sqrt(params.omega0_sq)
+        if x > limit:
+            raise IntegratorError(f'h must be <= {MAX_PHASE_PER_STEP:g}/omega0 = {limit:.6g} s '
+                                  f'for these parameters, got {x:g}')
+    return x
+
+
+def check_tolerance(name: str, value: float) -> float:
+    """Return a tolerance as a float: finite and > 0 (IntegratorError otherwise)."""
+    try:
+        x = check_finite(name, value)
+    except ModelError:
+        x = math.nan
+    if not x > 0.0:
+        raise IntegratorError(f'{name} must be a finite tolerance > 0, got {value!r}')
+    return x
+
+
+def check_count(name: str, value: object, minimum: int = 1) -> int:
+    """Return an integer count >= ``minimum`` (bools and floats refused, IntegratorError)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise IntegratorError(f'{name} must be an integer >= {minimum}, got {value!r}')
+    return value
+
+
+def check_run_length(t_end: float, h: float, max_steps: int) -> float:
+    """Return ``t_end`` as a float: finite, > 0 and at most ``max_steps`` steps of ``h``."""
+    t = check_finite('t_end', t_end)
+    if t <= 0.0:
+        raise IntegratorError(f't_end must be > 0 s, got {t}')
+    steps = t / h
+    if steps > max_steps:
+        raise IntegratorError(f't_end / h = {steps:.6g} steps exceeds max_steps = {max_steps} '
+                              f'(pass a larger max_steps to run it)')
+    return t

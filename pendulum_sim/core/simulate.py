@@ -7,9 +7,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import IntegratorError
 from .guard import GuardStats
-from .model import FloatArray, PendulumParams, check_finite, energy
+from .model import (
+    MAX_STEPS,
+    FloatArray,
+    PendulumParams,
+    check_count,
+    check_run_length,
+    check_torque,
+    energy,
+)
 from .stepper import Stepper
 
 TorqueInput = float | Callable[[float, float, float], float] | None
@@ -59,7 +66,7 @@ def step_count(t_end: float, h: float) -> tuple[int, float]:
 def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h: float,
              method: str = 'rk4', *, torque: TorqueInput = None, guard: bool = True,
              energy_check: bool = True, rtol: float = 1e-8, atol: float = 1e-10,
-             record_every: int = 1) -> Trajectory:
+             record_every: int = 1, max_steps: int = MAX_STEPS) -> Trajectory:
     """Integrate the pendulum from ``(phi0, dphi0)`` over ``[0, t_end]`` with step ``h``.
 
     Parameters
@@ -82,24 +89,24 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         See :class:`Stepper`.
     record_every : int
         Keep every k-th step (the last step is always kept).
+    max_steps : int
+        Refuse runs of more steps than this (default ``MAX_STEPS`` = 1e8), with the reason.
 
     Returns
     -------
     Trajectory
     """
-    t_end = check_finite('t_end', t_end)
-    if t_end <= 0.0:
-        raise IntegratorError(f't_end must be > 0 s, got {t_end}')
-    if not isinstance(record_every, int) or record_every < 1:
-        raise IntegratorError(f'record_every must be an integer >= 1, got {record_every!r}')
+    record_every = check_count('record_every', record_every)
+    max_steps = check_count('max_steps', max_steps)
     stepper = Stepper(params, phi0, dphi0, h, method, guard=guard, energy_check=energy_check,
                       rtol=rtol, atol=atol)
     h = stepper.h
+    t_end = check_run_length(t_end, h, max_steps)
     k_full, last = step_count(t_end, h)
     if callable(torque):
         tau_of: Callable[[float, float, float], float] = torque
     else:
-        tau_const = 0.0 if torque is None else check_finite('torque', torque)
+        tau_const = 0.0 if torque is None else check_torque(torque, params)
 
         def tau_of(t: float, phi: float, dphi: float) -> float:
             return tau_const

@@ -28,7 +28,8 @@ def plain_run(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h
     non-finite state (overflow) and fills the rest with NaN, as a plain loop would produce.
     """
     steps = round(t_end / h)
-    step = compile_step(TABLEAUS[method], params.omega0_sq, params.gamma, params.n)
+    step = compile_step(TABLEAUS[method], params.n)
+    w2, gamma = params.omega0_sq, params.gamma
     ain = torque / params.inertia
     p, v = float(phi0), float(dphi0)
     ts, ps, vs = [0.0], [p], [v]
@@ -36,7 +37,7 @@ def plain_run(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h
     for k in range(1, steps + 1):
         if not dead:
             try:
-                p, v, _, _ = step(p, v, h, ain)
+                p, v, _, _ = step(p, v, h, ain, w2, gamma, 1.0)
             except (OverflowError, ValueError):
                 p = v = math.nan
             if not (math.isfinite(p) and math.isfinite(v)):

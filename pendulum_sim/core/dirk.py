@@ -30,7 +30,11 @@ def _solve_stage(P: float, W: float, alpha: float, w2: float, ain: float, gamma:
     hi_d = 0.0
 
     def g(v: float) -> float:
-        return v - rest + alpha * damping(v) + alpha * w2 * math.sin(P + alpha * v)
+        try:
+            d = damping(v)
+        except OverflowError:  # |v|^n beyond float64: the damping saturates, G keeps its sign
+            d = math.copysign(math.inf, v)
+        return v - rest + alpha * d + alpha * w2 * math.sin(P + alpha * v)
 
     if n == 0.0 and gamma > 0.0:
         # Set-valued friction: stick if 0 lies in [G(0−), G(0+)].
@@ -78,7 +82,10 @@ def _damping_slope(v: float, gamma: float, n: float) -> float:
     a = abs(v)
     if n == 0.0 or a == 0.0:
         return 0.0 if n >= 1.0 or n == 0.0 else math.inf
-    return float(gamma * n * a ** (n - 1.0))
+    try:
+        return float(gamma * n * a ** (n - 1.0))
+    except OverflowError:
+        return math.inf
 
 
 def dirk_step(tableau: Tableau, p0: float, v0: float, h: float, ain: float, w2: float,

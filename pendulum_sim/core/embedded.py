@@ -1,0 +1,85 @@
+"""Embedded adaptive pairs: error-controlled substeps that cover one step of h.
+
+The pair's two solutions differ by ``E`` (``tableaus.py``); a trial substep is accepted when
+the scaled error norm is at most 1 and the next trial is ``0.9 err^(−1/(p̂+1))`` times the last,
+within [0.2, 5] (Hairer, Nørsett and Wanner, *Solving ODEs I*, II.4). Where the damping is not
+smooth at φ' = 0 (n even, non-integer, or 0) an accepted substep that crosses a reversal is cut
+at it: the reversal is located on the branch continuation of the start (Hermite guess, Newton on
+the substep's own φ'), so no substep straddles the kink and the pair's estimate stays valid.
+"""
+from __future__ import annotations
+
+import math
+
+from .engine import Engine, hermite_root
+from .errors import IntegratorError
+from .explicit import compile_step
+from .guard import GuardStats
+
+
+def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
+          h_try: float, stats: GuardStats) -> tuple[float, float, float, float]:
+    """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial)."""
+    tab = eng.method.tableau
+    plain = compile_step(tab, eng.n, with_error=True)
+    branch = compile_step(tab, eng.n, branch=True, with_error=True)
+    w2, g, n = eng.w2, eng.gamma, eng.n
+    q = 1.0 / (tab.error_order + 1)
+    done, w_total = 0.0, 0.0
+    hh = h_try if h_try > 0.0 else h * 0.1
+    while done < h:
+        if eng.coulomb and v == 0.0:
+            p, v, w = eng.from_rest(p, h - done, ain)
+            w_total += w
+            break
+        last = hh >= h - done
+        step_h = h - done if last else hh
+        sign = 1.0 if v > 0.0 else -1.0
+        fn = branch if (eng.nonsmooth and v != 0.0) else plain
+        try:
+            p1, v1, w, a0, ep, ev = fn(p, v, step_h, ain, w2, g, sign)
+            sp = atol + rtol * max(abs(p), abs(p1))
+            sv = atol + rtol * max(abs(v), abs(v1))
+            err = math.sqrt(0.5 * ((ep / sp) ** 2 + (ev / sv) ** 2))
+        except (OverflowError, ValueError):
+            err = math.inf  # a trial step that overflows is rejected like any other
+        if err <= 1.0 and math.isfinite(err):
+            if eng.nonsmooth and v1 * v < 0.0:
+                # Cut at the reversal: the branch continuation's φ'(θ step_h) = 0.
+                def accel(pp: float, vv: float, sg: float = sign) -> float:
+                    return float(ain - sg * g * abs(vv) ** n - w2 * math.sin(pp))
+
+                th = hermite_root(v, v1, step_h * a0, step_h * accel(p1, v1))
+                for _ in range(8):
+                    pm, vm, wm, _, _, _ = fn(p, v, th * step_h, ain, w2, g, sign)
+                    acc = accel(pm, vm)
+                    if abs(vm) <= 1e-15 * abs(v) or acc == 0.0:
+                        break
+                    nth = th - vm / (acc * step_h)
+                    if not 0.0 < nth <= 1.0:
+                        break
+                    th = nth
+                stats.reversals += 1
+                p, v = pm, 0.0
+                w_total += wm
+                done += th * step_h
+                hh = max(th * step_h, 1e-6 * h)
+                if eng.coulomb:
+                    continue
+                # Leave rest on the side the forces push to (a kink: the pair restarts small).
+                continue
+            if eng.coulomb and (v1 < 0.0 < v or v < 0.0 < v1) and abs(
+                    ain - w2 * math.sin(p1)) <= g:
+                v1 = 0.0
+            done = h if last else done + step_h
+            p, v = p1, v1
+            w_total += w
+            factor = 5.0 if err == 0.0 else min(5.0, 0.9 * err ** -q)
+            hh = step_h * factor if not last else max(hh, step_h * factor)
+        else:
+            stats.substeps += 1
+            factor = 0.2 if not math.isfinite(err) else max(0.2, 0.9 * err ** -q)
+            hh = step_h * factor
+            if hh < 1e-14 * max(1.0, h):
+                raise IntegratorError(f'adaptive step fell below {hh:.3g} s')
+    return p, v, w_total, hh
