@@ -312,8 +312,12 @@ def _run(executor_kind: str, signals: Signals) -> int:
         code = _fail(f'{exc}{hint}')
     except PendulumError as exc:  # e.g. RecorderError: the recording cannot be opened
         code = _fail(exc)
-    except _rcl_error() as exc:  # e.g. a parameter override rcl parsed but rclpy cannot use
-        code = _fail(_rcl_reason(exc))
+    except _rcl_error() as exc:
+        # A signal shuts the context down under the executor ('failed to initialize wait set:
+        # the given context is not valid'): that is the end asked for. Otherwise rcl refused
+        # something, e.g. a parameter override it parsed but rclpy cannot use.
+        if signals.received is None and rclpy.ok():
+            code = _fail(_rcl_reason(exc))
     finally:
         signals.abort = False  # a signal while closing must not interrupt the close
         _close(node)
