@@ -12,8 +12,8 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
-from ..core.explicit import compile_step
-from ..core.model import PendulumParams
+from ..core.explicit import compile_damping, compile_step
+from ..core.model import PendulumParams, damping_derivative
 from ..core.tableaus import TABLEAUS
 
 FloatArray = npt.NDArray[np.float64]
@@ -52,36 +52,29 @@ def plain_run(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h
 
 def vector_field(params: PendulumParams,
                  torque: float = 0.0) -> Callable[[float, FloatArray], list[float]]:
-    """Return f(t, y) = [φ', −γ φ'|φ'|^(n−1) − ω0² sin φ + τ/I], the plain vector field (eq 20)."""
-    w2, g, n, ain = params.omega0_sq, params.gamma, params.n, torque / params.inertia
+    """Return f(t, y) = [φ', −γ φ'|φ'|^(n−1) − ω0² sin φ + τ/I], the plain vector field (eq 20).
 
-    if n == 1.0:
-        def fun(t: float, y: FloatArray) -> list[float]:
-            v = y[1]
-            return [v, ain - g * v - w2 * math.sin(y[0])]
-    elif n == 0.0:
-        def fun(t: float, y: FloatArray) -> list[float]:
-            v = y[1]
-            d = g if v > 0.0 else (-g if v < 0.0 else 0.0)
-            return [v, ain - d - w2 * math.sin(y[0])]
-    else:
-        def fun(t: float, y: FloatArray) -> list[float]:
-            v = y[1]
-            return [v, ain - math.copysign(g * abs(v) ** n, v) - w2 * math.sin(y[0])]
+    The damping is the core's one law (``explicit.damping_expression``), compiled for n.
+    """
+    w2, g, ain = params.omega0_sq, params.gamma, torque / params.inertia
+    law = compile_damping(params.n)
+
+    def fun(t: float, y: FloatArray) -> list[float]:
+        v = float(y[1])
+        return [v, ain - law(v, g, 1.0) - w2 * math.sin(y[0])]
     return fun
 
 
 def jacobian(params: PendulumParams) -> Callable[[float, FloatArray], FloatArray]:
-    """Return the Jacobian [[0, 1], [−ω0² cos φ, −γ n |φ'|^(n−1)]] (MODEL.md) for scipy."""
+    """Return the Jacobian [[0, 1], [−ω0² cos φ, −γ n |φ'|^(n−1)]] (MODEL.md) for scipy.
+
+    The slope is the core's ``damping_derivative``; at rest, where it is unbounded for n < 1,
+    0 is given to scipy (its Newton iteration needs a finite matrix).
+    """
     w2, g, n = params.omega0_sq, params.gamma, params.n
 
     def jac(t: float, y: FloatArray) -> FloatArray:
-        a = abs(float(y[1]))
-        if n == 1.0:
-            d = g
-        elif n == 0.0 or a == 0.0:
-            d = 0.0
-        else:
-            d = g * n * a ** (n - 1.0)
-        return np.array([[0.0, 1.0], [-w2 * math.cos(float(y[0])), -d]])
+        d = damping_derivative(g, n, float(y[1]))
+        return np.array([[0.0, 1.0], [-w2 * math.cos(float(y[0])), -d if math.isfinite(d)
+                                      else 0.0]])
     return jac

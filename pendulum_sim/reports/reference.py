@@ -29,7 +29,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..core.model import PendulumParams
+from ..core.explicit import compile_damping
+from ..core.guard import terminal_speed
+from ..core.model import PendulumParams, damping_derivative
 from ..core.simulate import simulate
 from .plain import jacobian
 
@@ -73,13 +75,7 @@ def scipy_available() -> bool:
 
 def fast_rate(params: PendulumParams, dphi_scale: float) -> float:
     """Return |λ_fast| ≈ γ n |φ'|^(n−1) + ω0, a bound on the stiffness at speed ``dphi_scale``."""
-    n, g = params.n, params.gamma
-    if n == 1.0:
-        d = g
-    elif n == 0.0 or g == 0.0:
-        d = 0.0
-    else:
-        d = g * n * max(dphi_scale, 1e-12) ** (n - 1.0)
+    d = damping_derivative(params.gamma, params.n, max(dphi_scale, 1e-12))
     return d + math.sqrt(params.omega0_sq)
 
 
@@ -95,7 +91,7 @@ def stiffness_work(params: PendulumParams, dphi0: float, torque: float, t_end: f
     n, g = params.n, params.gamma
     if g > 0.0 and n > 0.0 and n != 1.0:
         force = params.omega0_sq + abs(torque) / params.inertia
-        terminal = max((force / g) ** (1.0 / n), 1e-12)
+        terminal = max(terminal_speed(g, n, force), 1e-12)
         # n > 1: the speed is pulled down to the terminal one; n < 1: the slope γ n |φ'|^(n−1)
         # is largest at the smallest speeds, which the creeping motion reaches.
         speed = min(speed, terminal)
@@ -225,34 +221,20 @@ def _budgeted(fun: Any, budget: list[int]) -> Any:
 
 
 def _smooth_field(w2: float, g: float, n: float, ain: float):  # type: ignore[no-untyped-def]
-    if n == 1.0 or g == 0.0:
-        def fun(t: float, y: FloatArray) -> list[float]:
-            return [y[1], ain - g * y[1] - w2 * math.sin(y[0])]
-        return fun
-    k = int(n)
+    law = compile_damping(n)  # the core's one damping law (eq 15)
 
-    def fun_odd(t: float, y: FloatArray) -> list[float]:
-        return [y[1], ain - g * y[1] ** k - w2 * math.sin(y[0])]
-    return fun_odd
+    def fun(t: float, y: FloatArray) -> list[float]:
+        v = float(y[1])
+        return [v, ain - law(v, g, 1.0) - w2 * math.sin(y[0])]
+    return fun
 
 
 def _signed_field(w2: float, g: float, n: float, ain: float,  # type: ignore[no-untyped-def]
                   s: float):
-    gs = g * s
-    if n == 0.0:
-        def fun0(t: float, y: FloatArray) -> list[float]:
-            return [y[1], ain - gs - w2 * math.sin(y[0])]
-        return fun0
-    if n == int(n):
-        k = int(n)
-
-        def fun_int(t: float, y: FloatArray) -> list[float]:
-            # s v^n is the analytic continuation of v|v|^(n-1) across the segment's end.
-            v = y[1]
-            return [v, ain - gs * (v * s) ** k - w2 * math.sin(y[0])]
-        return fun_int
+    # The core's branch law s γ |φ'|^n: the smooth continuation of one direction of motion.
+    law = compile_damping(n, branch=True)
 
     def fun(t: float, y: FloatArray) -> list[float]:
-        v = y[1]
-        return [v, ain - gs * abs(v) ** n - w2 * math.sin(y[0])]
+        v = float(y[1])
+        return [v, ain - law(v, g, s) - w2 * math.sin(y[0])]
     return fun
