@@ -12,6 +12,7 @@ import math
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -170,7 +171,9 @@ def test_signal_while_answering_exits_zero_without_traceback(sig: int) -> None:
         assert ctl.proc is not None
         ctl.proc.send_signal(sig)
         k = 20
+        deadline = time.monotonic() + 10.0
         while ctl.alive():  # keep it busy until it stops
+            assert time.monotonic() < deadline, f'ignored signal {sig}:\n{ctl.output()}'
             loop.send(k * 10_000_000, 0.1, 0.0)
             probe.spin_for(0.001)
             k += 1
