@@ -432,6 +432,9 @@ def main() -> int:
                   f'{answered}')
     load = ', '.join(f'{x:.2f}' for x in os.getloadavg())
     print(f'load average at the end: {load}')
+    if os.getloadavg()[0] > (os.cpu_count() or 1):
+        print('note: other work kept every core busy during this run; rates are low and noisy, '
+              'same-round ratios are the figures to read')
     return 0
 
 if __name__ == '__main__':
