@@ -18,7 +18,6 @@ decisions and agree to round-off (a parity test checks it).
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from typing import Any
 
@@ -34,18 +33,32 @@ ENERGY_TOL = 1e-12
 truncation error near turning points, where the damping removes almost nothing; anything above
 this relative size (of E/I + ω0²) is a defect and the step is redone implicitly."""
 
-GRADE_SCALE = 2.0
-"""Substeps per unit of ``L^((n−3)/4)`` (L in s) on each side of a reversal for 0 < n < 3."""
+GRADE_WINDOW = 1.0
+"""Laws graded at reversals: the window, in units of 1/ω0 (1 s without gravity), on either
+side of a reversal inside which steps are graded (:func:`graded_mesh`)."""
 
 
-def reversal_suspect(v: Any, v1: Any, a0: Any, h: float) -> Any:
-    """Return where a step from φ' = ``v`` to ``v1`` may have crossed φ' = 0.
+def grade_window(omega0: float) -> float:
+    """Return the time S on either side of a reversal within which steps are graded."""
+    return GRADE_WINDOW / omega0 if omega0 > 0.0 else GRADE_WINDOW
+
+
+def reversal_suspect(v: Any, v1: Any, a0: Any, h: float, reach: Any = 0.0) -> Any:
+    """Return where a step from φ' = ``v`` to ``v1`` may have crossed or come near φ' = 0.
 
     A reversal shows as a sign change over the step, or, where a stage already crossed and
-    spoiled the result, as a deceleration ``a0`` that could stop the pendulum within h. Works
-    on floats and on numpy arrays.
+    spoiled the result, as a deceleration ``a0`` that could stop the pendulum within h; with
+    ``reach`` > 0 (graded laws: the window S of :func:`grade_window`) also as a speed below
+    S |a0|, i.e. a reversal within about S before or after.
+    Works on floats and on numpy arrays.
     """
-    return (v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))
+    return ((v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))
+            | (abs(v) < reach * abs(a0)))
+
+
+def graded_law(n: float) -> bool:
+    """Return True where steps next to a reversal need grading: non-integer 0 < n < 3."""
+    return 0.0 < n < 3.0 and n != int(n)
 
 
 def specific_energy(v: Any, sin_half: Any, w2: Any) -> Any:
@@ -89,24 +102,34 @@ def hermite_root(v0: float, v1: float, dv0: float, dv1: float) -> float:
     return th
 
 
-def graded_lengths(length: float, n: float, singular_at_end: bool) -> list[float]:
-    """Return substep lengths covering ``length`` graded towards a velocity reversal.
+def graded_mesh(x_a: float, x_b: float, h: float, n: float, window: float) -> list[float]:
+    """Return substep lengths covering distances [x_a, x_b] (s) from a velocity reversal.
 
-    On one side of a reversal the damping branch s γ |φ'|^n with φ' ∝ t is only as smooth
-    as t^n, so a step touching the reversal has a local error O(h^(n+1)), not O(h^5): for
-    non-integer n < 3 that lowers RK4's global order. Substeps at ``s_j = L (j/K)^q`` with
-    q = 5/(n+1) (the classic graded mesh for a t^n singularity; e.g. Brunner, *Collocation
-    Methods for Volterra Integral and Related Functional Equations*, 2004, section 2.4) and
-    ``K ∝ L^((n−3)/4)`` make each side's error O(L^4): the method's order is kept.
+    On either side of a reversal the damping branch s γ |φ'|^n with φ' ∝ t is only as smooth
+    as t^n, so a plain step at distance x from it has a local error h^5 x^(n−4), which summed
+    over the steps near the reversal is O(h^(n+1)): for non-integer n < 3 that lowers RK4's
+    order. Substeps of δ(x) = h (x/S)^α with α = 1 − (n+1)/5 inside the window S (and h
+    beyond) make every substep's error h^5 S^(n−4), so the order is kept for about
+    (5/(n+1) − 1) S/h extra substeps per side (the classic graded mesh for a t^n singularity;
+    e.g. Brunner, *Collocation Methods for Volterra Integral and Related Functional Equations*,
+    2004, section 2.4). The lengths are listed from x_a outwards.
     """
-    if n >= 3.0 or n == int(n) or length <= 0.0:
+    length = x_b - x_a
+    if not graded_law(n) or length <= 0.0 or x_a >= window:
         return [length]
-    k = max(1, math.ceil(GRADE_SCALE * length ** ((n - 3.0) / 4.0)))
-    q = 5.0 / (n + 1.0)
-    pts = [length * (j / k) ** q for j in range(k + 1)]
-    pts[-1] = length
-    lens = [b - a for a, b in itertools.pairwise(pts)]
-    return lens[::-1] if singular_at_end else lens
+    alpha = 1.0 - (n + 1.0) / 5.0
+    first = window * (h / window) ** (1.0 / (1.0 - alpha))  # δ(x) = x at the reversal
+    lens: list[float] = []
+    x = x_a
+    while x < x_b:
+        d = h if x >= window else max(first, h * (x / window) ** alpha)
+        d = min(d, x_b - x)
+        if x_b - x - d < 1e-3 * d:
+            d = x_b - x
+        lens.append(d)
+        x += d
+    lens[-1] += length - sum(lens)  # land on the end exactly
+    return lens
 
 
 def ain_bound(ain: float) -> float:
@@ -144,6 +167,7 @@ class Engine:
         self.coulomb = n == 0.0 and gamma > 0.0
         smooth = n >= 1.0 and n == int(n) and int(n) % 2 == 1
         self.nonsmooth = gamma > 0.0 and not smooth
+        self.reach = grade_window(self.omega0) if self.nonsmooth and graded_law(n) else 0.0
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
         # only for a Coulomb break-away, never for the implicit method's own steps).
         self.plain_tableau = tab if tab.explicit else RK4
@@ -257,8 +281,23 @@ class Engine:
         if self.coulomb and v == 0.0:
             return self.from_rest(p, h, ain)
         p1, v1, w, a0 = self.step_fn(p, v, h, ain, self.w2, self.gamma, 1.0)
-        if self.nonsmooth and reversal_suspect(v, v1, a0, h):
-            return self.split(p, v, h, ain, a0, stats)
+        if self.nonsmooth and reversal_suspect(v, v1, a0, h, self.reach):
+            if v1 * v < 0.0 or (a0 * v < 0.0 and abs(v) <= h * abs(a0)):
+                return self.split(p, v, h, ain, a0, stats)
+            if self.reach > 0.0 and a0 != 0.0:
+                # Within the window of a reversal without crossing one: graded substeps, by
+                # the distance |φ'|/|φ''| to the reversal ahead (decelerating) or behind.
+                side = 1.0 if (v > 0.0 or (v == 0.0 and a0 > 0.0)) else -1.0
+                x = abs(v) / abs(a0)
+                if a0 * v < 0.0:
+                    lens = graded_mesh(max(x - h, 0.0), x, h, self.n, self.reach)[::-1]
+                else:
+                    lens = graded_mesh(x, x + h, h, self.n, self.reach)
+                pg, vg, wg = self._branch_run(p, v, lens, ain, side)
+                if vg * v >= 0.0:
+                    return pg, vg, wg
+                # The branch reached φ' = 0 within the step after all: split there.
+                return self.split(p, v, h, ain, a0, stats)
         return p1, v1, w
 
     def _branch_run(self, p: float, v: float, lengths: list[float], ain: float,
@@ -276,7 +315,7 @@ class Engine:
         A first guess comes from the cubic Hermite interpolant of φ' on the step, with the end
         slope from the damping branch of the start (its smooth continuation); Newton iterations
         on the partial step's own φ'(θh) put the reversal where the method says φ' = 0. Each
-        side is then integrated on its own branch in graded substeps (:func:`graded_lengths`),
+        side is then integrated on its own branch in graded substeps (:func:`graded_mesh`),
         and a last Newton step in time lands the first side on φ' = 0 exactly.
         """
         sign = 1.0 if v > 0.0 else -1.0
@@ -288,7 +327,12 @@ class Engine:
 
         p1, v1, w1, _ = before(p, v, h, ain, w2, g, sign)
         if v1 * v > 0.0:
-            return p1, v1, w1  # the branch step does not reach φ' = 0: no kink inside
+            # The branch step does not reach φ' = 0: no kink inside (graded if it is near).
+            if self.reach > 0.0 and a0 != 0.0:
+                x = abs(v) / abs(a0)
+                lens = graded_mesh(max(x - h, 0.0), x, h, n, self.reach)[::-1]
+                return self._branch_run(p, v, lens, ain, sign)
+            return p1, v1, w1
         th = hermite_root(v, v1, h * a0, h * accel(p1, v1))
         pm, vm, wm, _ = before(p, v, th * h, ain, w2, g, sign)
         for _ in range(4):
@@ -302,10 +346,20 @@ class Engine:
                 break
             th = nth
             pm, vm, wm, _ = before(p, v, th * h, ain, w2, g, sign)
-        lens = graded_lengths(th * h, n, singular_at_end=True)
+        lens = graded_mesh(0.0, th * h, h, n, self.reach)[::-1]
         if len(lens) > 1:
-            pm, vm, wm = self._branch_run(p, v, lens, ain, sign)
-            acc = accel(pm, vm)
+            for _ in range(3):
+                # Newton on the graded run's own φ'(θh) = 0 (its θ differs from the single
+                # step's by the single step's O(h^(n+1)) error).
+                pm, vm, wm = self._branch_run(p, v, lens, ain, sign)
+                acc = accel(pm, vm)
+                if acc == 0.0 or abs(vm) <= 1e-13 * abs(v):
+                    break
+                nth = th - vm / (acc * h)
+                if not 0.0 < nth < 1.0:
+                    break
+                th = nth
+                lens = graded_mesh(0.0, th * h, h, n, self.reach)[::-1]
             if acc != 0.0:
                 dt = min(max(-vm / acc, -th * h), (1.0 - th) * h)
                 pm += dt * (vm + 0.5 * dt * acc)
@@ -322,7 +376,7 @@ class Engine:
             p2, v2, w2_, _ = self.step_fn(pm, vm, rest, ain, w2, g, 1.0)
             return p2, v2, wm + w2_
         side = 1.0 if after > 0.0 else -1.0
-        p2, v2, w2_ = self._branch_run(pm, vm, graded_lengths(rest, n, False), ain, side)
+        p2, v2, w2_ = self._branch_run(pm, vm, graded_mesh(0.0, rest, h, n, self.reach), ain, side)
         return p2, v2, wm + w2_
 
     def from_rest(self, p: float, h: float, ain: float,
@@ -393,5 +447,5 @@ class Engine:
         return p1, v1, w
 
 
-__all__ = ['ENERGY_TOL', 'Engine', 'ain_bound', 'energy_rose', 'graded_lengths', 'guard_for',
-           'hermite_root', 'reversal_suspect', 'specific_energy']
+__all__ = ['ENERGY_TOL', 'Engine', 'ain_bound', 'energy_rose', 'grade_window', 'graded_law',
+           'graded_mesh', 'guard_for', 'hermite_root', 'reversal_suspect', 'specific_energy']

@@ -78,6 +78,7 @@ class Stepper:
         self._step_fn = eng.step_fn
         self._fast = eng.kind == 'explicit'
         self._nonsmooth = eng.nonsmooth
+        self._reach = eng.reach
         self._coulomb = eng.coulomb
         self._check_energy = eng.energy_check
         self._range_ain = math.nan  # the a_in the cached fast range is for
@@ -197,7 +198,7 @@ class Stepper:
                 # The fast path: one plain step, accepted on the engine's conditions.
                 try:
                     p1, v1, w, a0 = self._step_fn(p, v, h, ain, self._w2, self._gamma, 1.0)
-                    done = (not (self._nonsmooth and reversal_suspect(v, v1, a0, h))
+                    done = (not (self._nonsmooth and reversal_suspect(v, v1, a0, h, self._reach))
                             and math.isfinite(p1) and math.isfinite(v1))
                 except (OverflowError, ValueError):
                     done = False

@@ -30,7 +30,16 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .engine import Engine, ain_bound, energy_rose, guard_for, reversal_suspect, specific_energy
+from .engine import (
+    Engine,
+    ain_bound,
+    energy_rose,
+    grade_window,
+    graded_law,
+    guard_for,
+    reversal_suspect,
+    specific_energy,
+)
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step
 from .guard import GuardStats, safe_speed_range
@@ -194,6 +203,7 @@ class _Group:
     check: BoolArray
     lo: FloatArray
     hi: FloatArray
+    reach: FloatArray
 
 
 def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, method: str,
@@ -217,7 +227,9 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
         out.append(_Group(
             sl=sl, n=val, step=compile_step(tab, val, vector=True),
             nonsmooth=(gam[sl] > 0.0) & (not smooth), coulomb=(gam[sl] > 0.0) & (val == 0.0),
-            check=(gam[sl] > 0.0) & (tau[sl] == 0.0) & energy_check, lo=lo, hi=hi))
+            check=(gam[sl] > 0.0) & (tau[sl] == 0.0) & energy_check, lo=lo, hi=hi,
+            reach=np.array([grade_window(math.sqrt(w2)) if graded_law(val) else 0.0
+                            for w2 in om2[sl]])))
     return out
 
 
@@ -300,7 +312,7 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
                     av = np.abs(vv)
                     ok = (grp.lo <= av) & (av <= grp.hi) & np.isfinite(p1) & np.isfinite(v1)
                     ok &= ~(grp.coulomb & (vv == 0.0))
-                    ok &= ~(grp.nonsmooth & reversal_suspect(vv, v1, a0, hh))
+                    ok &= ~(grp.nonsmooth & reversal_suspect(vv, v1, a0, hh, grp.reach))
                     e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
                     ok &= ~(grp.check & energy_rose(energy[sl], e1, w2))
                     for j in np.flatnonzero(~ok).tolist():
