@@ -7,9 +7,9 @@ Run it as::
 
 Every command-line and parameter-file error is found before ``rclpy.init`` where possible (and
 what rcl still refuses is caught): the process exits 2 with the reason on stderr, never a
-traceback. Ctrl-C (SIGINT) and SIGTERM end it with exit 0 after the summary. This module is the
-executable's entry point and takes both signals as soon as it is imported, before numpy and
-rclpy load: a signal during the imports is remembered and ``main`` returns at once, one during
+traceback. Ctrl-C (SIGINT) and SIGTERM end it with exit 0 after the summary. Imported as the
+``pendulum_node`` executable, this module takes both signals at once, before numpy and rclpy
+load: a signal during the imports is remembered and ``main`` returns at once, one during
 start-up aborts it, and one while the node runs only asks the loop to stop, so nothing is
 interrupted inside a callback. (Only the interpreter's own start-up, before this module, is
 left: there the ROS wheels' bootstrap re-executes Python, and a signal is lost or kills.)
@@ -52,7 +52,8 @@ class Signals:
 
 
 SIGNALS = Signals()
-SIGNALS.install()  # before the imports below take their half second
+if __name__ == '__main__' or Path(sys.argv[0] if sys.argv else '').name == 'pendulum_node':
+    SIGNALS.install()  # the executable: before the imports below take their half second
 
 from pendulum_sim.core import PendulumError  # noqa: E402 - after the signal handlers
 
@@ -220,6 +221,7 @@ def main(args: list[str] | None = None) -> int:
 
     Returns 0 after a signal, 2 for a command line, scene or parameter the node cannot use.
     """
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     signals = SIGNALS
     signals.install()
     if signals.received is not None:  # a signal while this module loaded
@@ -231,6 +233,10 @@ def main(args: list[str] | None = None) -> int:
         return 0
     finally:
         signals.abort = False
+        if threading.current_thread() is threading.main_thread():
+            for sig, handler in previous.items():
+                if handler is not None:  # None: a handler from outside Python, not ours to set
+                    signal.signal(sig, handler)
 
 
 def _main(argv: list[str], signals: Signals) -> int:
