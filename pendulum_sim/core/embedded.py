@@ -15,12 +15,24 @@ from .engine import Engine, hermite_root
 from .errors import IntegratorError
 from .explicit import compile_step
 from .guard import GuardStats
+from .tableaus import Tableau
+
+
+class TooManySubsteps(Exception):
+    """Raised by :func:`cover` when ``max_trials`` trial substeps did not cover the step."""
 
 
 def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
-          h_try: float, stats: GuardStats) -> tuple[float, float, float, float]:
-    """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial)."""
-    tab = eng.method.tableau
+          h_try: float, stats: GuardStats, tableau: Tableau | None = None,
+          max_trials: int = 0) -> tuple[float, float, float, float]:
+    """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial).
+
+    ``tableau`` is the embedded pair (default: the engine's method); every trial after the
+    first counts as a substep in ``stats``; with ``max_trials`` > 0, :class:`TooManySubsteps`
+    is raised once that many trials did not cover h.
+    """
+    tab = eng.method.tableau if tableau is None else tableau
+    trials = 0
     plain = compile_step(tab, eng.n, with_error=True)
     branch = compile_step(tab, eng.n, branch=True, with_error=True)
     w2, g, n = eng.w2, eng.gamma, eng.n
@@ -32,6 +44,11 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
             p, v, w = eng.from_rest(p, h - done, ain)
             w_total += w
             break
+        trials += 1
+        if trials > 1:
+            stats.substeps += 1
+        if max_trials and trials > max_trials:
+            raise TooManySubsteps(f'{max_trials} trial substeps did not cover h = {h:g} s')
         last = hh >= h - done
         step_h = h - done if last else hh
         sign = 1.0 if v > 0.0 else -1.0
@@ -77,7 +94,6 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
             factor = 5.0 if err == 0.0 else min(5.0, 0.9 * err ** -q)
             hh = step_h * factor if not last else max(hh, step_h * factor)
         else:
-            stats.substeps += 1
             factor = 0.2 if not math.isfinite(err) else max(0.2, 0.9 * err ** -q)
             hh = step_h * factor
             if hh < 1e-14 * max(1.0, h):

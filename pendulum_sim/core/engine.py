@@ -23,7 +23,7 @@ from typing import Any
 
 from .dirk import dirk_step
 from .errors import IntegratorError
-from .explicit import StepFn, compile_damping, compile_step
+from .explicit import DampingFn, StepFn, compile_damping, compile_step
 from .guard import FALLBACK, MAX_ANGLE, GuardStats, StabilityGuard, safe_speed_range
 from .methods import FALLBACK_METHOD, Method
 from .tableaus import BACKWARD_EULER, RK4, Tableau
@@ -54,6 +54,40 @@ def reversal_suspect(v: Any, v1: Any, a0: Any, h: float, reach: Any = 0.0) -> An
     """
     return ((v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))
             | (abs(v) < reach * abs(a0)))
+
+
+STIFF_K = 10.0
+"""For n > 1: a plain step's error in a damping-dominated transient, relative to its error on
+the smooth oscillation, is about γ⁴ |φ'|^(4n−3) / (n ω_r⁵) (ω_r = max(ω0, 1 s⁻¹)); above
+this factor the step is taken by error-controlled substeps instead (:meth:`Engine.stiff`)."""
+
+STIFF_TOL = 1.0
+"""Local tolerance of the error-controlled substeps: STIFF_TOL (h ω_r)⁴ in rad and rad/s, so
+the transient's error falls with h at the method's order while it costs few substeps."""
+
+STIFF_MAX_TRIALS = 2000
+"""Trial substeps per step before the error-controlled path hands the step to the guard."""
+
+
+def accuracy_speed(gamma: float, n: float, omega0: float) -> float:
+    """Return the speed above which a damping-dominated n > 1 transient is error-controlled."""
+    if n <= 1.0 or gamma <= 0.0:
+        return math.inf
+    w_r = max(omega0, 1.0)
+    log_v = (math.log(STIFF_K * n) + 5.0 * math.log(w_r) - 4.0 * math.log(gamma)) / (
+        4.0 * n - 3.0)
+    return math.exp(min(log_v, 700.0))
+
+
+def stiff_transient(v: Any, a0: Any, gamma: Any, n: float, v_acc: Any) -> Any:
+    """Return where a step starts in a damping-dominated transient too fast for a plain step.
+
+    Above :func:`accuracy_speed` and with the net acceleration at least half the damping
+    γ|φ'|^n (the damping is not balanced by gravity and input, as it is in a creep). Works on
+    floats and on numpy arrays.
+    """
+    av = abs(v)
+    return (av > v_acc) & (abs(a0) > 0.5 * gamma * av ** n)
 
 
 def graded_law(n: float) -> bool:
@@ -168,6 +202,9 @@ class Engine:
         smooth = n >= 1.0 and n == int(n) and int(n) % 2 == 1
         self.nonsmooth = gamma > 0.0 and not smooth
         self.reach = grade_window(self.omega0) if self.nonsmooth and graded_law(n) else 0.0
+        self.v_acc = accuracy_speed(gamma, n, self.omega0) if guard and self.kind == 'explicit' \
+            else math.inf
+        self.w_ref = max(self.omega0, 1.0)
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
         # only for a Coulomb break-away, never for the implicit method's own steps).
         self.plain_tableau = tab if tab.explicit else RK4
@@ -177,7 +214,7 @@ class Engine:
         self.energy_check = energy_check and gamma > 0.0 and self.kind == 'explicit'
         law = compile_damping(n)
         g = gamma
-        self.damping = lambda v: law(v, g, 1.0)
+        self.damping: DampingFn = lambda v: law(v, g, 1.0)
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
 
     # ------------------------------------------------------------------ fast path
@@ -217,6 +254,10 @@ class Engine:
                     p1, v1, w = self.from_rest(p, h, ain)
                 elif self.guard is None:
                     p1, v1, w = self.micro(p, v, h, ain, stats)
+                elif abs(v) > self.v_acc and stiff_transient(
+                        v, ain - self.damping(v) - self.w2 * math.sin(p), self.gamma, self.n,
+                        self.v_acc):
+                    p1, v1, w = self.stiff(p, v, h, ain, stats)
                 else:
                     p1, v1, w = self.guarded(p, v, h, ain, stats)
             except (OverflowError, ValueError):  # |x|^n beyond float64, sin(inf)
@@ -235,6 +276,28 @@ class Engine:
             p1, v1, w = self.last_resort(p, v, h, ain)
         if v1 == 0.0 and v != 0.0 and self.coulomb:
             stats.sticks += 1
+        return p1, v1, w
+
+    def stiff(self, p: float, v: float, h: float, ain: float,
+              stats: GuardStats) -> tuple[float, float, float]:
+        """Cover a step in a damping-dominated transient with error-controlled substeps.
+
+        The Dormand-Prince pair (``embedded.py``) at the local tolerance STIFF_TOL (h ω_r)⁴:
+        its substeps grow with the transient's own time scale (a handful per decade of it), so
+        the transient is resolved, not merely kept stable, and its error falls at order ≥ 4
+        as h falls. Beyond STIFF_MAX_TRIALS trials the guard takes the step.
+        """
+        from .embedded import TooManySubsteps, cover
+        from .tableaus import DOPRI5
+
+        tol = STIFF_TOL * (h * self.w_ref) ** 4
+        d = self.gamma * self.n * abs(v) ** (self.n - 1.0)
+        first = min(h, 1.0 / d) if d > 0.0 else h
+        try:
+            p1, v1, w, _ = cover(self, p, v, h, ain, tol, tol, first, stats, DOPRI5,
+                                 STIFF_MAX_TRIALS)
+        except TooManySubsteps:
+            return self.guarded(p, v, h, ain, stats)
         return p1, v1, w
 
     def last_resort(self, p: float, v: float, h: float,
@@ -447,5 +510,6 @@ class Engine:
         return p1, v1, w
 
 
-__all__ = ['ENERGY_TOL', 'Engine', 'ain_bound', 'energy_rose', 'grade_window', 'graded_law',
-           'graded_mesh', 'guard_for', 'hermite_root', 'reversal_suspect', 'specific_energy']
+__all__ = ['ENERGY_TOL', 'Engine', 'accuracy_speed', 'ain_bound', 'energy_rose', 'grade_window',
+           'graded_law', 'graded_mesh', 'guard_for', 'hermite_root', 'reversal_suspect',
+           'specific_energy', 'stiff_transient']

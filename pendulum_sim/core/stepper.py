@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 from .embedded import cover
-from .engine import ENERGY_TOL, Engine, reversal_suspect
+from .engine import ENERGY_TOL, Engine, reversal_suspect, stiff_transient
 from .errors import ModelError
 from .guard import GuardStats
 from .methods import Method, get_method
@@ -79,6 +79,7 @@ class Stepper:
         self._fast = eng.kind == 'explicit'
         self._nonsmooth = eng.nonsmooth
         self._reach = eng.reach
+        self._v_acc, self._n = eng.v_acc, eng.n
         self._coulomb = eng.coulomb
         self._check_energy = eng.energy_check
         self._range_ain = math.nan  # the a_in the cached fast range is for
@@ -199,7 +200,9 @@ class Stepper:
                 try:
                     p1, v1, w, a0 = self._step_fn(p, v, h, ain, self._w2, self._gamma, 1.0)
                     done = (not (self._nonsmooth and reversal_suspect(v, v1, a0, h, self._reach))
-                            and math.isfinite(p1) and math.isfinite(v1))
+                            and math.isfinite(p1) and math.isfinite(v1)
+                            and not (av > self._v_acc and stiff_transient(
+                                v, a0, self._gamma, self._n, self._v_acc)))
                 except (OverflowError, ValueError):
                     done = False
                 if done and self._check_energy and ain == 0.0:

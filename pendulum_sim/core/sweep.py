@@ -32,6 +32,7 @@ import numpy.typing as npt
 
 from .engine import (
     Engine,
+    accuracy_speed,
     ain_bound,
     energy_rose,
     grade_window,
@@ -39,6 +40,7 @@ from .engine import (
     guard_for,
     reversal_suspect,
     specific_energy,
+    stiff_transient,
 )
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step
@@ -204,6 +206,7 @@ class _Group:
     lo: FloatArray
     hi: FloatArray
     reach: FloatArray
+    v_acc: FloatArray
 
 
 def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, method: str,
@@ -229,7 +232,10 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
             nonsmooth=(gam[sl] > 0.0) & (not smooth), coulomb=(gam[sl] > 0.0) & (val == 0.0),
             check=(gam[sl] > 0.0) & (tau[sl] == 0.0) & energy_check, lo=lo, hi=hi,
             reach=np.array([grade_window(math.sqrt(w2)) if graded_law(val) else 0.0
-                            for w2 in om2[sl]])))
+                            for w2 in om2[sl]]),
+            v_acc=np.array([accuracy_speed(ga, val, math.sqrt(w2)) if guard else math.inf
+                            for w2, ga in zip(om2[sl].tolist(), gam[sl].tolist(),
+                                              strict=True)])))
     return out
 
 
@@ -313,6 +319,7 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
                     ok = (grp.lo <= av) & (av <= grp.hi) & np.isfinite(p1) & np.isfinite(v1)
                     ok &= ~(grp.coulomb & (vv == 0.0))
                     ok &= ~(grp.nonsmooth & reversal_suspect(vv, v1, a0, hh, grp.reach))
+                    ok &= ~stiff_transient(vv, a0, ga, grp.n, grp.v_acc)
                     e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
                     ok &= ~(grp.check & energy_rose(energy[sl], e1, w2))
                     for j in np.flatnonzero(~ok).tolist():
