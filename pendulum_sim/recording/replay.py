@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -23,6 +24,7 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
+from pendulum_sim.node.scenes import use_loopback_profile
 from pendulum_sim.recording.errors import RecorderError
 from pendulum_sim.recording.reader import RawMessage, Scan, scan
 from pendulum_sim.recording.schemas import message_class
@@ -236,6 +238,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RecorderError as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 1
+    # DDS on 127.0.0.1 unless the user chose a profile or a wider discovery range.
+    use_loopback_profile(os.environ)
     rclpy.init()
     node = rclpy.create_node('pendulum_replay')
     try:
