@@ -23,7 +23,15 @@ from typing import Any
 
 from .dirk import dirk_step
 from .errors import IntegratorError
-from .explicit import DampingFn, StepFn, compile_damping, compile_step
+from .explicit import (
+    SCALAR_ENV,
+    DampingFn,
+    StepFn,
+    compile_damping,
+    compile_step,
+    damping_expression,
+    step_source,
+)
 from .guard import FALLBACK, MAX_ANGLE, GuardStats, StabilityGuard, safe_speed_range
 from .methods import FALLBACK_METHOD, Method
 from .tableaus import BACKWARD_EULER, RK4, Tableau
@@ -43,17 +51,39 @@ def grade_window(omega0: float) -> float:
     return GRADE_WINDOW / omega0 if omega0 > 0.0 else GRADE_WINDOW
 
 
+CROSS_SRC = '(v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))'
+NEAR_SRC = 'abs(v) < reach * abs(a0)'
+REVERSAL_SRC = f'{CROSS_SRC} | ({NEAR_SRC})'
+STIFF_SRC = '(abs(v) > v_acc) & (abs(a0) > 0.5 * gamma * abs(v) ** n)'
+ENERGY_SRC = '0.5 * v * v + 2.0 * w2 * s * s'
+ROSE_SRC = 'e1 > e0 + ENERGY_TOL * (e0 + w2)'
+"""The fast path's decisions as source text, written once: compiled into the functions below
+(which work on floats and numpy arrays: ``sweep`` and the careful path use them) and inlined,
+with ``and``/``or`` for ``&``/``|``, into the Stepper's generated fast step
+(:func:`compile_fast_step`)."""
+
+
+def _expr(args: str, src: str) -> Any:
+    env: dict[str, object] = {'ENERGY_TOL': ENERGY_TOL}
+    exec(compile(f'def f({args}):\n    return {src}\n', '<decision>', 'exec'), env)
+    return env['f']
+
+
+_REVERSAL = _expr('v, v1, a0, h, reach', REVERSAL_SRC)
+_STIFF = _expr('v, a0, gamma, n, v_acc', STIFF_SRC)
+_ENERGY = _expr('v, s, w2', ENERGY_SRC)
+_ROSE = _expr('e0, e1, w2', ROSE_SRC)
+
+
 def reversal_suspect(v: Any, v1: Any, a0: Any, h: float, reach: Any = 0.0) -> Any:
     """Return where a step from φ' = ``v`` to ``v1`` may have crossed or come near φ' = 0.
 
     A reversal shows as a sign change over the step, or, where a stage already crossed and
     spoiled the result, as a deceleration ``a0`` that could stop the pendulum within h; with
     ``reach`` > 0 (graded laws: the window S of :func:`grade_window`) also as a speed below
-    S |a0|, i.e. a reversal within about S before or after.
-    Works on floats and on numpy arrays.
+    S |a0|, i.e. a reversal within about S before or after (:data:`REVERSAL_SRC`).
     """
-    return ((v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))
-            | (abs(v) < reach * abs(a0)))
+    return _REVERSAL(v, v1, a0, h, reach)
 
 
 STIFF_K = 10.0
@@ -83,11 +113,10 @@ def stiff_transient(v: Any, a0: Any, gamma: Any, n: float, v_acc: Any) -> Any:
     """Return where a step starts in a damping-dominated transient too fast for a plain step.
 
     Above :func:`accuracy_speed` and with the net acceleration at least half the damping
-    γ|φ'|^n (the damping is not balanced by gravity and input, as it is in a creep). Works on
-    floats and on numpy arrays.
+    γ|φ'|^n (the damping is not balanced by gravity and input, as it is in a creep;
+    :data:`STIFF_SRC`).
     """
-    av = abs(v)
-    return (av > v_acc) & (abs(a0) > 0.5 * gamma * av ** n)
+    return _STIFF(v, a0, gamma, n, v_acc)
 
 
 def graded_law(n: float) -> bool:
@@ -97,12 +126,50 @@ def graded_law(n: float) -> bool:
 
 def specific_energy(v: Any, sin_half: Any, w2: Any) -> Any:
     """Return E/I = ½ φ'² + 2 ω0² sin²(φ/2) (eq 23 divided by I) from ``sin(φ/2)``."""
-    return 0.5 * v * v + 2.0 * w2 * sin_half * sin_half
+    return _ENERGY(v, sin_half, w2)
 
 
 def energy_rose(e0: Any, e1: Any, w2: Any) -> Any:
     """Return where E/I rose from ``e0`` to ``e1`` by more than ENERGY_TOL of its scale."""
-    return e1 > e0 + ENERGY_TOL * (e0 + w2)
+    return _ROSE(e0, e1, w2)
+
+
+def _scalar(src: str) -> str:
+    return src.replace(' | ', ' or ').replace(' & ', ' and ')
+
+
+@functools.lru_cache(maxsize=256)
+def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float, v_acc: float,
+                      check_energy: bool) -> Any:
+    """Compile the Stepper's fast path: one plain step and the fast-path decisions, inlined.
+
+    ``fast(p0, v0, h, ain, w2, gamma, e0)`` returns ``(φ₁, φ'₁, w, E₁/I)`` when the engine's
+    decisions accept the plain step (E₁/I is NaN where the energy check does not apply), and
+    None when the careful path must take it; ``e0`` is E/I at the start or NaN if unknown.
+    The step is ``explicit.step_source`` and the decisions are the ``*_SRC`` texts above, so
+    this is the same code ``sweep`` runs on arrays, without the calls between its parts.
+    """
+    body = step_source(tableau, damping_expression(n)).splitlines()[1:-1]
+    lines = ['def fast(p0, v0, h, ain, w2, gamma, e0):', *body,
+             '    if not (-INF < p1 < INF and -INF < v1 < INF):', '        return None',
+             '    v = v0', '    a0 = a_0']
+    if nonsmooth:
+        test = _scalar(REVERSAL_SRC if reach > 0.0 else CROSS_SRC)
+        lines += [f'    if {test}:', '        return None']
+    if math.isfinite(v_acc):
+        lines += [f'    if abs(v) > v_acc and {_scalar(STIFF_SRC)}:', '        return None']
+    if check_energy:
+        lines += ['    if ain != 0.0:', '        return p1, v1, w, NAN',
+                  '    if e0 != e0:', '        s = sin(0.5 * p0)',
+                  f'        e0 = {ENERGY_SRC}',
+                  '    v = v1', '    s = sin(0.5 * p1)', f'    e1 = {ENERGY_SRC}',
+                  f'    if {ROSE_SRC}:', '        return None', '    return p1, v1, w, e1']
+    else:
+        lines += ['    return p1, v1, w, NAN']
+    env: dict[str, object] = dict(SCALAR_ENV, n=n, reach=reach, v_acc=v_acc, INF=math.inf,
+                                  NAN=math.nan, ENERGY_TOL=ENERGY_TOL)
+    exec(compile('\n'.join(lines) + '\n', f'<fast {tableau.name} n={n}>', 'exec'), env)
+    return env['fast']
 
 
 def hermite_root(v0: float, v1: float, dv0: float, dv1: float) -> float:
@@ -510,6 +577,19 @@ class Engine:
         return p1, v1, w
 
 
-__all__ = ['ENERGY_TOL', 'Engine', 'accuracy_speed', 'ain_bound', 'energy_rose', 'grade_window',
-           'graded_law', 'graded_mesh', 'guard_for', 'hermite_root', 'reversal_suspect',
-           'specific_energy', 'stiff_transient']
+__all__ = [
+    'ENERGY_TOL',
+    'Engine',
+    'accuracy_speed',
+    'ain_bound',
+    'compile_fast_step',
+    'energy_rose',
+    'grade_window',
+    'graded_law',
+    'graded_mesh',
+    'guard_for',
+    'hermite_root',
+    'reversal_suspect',
+    'specific_energy',
+    'stiff_transient',
+]

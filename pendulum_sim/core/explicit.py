@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from collections.abc import Callable
 from typing import Any
 
@@ -87,39 +88,62 @@ def _num(x: float) -> str:
     return repr(float(x))
 
 
+def _weighted(terms: list[tuple[float, str]], hs: dict[float, str]) -> str:
+    """Return Σ cᵢ xᵢ h as source, equal coefficients grouped: hc * (x + y) + …."""
+    groups: dict[float, list[str]] = {}
+    for c, x in terms:
+        if c != 0.0:
+            groups.setdefault(c, []).append(x)
+    parts = []
+    for c, xs in groups.items():
+        name = hs.setdefault(c, f'h{len(hs)}')
+        parts.append(f'{name} * ({" + ".join(xs)})' if len(xs) > 1 else f'{name} * {xs[0]}')
+    return ' + '.join(parts) or '0.0'
+
+
 def step_source(tableau: Tableau, damping: str, with_error: bool = False) -> str:
-    """Return the unrolled source of one explicit step of ``tableau`` with the law ``damping``."""
+    """Return the unrolled source of one explicit step of ``tableau`` with the law ``damping``.
+
+    Products h aᵢⱼ and h bᵢ are formed once per step and equal weights share one product; the
+    damping expression is written on each stage's own velocity. The result equals the plain
+    reference ``rk.rk_step`` to round-off (tested).
+    """
     s = tableau.stages
     A, B = tableau.A, tableau.B
-    lines = ['def step(p0, v0, h, ain, w2, gamma, s):']
+    hs: dict[float, str] = {}
+    body: list[str] = []
     for i in range(s):
-        if i == 0:
-            lines.append('    p_0 = p0; v_0 = v0')
-        else:
-            dp = ' + '.join(f'{_num(A[i, j])} * v_{j}' for j in range(i) if A[i, j] != 0.0)
-            dv = ' + '.join(f'{_num(A[i, j])} * a_{j}' for j in range(i) if A[i, j] != 0.0)
-            lines.append(f'    p_{i} = p0 + h * ({dp or "0.0"})')
-            lines.append(f'    v_{i} = v0 + h * ({dv or "0.0"})')
+        if i > 0:
+            dp = _weighted([(float(A[i, j]), f'v_{j}') for j in range(i)], hs)
+            dv = _weighted([(float(A[i, j]), f'a_{j}') for j in range(i)], hs)
+            body.append(f'    p_{i} = p0 + {dp}')
+            body.append(f'    v_{i} = v0 + {dv}')
         used = B[i] != 0.0 or i == 0 or any(A[k, i] != 0.0 for k in range(i + 1, s))
         used = used or (with_error and tableau.E is not None and tableau.E[i] != 0.0)
         if not used:
             continue
-        lines.append(f'    v = v_{i}')
-        lines.append(f'    d_{i} = {damping}')
-        lines.append(f'    a_{i} = ain - d_{i} - w2 * sin(p_{i})')
+        pi, vi = ('p0', 'v0') if i == 0 else (f'p_{i}', f'v_{i}')
+        law = re.sub(r'\bv\b', vi, damping)
+        body.append(f'    d_{i} = {law}')
+        body.append(f'    a_{i} = ain - d_{i} - w2 * sin({pi})')
+        if i == 0:
+            body.append('    v_0 = v0')
     nz = [i for i in range(s) if B[i] != 0.0]
-    lines.append('    p1 = p0 + h * (' + ' + '.join(f'{_num(B[i])} * v_{i}' for i in nz) + ')')
-    lines.append('    v1 = v0 + h * (' + ' + '.join(f'{_num(B[i])} * a_{i}' for i in nz) + ')')
-    lines.append('    w = h * (' + ' + '.join(f'{_num(B[i])} * v_{i} * d_{i}' for i in nz) + ')')
+    body.append('    p1 = p0 + ' + _weighted([(float(B[i]), f'v_{i}') for i in nz], hs))
+    body.append('    v1 = v0 + ' + _weighted([(float(B[i]), f'a_{i}') for i in nz], hs))
+    body.append('    w = ' + _weighted([(float(B[i]), f'v_{i} * d_{i}') for i in nz], hs))
     if with_error:
         assert tableau.E is not None
         ne = [i for i in range(s) if tableau.E[i] != 0.0]
-        ep = ' + '.join(f'{_num(tableau.E[i])} * v_{i}' for i in ne)
-        ev = ' + '.join(f'{_num(tableau.E[i])} * a_{i}' for i in ne)
-        lines.append(f'    return p1, v1, w, a_0, h * ({ep}), h * ({ev})')
+        ep = _weighted([(float(tableau.E[i]), f'v_{i}') for i in ne], hs)
+        ev = _weighted([(float(tableau.E[i]), f'a_{i}') for i in ne], hs)
+        body.append(f'    return p1, v1, w, a_0, {ep}, {ev}')
     else:
-        lines.append('    return p1, v1, w, a_0')
-    return '\n'.join(lines) + '\n'
+        body.append('    return p1, v1, w, a_0')
+    head = ['def step(p0, v0, h, ain, w2, gamma, s):']
+    head += [f'    {name} = {_num(c)} * h' if c != 1.0 else f'    {name} = h'
+             for c, name in hs.items()]
+    return '\n'.join(head + body) + '\n'
 
 
 @functools.lru_cache(maxsize=512)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 from .embedded import cover
-from .engine import ENERGY_TOL, Engine, reversal_suspect, stiff_transient
+from .engine import ENERGY_TOL, Engine, compile_fast_step
 from .errors import ModelError
 from .guard import GuardStats
 from .methods import Method, get_method
@@ -77,14 +77,12 @@ class Stepper:
         self._max_torque = MAX_INPUT_ACCEL * params.inertia
         self._step_fn = eng.step_fn
         self._fast = eng.kind == 'explicit'
-        self._nonsmooth = eng.nonsmooth
-        self._reach = eng.reach
-        self._v_acc, self._n = eng.v_acc, eng.n
         self._coulomb = eng.coulomb
-        self._check_energy = eng.energy_check
+        self._fast_fn = compile_fast_step(eng.plain_tableau, eng.n, eng.nonsmooth, eng.reach,
+                                          eng.v_acc, eng.energy_check)
+        self._e = math.nan  # E/I of the current state where the fast path knows it
         self._range_ain = math.nan  # the a_in the cached fast range is for
         self._lo, self._hi = math.inf, -math.inf
-        self._e_cache = (math.nan, math.nan, 0.0)  # (φ, φ', E/I) of the last energy check
 
     def set_params(self, params: PendulumParams) -> None:
         """Replace the physical parameters from the next step on; the state is kept.
@@ -104,6 +102,7 @@ class Stepper:
                                            self._initial[1] if dphi0 is None else dphi0,
                                            self._params)
         self._p, self._v = self._initial
+        self._e = math.nan
         self._steps = 0
         self._work_damping = 0.0  # per unit inertia, J / (kg m²)
         self._work_input = 0.0  # J
@@ -193,32 +192,17 @@ class Stepper:
             if ain != self._range_ain:
                 self._lo, self._hi = self._engine.fast_range(h, ain)
                 self._range_ain = ain
-            av = abs(v)
-            done = False
-            if self._lo <= av <= self._hi and not (self._coulomb and v == 0.0):
-                # The fast path: one plain step, accepted on the engine's conditions.
+            r = None
+            if self._lo <= abs(v) <= self._hi and not (self._coulomb and v == 0.0):
                 try:
-                    p1, v1, w, a0 = self._step_fn(p, v, h, ain, self._w2, self._gamma, 1.0)
-                    done = (not (self._nonsmooth and reversal_suspect(v, v1, a0, h, self._reach))
-                            and math.isfinite(p1) and math.isfinite(v1)
-                            and not (av > self._v_acc and stiff_transient(
-                                v, a0, self._gamma, self._n, self._v_acc)))
+                    r = self._fast_fn(p, v, h, ain, self._w2, self._gamma, self._e)
                 except (OverflowError, ValueError):
-                    done = False
-                if done and self._check_energy and ain == 0.0:
-                    w2 = self._w2
-                    cp, cv, e0 = self._e_cache
-                    if cp != p or cv != v:
-                        s0 = math.sin(0.5 * p)
-                        e0 = 0.5 * v * v + 2.0 * w2 * s0 * s0  # = engine.specific_energy
-                    s1 = math.sin(0.5 * p1)
-                    e1 = 0.5 * v1 * v1 + 2.0 * w2 * s1 * s1
-                    if e1 > e0 + ENERGY_TOL * (e0 + w2):  # = engine.energy_rose
-                        done = False
-                    else:
-                        self._e_cache = (p1, v1, e1)
-            if not done:
+                    r = None
+            if r is None:
                 p1, v1, w = self._engine.careful(p, v, h, ain, self.stats)
+                self._e = math.nan
+            else:
+                p1, v1, w, self._e = r
         elif self._method.kind == 'implicit':
             p1, v1, w = self._engine.careful(p, v, h, ain, self.stats)
         else:
