@@ -15,7 +15,7 @@ from node_harness import NodeProcess, Probe
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 
-from pendulum_sim.node.scenes import PROFILE_VARIABLES
+from pendulum_sim.dds import PROFILE_VARIABLES
 
 pytestmark = [pytest.mark.ros,
               pytest.mark.skipif(not sys.platform.startswith('linux'), reason='reads /proc')]

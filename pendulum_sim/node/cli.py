@@ -56,6 +56,7 @@ if __name__ == '__main__' or Path(sys.argv[0] if sys.argv else '').name == 'pend
     SIGNALS.install()  # the executable: before the imports below take their half second
 
 from pendulum_sim.core import PendulumError  # noqa: E402 - after the signal handlers
+from pendulum_sim.dds import use_loopback_profile  # noqa: E402
 
 from .errors import NodeError, SceneError  # noqa: E402
 from .scenes import (  # noqa: E402
@@ -64,7 +65,6 @@ from .scenes import (  # noqa: E402
     known_parameters,
     read_params_file,
     unknown_parameter,
-    use_loopback_profile,
 )
 
 if TYPE_CHECKING:

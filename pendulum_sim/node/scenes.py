@@ -6,50 +6,20 @@ A scene is an ordinary ROS 2 parameter file (``/**: ros__parameters: ...``), so
 from __future__ import annotations
 
 import difflib
-import os
-import sys
-from collections.abc import Mapping, MutableMapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from pendulum_sim.dds import config_dirs
+
 from .errors import SceneError
-
-PACKAGE = 'pendulum_sim'
-
-
-def scene_dirs() -> list[Path]:
-    """Return the folders searched for scenes, in order, existing ones only.
-
-    The package's share folder found through the ament index (a colcon workspace), the
-    interpreter prefix's share folder (a pip install) and the source tree (an editable install).
-    """
-    found: list[Path] = []
-    if os.environ.get('AMENT_PREFIX_PATH'):
-        try:
-            from ament_index_python.packages import (
-                PackageNotFoundError,
-                get_package_share_directory,
-            )
-            try:
-                found.append(Path(get_package_share_directory(PACKAGE)) / 'config')
-            except PackageNotFoundError:
-                pass
-        except ImportError:  # pragma: no cover - ament_index_python ships with rclpy
-            pass
-    found.append(Path(sys.prefix) / 'share' / PACKAGE / 'config')
-    found.append(Path(__file__).resolve().parents[2] / 'config')
-    unique: list[Path] = []
-    for folder in found:
-        if folder.is_dir() and folder not in unique:
-            unique.append(folder)
-    return unique
 
 
 def available_scenes() -> list[str]:
     """Return the names of all scenes found, sorted."""
-    return sorted({p.stem for folder in scene_dirs() for p in folder.glob('*.yaml')})
+    return sorted({p.stem for folder in config_dirs() for p in folder.glob('*.yaml')})
 
 
 def find_scene(name: str) -> Path:
@@ -61,7 +31,7 @@ def find_scene(name: str) -> Path:
         raise SceneError(f"scene file '{name}' does not exist")
     if not name or '/' in name or name.startswith('.'):
         raise SceneError(f'scene must be a name like default or a .yaml path, got {name!r}')
-    for folder in scene_dirs():
+    for folder in config_dirs():
         path = folder / f'{name}.yaml'
         if path.is_file():
             return path
@@ -157,37 +127,3 @@ def read_params_file(path: Path, label: str | None = None) -> dict[str, Any]:
                 raise SceneError(reason)
         values.update(flat)
     return values
-
-
-# ---------------------------------------------------------------- DDS on the loopback only
-LOOPBACK_PROFILE = 'fastdds_localhost.xml'
-PROFILE_VARIABLES = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
-
-
-def loopback_profile() -> Path | None:
-    """Return the installed Fast DDS profile that keeps DDS on 127.0.0.1, or None if missing."""
-    for folder in scene_dirs():
-        path = folder / LOOPBACK_PROFILE
-        if path.is_file():
-            return path
-    return None
-
-
-def use_loopback_profile(environ: MutableMapping[str, str]) -> Path | None:
-    """Point Fast DDS at the loopback profile when discovery is LOCALHOST and none is chosen.
-
-    Sets both ``FASTRTPS_DEFAULT_PROFILES_FILE`` (Fast DDS 2.x, ROS 2 Jazzy) and
-    ``FASTDDS_DEFAULT_PROFILES_FILE`` (Fast DDS 3.x) in ``environ`` unless either is set, or
-    ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is not ``LOCALHOST``. Call it before ``rclpy.init``.
-    Returns the profile set, or None when nothing was changed.
-    """
-    if environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '') != 'LOCALHOST':
-        return None
-    if any(environ.get(var) for var in PROFILE_VARIABLES):
-        return None
-    path = loopback_profile()
-    if path is None:
-        return None
-    for var in PROFILE_VARIABLES:
-        environ[var] = str(path)
-    return path

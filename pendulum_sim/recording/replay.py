@@ -24,7 +24,7 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
-from pendulum_sim.node.scenes import use_loopback_profile
+from pendulum_sim.dds import use_loopback_profile
 from pendulum_sim.recording.errors import RecorderError
 from pendulum_sim.recording.reader import RawMessage, Scan, scan
 from pendulum_sim.recording.schemas import message_class
