@@ -31,7 +31,7 @@ setup(
     extras_require={
         'ros': ROS_WHEELS,
         'plots': ['matplotlib>=3.7'],
-        'peers': ['scipy>=1.10'],
+        'peers': ['scipy>=1.10', 'mujoco>=3.2'],
         'test': [
             'pytest>=8', 'wheel>=0.40', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10',
             'mcap-ros2-support>=0.5',

@@ -86,7 +86,7 @@ def reversal_suspect(v: Any, v1: Any, a0: Any, h: float, reach: Any = 0.0) -> An
     return _REVERSAL(v, v1, a0, h, reach)
 
 
-STIFF_K = 10.0
+STIFF_K = 100.0
 """For n > 1: a plain step's error in a damping-dominated transient, relative to its error on
 the smooth oscillation, is about γ⁴ |φ'|^(4n−3) / (n ω_r⁵) (ω_r = max(ω0, 1 s⁻¹)); above
 this factor the step is taken by error-controlled substeps instead (:meth:`Engine.stiff`)."""

@@ -65,6 +65,8 @@ BoolArray = npt.NDArray[np.bool_]
 
 SWEEP_METHODS = ('euler', 'midpoint', 'rk4')
 """The explicit methods a sweep can use."""
+BLOCK = 16384
+"""Pendulums stepped per numpy pass: a block's temporaries stay in the cache."""
 
 
 @dataclass(frozen=True)
@@ -153,15 +155,16 @@ def _validate(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, torque:
         raise ModelError('a sweep needs at least one pendulum, got arrays of length 0')
     out = {k: np.ascontiguousarray(np.broadcast_to(a, (size,)), dtype=np.float64)
            for k, a in arrs.items()}
-    # Each distinct (ω0², γ, n) is checked once by PendulumParams, each state by validate_state
-    # against its own bound, each input by check_torque: the model's one validation.
-    keys = np.column_stack([out['omega0_sq'], out['gamma'], out['n']])
-    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    lims = []
-    for i in first.tolist():
-        p = _one(arrs, i, lambda i=i: _params(out, i))
-        lims.append(speed_limit(p.gamma, p.n))
-    lim = np.array(lims)[inverse.ravel()]
+    # The model's checks on arrays (finite, >= 0); the first pendulum that fails them is
+    # refused by PendulumParams itself, so the message is the model's one.
+    om2, gam, nn = out['omega0_sq'], out['gamma'], out['n']
+    with np.errstate(invalid='ignore'):
+        fine = np.isfinite(om2) & np.isfinite(gam) & np.isfinite(nn)
+        fine &= (om2 >= 0.0) & (gam >= 0.0) & (nn >= 0.0)
+    if not fine.all():
+        i = int(np.flatnonzero(~fine)[0])
+        _one(arrs, i, lambda: _params(out, i))
+    lim = np.frompyfunc(speed_limit, 2, 1)(gam, nn).astype(np.float64)
     bad = ~(np.isfinite(out['phi0']) & (np.abs(out['dphi0']) <= lim)
             & (np.abs(out['torque']) <= MAX_INPUT_ACCEL))
     if bad.any():
@@ -217,7 +220,9 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
     bounds = np.array([ain_bound(a) for a in tau]) if np.any(tau) else np.zeros_like(tau)
     vals, starts = np.unique(nn, return_index=True)
     ends = [*starts[1:].tolist(), nn.size]
-    for val, a, b in zip(vals.tolist(), starts.tolist(), ends, strict=True):
+    pieces = [(val, a0, min(a0 + BLOCK, b)) for val, a, b in
+              zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, BLOCK)]
+    for val, a, b in pieces:
         sl = slice(a, b)
         smooth = val >= 1.0 and val == int(val) and int(val) % 2 == 1
         lo = np.zeros(b - a)
@@ -231,11 +236,10 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
             sl=sl, n=val, step=compile_step(tab, val, vector=True),
             nonsmooth=(gam[sl] > 0.0) & (not smooth), coulomb=(gam[sl] > 0.0) & (val == 0.0),
             check=(gam[sl] > 0.0) & (tau[sl] == 0.0) & energy_check, lo=lo, hi=hi,
-            reach=np.array([grade_window(math.sqrt(w2)) if graded_law(val) else 0.0
-                            for w2 in om2[sl]]),
-            v_acc=np.array([accuracy_speed(ga, val, math.sqrt(w2)) if guard else math.inf
-                            for w2, ga in zip(om2[sl].tolist(), gam[sl].tolist(),
-                                              strict=True)])))
+            reach=(np.frompyfunc(grade_window, 1, 1)(np.sqrt(om2[sl])).astype(np.float64)
+                   if graded_law(val) else np.zeros(b - a)),
+            v_acc=(np.frompyfunc(accuracy_speed, 3, 1)(gam[sl], val, np.sqrt(om2[sl]))
+                   .astype(np.float64) if guard and val > 1.0 else np.full(b - a, math.inf))))
     return out
 
 

@@ -3,7 +3,7 @@
 An explicit method is ``A`` (strictly lower triangular), ``B``, ``C`` and its order; an embedded
 pair adds ``E`` (the weights of the error estimate, B − B̂); a diagonally implicit method has a
 lower triangular ``A`` with a non-zero diagonal. One generic step serves each kind
-(``explicit.py``, ``adaptive.py``, ``implicit.py``).
+(``explicit.py``, ``embedded.py``, ``dirk.py``).
 """
 from __future__ import annotations
 
