@@ -85,7 +85,7 @@ def test_limits_are_refused_with_exact_messages(call: object, error: type[Except
     assert str(info.value) == message
 
 
-# Exponents, damping and states from MODEL.md's extremes to far beyond: n = 1000 and γ = 1e300
+# Exponents, damping and states from the paper's extremes to far beyond: n = 1000 and γ = 1e300
 # overflow the damping law itself, h = 10 s is most of a period per step.
 EXTREMES = [c for c in itertools.product(
     [0.0, 0.3, 1.0, 2.0, 6.0, 200.0, 1000.0],  # n

@@ -177,7 +177,7 @@ def guard_substeps(w2: float, gamma: float, phi: float, h: float) -> int:
     """Return the fewest m with h |λ| / m inside the guard's share of RK4's real interval.
 
     n = 1, γ = 1000: both eigenvalues are real (overdamped), so the interval [−2.785, 0]
-    (MODEL.md) times the guard's safety factor decides; computed here independently.
+    (RK4's stability function) times the guard's safety factor decides; computed here.
     """
     c = w2 * math.cos(phi)
     lam = (gamma + math.sqrt(gamma * gamma - 4.0 * c)) / 2.0

@@ -1,7 +1,7 @@
 """Analysis: exact solutions, the convergence quotient Q(t), periods and decay laws.
 
-Everything here is an oracle the numerics are checked against (MODEL.md), or a measurement
-made on a computed trajectory.
+Everything here is an oracle the numerics are checked against (the paper, eq 27-34), or a
+measurement made on a computed trajectory.
 """
 from __future__ import annotations
 
@@ -122,7 +122,7 @@ def decay_coefficient(n: float) -> float:
 
 def decay_law_amplitude(n: float, gamma: float, omega0_sq: float, a0: float,
                         t: FloatArray | float) -> FloatArray:
-    """Return the averaged amplitude A(t) of small oscillations for n > 1 (MODEL.md).
+    """Return the averaged amplitude A(t) of small oscillations for n > 1 (energy averaging).
 
     ``dA/dt = −γ c_n ω0^(n−1) A^n`` gives ``A^(1−n) = A0^(1−n) + (n−1) γ c_n ω0^(n−1) t``: an
     algebraic decay ∝ t^(−1/(n−1)) instead of the exponential one of n = 1.

@@ -2,7 +2,7 @@
 
 Before a step the guard linearises the pendulum at the current state. The Jacobian
 ``[[0, 1], [−ω0² cos φ, −d]]`` with ``d = γ n |φ'|^(n−1)`` has the closed-form eigenvalues
-``λ = (−d ± sqrt(d² − 4 ω0² cos φ)) / 2`` (MODEL.md). Where ``h λ`` for an eigenvalue with
+``λ = (−d ± sqrt(d² − 4 ω0² cos φ)) / 2`` (eq 18-19). Where ``h λ`` for an eigenvalue with
 negative real part lies outside the region ``|R(z)| ≤ 1`` of the method, the step is split into
 the fewest equal substeps that bring every ``h λ / m`` back inside; where that would take more
 than ``max_substeps``, the step falls back to the L-stable implicit method. An eigenvalue with

@@ -157,7 +157,7 @@ class PendulumParams:
         return self.n >= 1.0 and self.n == int(self.n) and int(self.n) % 2 == 1
 
     def jacobian_eigenvalues(self, phi: float, dphi: float) -> tuple[complex, complex]:
-        """Return the eigenvalues of the 2x2 Jacobian [[0, 1], [−ω0² cos φ, −d]] (MODEL.md).
+        """Return the eigenvalues of the Jacobian [[0, 1], [−ω0² cos φ, −d]] (eq 18-19).
 
         ``d = γ n |φ'|^(n−1)``; for n < 1 at rest d is unbounded and ``inf`` is used.
         """

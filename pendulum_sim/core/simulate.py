@@ -53,7 +53,7 @@ def step_count(t_end: float, h: float) -> tuple[int, float]:
     """Return the number of full steps of ``h`` in ``t_end`` and the length of a last partial one.
 
     Rounds instead of truncating: 0.7 / 0.001 = 699.999… is 700 steps, not 699 (the seed code's
-    bug, MODEL.md). A remainder below 1e-9 h is round-off, not a step.
+    bug). A remainder below 1e-9 h is round-off, not a step.
     """
     ratio = t_end / h
     k = round(ratio)

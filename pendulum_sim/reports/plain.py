@@ -66,7 +66,7 @@ def vector_field(params: PendulumParams,
 
 
 def jacobian(params: PendulumParams) -> Callable[[float, FloatArray], FloatArray]:
-    """Return the Jacobian [[0, 1], [−ω0² cos φ, −γ n |φ'|^(n−1)]] (MODEL.md) for scipy.
+    """Return the Jacobian [[0, 1], [−ω0² cos φ, −γ n |φ'|^(n−1)]] (eq 18-19 linearised) for scipy.
 
     The slope is the core's ``damping_derivative``; at rest, where it is unbounded for n < 1,
     0 is given to scipy (its Newton iteration needs a finite matrix).
