@@ -54,10 +54,10 @@ class Stepper:
                  rtol: float = 1e-8, atol: float = 1e-10) -> None:
         if not isinstance(params, PendulumParams):
             raise ModelError(f'params must be PendulumParams, got {type(params).__name__}')
-        self._h = check_step(h, params)
+        self._method: Method = get_method(method)
+        self._h = check_step(h, self._limited(params))
         self._rtol = check_tolerance('rtol', rtol)
         self._atol = check_tolerance('atol', atol)
-        self._method: Method = get_method(method)
         self._guard_on = bool(guard)
         self._energy_check = bool(energy_check)
         self._initial = validate_state(phi0, dphi0, params)
@@ -92,8 +92,13 @@ class Stepper:
         """
         if not isinstance(params, PendulumParams):
             raise ModelError(f'params must be PendulumParams, got {type(params).__name__}')
-        check_step(self._h, params)
+        check_step(self._h, self._limited(params))
         self._configure(params)
+
+    def _limited(self, params: PendulumParams) -> PendulumParams | None:
+        """Return the parameters that bound h (none for the adaptive method: h is its output
+        spacing and its substeps are error-controlled)."""
+        return None if self._method.kind == 'adaptive' else params
 
     def reset(self, phi0: float | None = None, dphi0: float | None = None) -> None:
         """Return to t = 0 and the initial state (or a new one), clearing work and counters."""
@@ -180,7 +185,7 @@ class Stepper:
     def step_by(self, h: float, torque: float = 0.0) -> None:
         """Advance by a one-off step ``h`` (for landing on an end time); ``t`` is not moved."""
         self._range_ain = math.nan
-        self._advance(check_step(h, self._params), torque, 0)
+        self._advance(check_step(h, self._limited(self._params)), torque, 0)
         self._range_ain = math.nan
 
     def _advance(self, h: float, torque: float, count: int) -> None:
@@ -191,9 +196,11 @@ class Stepper:
         if self._fast:
             if ain != self._range_ain:
                 self._lo, self._hi = self._engine.fast_range(h, ain)
+                if self._coulomb:  # at rest, Coulomb friction decides: never the fast path
+                    self._lo = max(self._lo, 5e-324)
                 self._range_ain = ain
             r = None
-            if self._lo <= abs(v) <= self._hi and not (self._coulomb and v == 0.0):
+            if self._lo <= abs(v) <= self._hi:
                 try:
                     r = self._fast_fn(p, v, h, ain, self._w2, self._gamma, self._e)
                 except (OverflowError, ValueError):

@@ -164,7 +164,7 @@ def _validate(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, torque:
     if not fine.all():
         i = int(np.flatnonzero(~fine)[0])
         _one(arrs, i, lambda: _params(out, i))
-    lim = np.frompyfunc(speed_limit, 2, 1)(gam, nn).astype(np.float64)
+    lim = _each(speed_limit, gam, nn)
     bad = ~(np.isfinite(out['phi0']) & (np.abs(out['dphi0']) <= lim)
             & (np.abs(out['torque']) <= MAX_INPUT_ACCEL))
     if bad.any():
@@ -173,6 +173,11 @@ def _validate(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, torque:
         _one(arrs, i, lambda: validate_state(out['phi0'][i], out['dphi0'][i], p))
         _one(arrs, i, lambda: check_torque(out['torque'][i], p))
     return tuple(out.values())
+
+
+def _each(fn: Any, *arrays: FloatArray) -> FloatArray:
+    """Apply a scalar function of the model element-wise (its one implementation)."""
+    return np.asarray(np.frompyfunc(fn, len(arrays), 1)(*arrays), dtype=np.float64)
 
 
 def _params(out: dict[str, FloatArray], i: int) -> PendulumParams:
@@ -236,10 +241,10 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
             sl=sl, n=val, step=compile_step(tab, val, vector=True),
             nonsmooth=(gam[sl] > 0.0) & (not smooth), coulomb=(gam[sl] > 0.0) & (val == 0.0),
             check=(gam[sl] > 0.0) & (tau[sl] == 0.0) & energy_check, lo=lo, hi=hi,
-            reach=(np.frompyfunc(grade_window, 1, 1)(np.sqrt(om2[sl])).astype(np.float64)
-                   if graded_law(val) else np.zeros(b - a)),
-            v_acc=(np.frompyfunc(accuracy_speed, 3, 1)(gam[sl], val, np.sqrt(om2[sl]))
-                   .astype(np.float64) if guard and val > 1.0 else np.full(b - a, math.inf))))
+            reach=(_each(grade_window, np.sqrt(om2[sl])) if graded_law(val)
+                   else np.zeros(b - a)),
+            v_acc=(_each(accuracy_speed, gam[sl], np.full(b - a, val), np.sqrt(om2[sl]))
+                   if guard and val > 1.0 else np.full(b - a, math.inf))))
     return out
 
 
