@@ -216,6 +216,12 @@ class _Group:
     reach: FloatArray
     v_acc: FloatArray
 
+    def __post_init__(self) -> None:
+        self.any_coulomb = bool(self.coulomb.any())
+        self.any_nonsmooth = bool(self.nonsmooth.any())
+        self.any_stiff = bool(np.isfinite(self.v_acc).any())
+        self.any_check = bool(self.check.any())
+
 
 def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, method: str,
             h: float, guard: bool, energy_check: bool) -> list[_Group]:
@@ -326,11 +332,19 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
                     p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
                     av = np.abs(vv)
                     ok = (grp.lo <= av) & (av <= grp.hi) & np.isfinite(p1) & np.isfinite(v1)
-                    ok &= ~(grp.coulomb & (vv == 0.0))
-                    ok &= ~(grp.nonsmooth & reversal_suspect(vv, v1, a0, hh, grp.reach))
-                    ok &= ~stiff_transient(vv, a0, ga, grp.n, grp.v_acc)
-                    e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
-                    ok &= ~(grp.check & energy_rose(energy[sl], e1, w2))
+                    if grp.any_coulomb:
+                        ok &= ~(grp.coulomb & (vv == 0.0))
+                    if grp.any_nonsmooth:
+                        ok &= ~(grp.nonsmooth & reversal_suspect(vv, v1, a0, hh, grp.reach))
+                    if grp.any_stiff:
+                        q = np.flatnonzero(av > grp.v_acc)  # the test's first part, then all
+                        if q.size:
+                            ok[q] &= ~stiff_transient(vv[q], a0[q], ga[q], grp.n, grp.v_acc[q])
+                    if grp.any_check:
+                        e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
+                        ok &= ~(grp.check & energy_rose(energy[sl], e1, w2))
+                    else:
+                        e1 = energy[sl]
                     for j in np.flatnonzero(~ok).tolist():
                         i = sl.start + j
                         eng = engines.get(i)
@@ -341,7 +355,8 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
                         pj, vj, _ = eng.careful(float(p[j]), float(vv[j]), hh, float(ain[j]),
                                                 stats[i])
                         p1[j], v1[j] = pj, vj
-                        e1[j] = specific_energy(vj, math.sin(0.5 * pj), float(w2[j]))
+                        if grp.any_check:
+                            e1[j] = specific_energy(vj, math.sin(0.5 * pj), float(w2[j]))
                     phi[sl], v[sl], energy[sl] = p1, v1, e1
                 done += 1
                 if record_every is not None and (done % record_every == 0 or done == total):
