@@ -1,7 +1,10 @@
-"""Where the installed config files are, and the Fast DDS profile that keeps DDS on 127.0.0.1.
+"""What every ROS process of the package sets up the same way: DDS on 127.0.0.1, the executor.
 
 Every process of the package that starts rclpy (``pendulum_node``, ``pendulum_replay``,
-``pendulum_pd_controller``) calls :func:`use_loopback_profile` before ``rclpy.init``.
+``pendulum_pd_controller``) calls :func:`use_loopback_profile` before ``rclpy.init``, and the
+long-running ones pick their executor with :func:`make_executor`. Also where the installed
+config files (scenes, the DDS profile) are. rclpy is imported only inside
+:func:`make_executor`.
 """
 from __future__ import annotations
 
@@ -9,6 +12,10 @@ import os
 import sys
 from collections.abc import MutableMapping
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rclpy.executors import Executor
 
 PACKAGE = 'pendulum_sim'
 
@@ -73,3 +80,20 @@ def use_loopback_profile(environ: MutableMapping[str, str]) -> Path | None:
     for var in PROFILE_VARIABLES:
         environ[var] = str(path)
     return path
+
+
+EXECUTORS = ('events', 'single')
+
+
+def make_executor(kind: str) -> Executor:
+    """Return rclpy's EventsExecutor for ``'events'`` (less CPU per message), else the
+    SingleThreadedExecutor."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    if kind == 'events':
+        try:
+            from rclpy.experimental import EventsExecutor
+            return EventsExecutor()
+        except ImportError:  # pragma: no cover - rclpy before Jazzy 7.1
+            pass
+    return SingleThreadedExecutor()

@@ -16,6 +16,7 @@ Run it as::
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 from typing import Any
@@ -24,7 +25,7 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -32,6 +33,8 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+
+from pendulum_sim.dds import make_executor, use_loopback_profile
 
 from .errors import ControllerError
 from .pd_law import PDGains, SettleDetector, SettleEvent, SettleLimits, pd_torque, wrap_angle
@@ -189,16 +192,6 @@ class PDControllerNode(Node):
         return bool(self._pub.wait_for_all_acked(Duration(seconds=timeout)))
 
 
-def _executor(kind: str) -> Executor:
-    if kind == 'events':
-        try:
-            from rclpy.experimental import EventsExecutor
-            return EventsExecutor()
-        except ImportError:  # pragma: no cover - rclpy before Jazzy 7.1
-            pass
-    return SingleThreadedExecutor()
-
-
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=NODE_NAME,
@@ -225,6 +218,7 @@ def main(args: list[str] | None = None) -> int:
     # Ctrl-C and SIGTERM only ask the loop to stop. rclpy's own handlers would shut the context
     # down at once, in the middle of a callback that is still publishing (a FATAL log and a
     # traceback); a flag stops the loop between callbacks, and the finally clause shuts down.
+    use_loopback_profile(os.environ)   # DDS on 127.0.0.1, as pendulum_node
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     stop: list[int] = []
 
@@ -236,7 +230,7 @@ def main(args: list[str] | None = None) -> int:
     node: PDControllerNode | None = None
     code = 0
     try:
-        executor = _executor(opts.executor)
+        executor = make_executor(opts.executor)
         node = PDControllerNode(count=opts.count)
         executor.add_node(node)
         # spin_once in a loop: the EventsExecutor's spin() would not return to Python, and the

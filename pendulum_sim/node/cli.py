@@ -56,7 +56,7 @@ if __name__ == '__main__' or Path(sys.argv[0] if sys.argv else '').name == 'pend
     SIGNALS.install()  # the executable: before the imports below take their half second
 
 from pendulum_sim.core import PendulumError  # noqa: E402 - after the signal handlers
-from pendulum_sim.dds import use_loopback_profile  # noqa: E402
+from pendulum_sim.dds import make_executor, use_loopback_profile  # noqa: E402
 
 from .errors import NodeError, SceneError  # noqa: E402
 from .scenes import (  # noqa: E402
@@ -68,21 +68,8 @@ from .scenes import (  # noqa: E402
 )
 
 if TYPE_CHECKING:
-    from rclpy.executors import Executor
 
     from .pendulum_node import PendulumNode
-
-
-def _executor(kind: str) -> Executor:
-    from rclpy.executors import SingleThreadedExecutor
-
-    if kind == 'events':
-        try:
-            from rclpy.experimental import EventsExecutor
-            return EventsExecutor()
-        except ImportError:  # pragma: no cover - rclpy before Jazzy 7.1
-            pass
-    return SingleThreadedExecutor()
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -300,7 +287,7 @@ def _run(executor_kind: str, signals: Signals) -> int:
     node: PendulumNode | None = None
     code = 0
     try:
-        executor = _executor(executor_kind)
+        executor = make_executor(executor_kind)
         node = PendulumNode(status=StatusLine())
         executor.add_node(node)
         signals.abort = False
