@@ -146,6 +146,7 @@ class PendulumNode(Node):
             self._desc_pub.publish(String(data=self._urdf()))
         cmd_qos = SYNC_COMMAND_QOS if self._sync else COMMAND_QOS
         self._cmd_subs: list[Any] = []
+        self._cmd_topics: dict[str, str] = {}
         if v['effort_input']:
             self._cmd_subs.append(self._subscribe(Float64, 'effort_command', self._on_effort,
                                                   cmd_qos))
@@ -589,10 +590,13 @@ class PendulumNode(Node):
         self._guarded(self._take, topic, msg, float(values[i]), stamp_ns or None)
 
     def _cmd_topic(self, name: str) -> str:
-        for sub in self._cmd_subs:
-            if sub.topic_name.endswith('/' + name):
-                return str(sub.topic_name)
-        return name
+        """Return the resolved name of command topic ``name`` (looked up once)."""
+        found = self._cmd_topics.get(name)
+        if found is None:
+            found = self._cmd_topics[name] = next(
+                (str(sub.topic_name) for sub in self._cmd_subs
+                 if sub.topic_name.endswith('/' + name)), name)
+        return found
 
     def _guarded(self, fn: Any, *args: Any) -> None:
         try:
