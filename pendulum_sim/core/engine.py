@@ -149,7 +149,7 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
     The step is ``explicit.step_source`` and the decisions are the ``*_SRC`` texts above, so
     this is the same code ``sweep`` runs on arrays, without the calls between its parts.
     """
-    body = step_source(tableau, damping_expression(n)).splitlines()[1:-1]
+    body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
     lines = ['def fast(p0, v0, h, ain, w2, gamma, e0):', *body,
              '    if not (-INF < p1 < INF and -INF < v1 < INF):', '        return None',
              '    v = v0', '    a0 = a_0']

@@ -51,7 +51,7 @@ def _power(n: int, odd_abs: bool) -> str:
     return ' * '.join(['v'] * n)
 
 
-def damping_expression(n: float, branch: bool = False) -> str:
+def damping_expression(n: float, branch: bool = False, scalar: bool = False) -> str:
     """Return source for the damping law D(v) specialised for the exponent ``n`` (eq 15).
 
     The plain law is γ v|v|^(n−1) (D(0) = 0 for every n, also n = 0: sticking is decided by the
@@ -70,8 +70,13 @@ def damping_expression(n: float, branch: bool = False) -> str:
         return 'gamma * sign(v)'
     if whole:
         k = int(n)
-        # v|v|^(k−1): v^k for odd k, v^(k−1)|v| for even k.
-        return f'gamma * {_power(k, False) if k % 2 else _power(k - 1, False) + " * abs(v)"}'
+        # v|v|^(k−1): v^k for odd k, v^(k−1)|v| for even k; in scalar code the even case is
+        # ±γ v^k by the sign of v, the same floats without an abs() call per stage.
+        if k % 2:
+            return f'gamma * {_power(k, False)}'
+        if scalar:
+            return f'(gamma * {_power(k, False)} if v > 0.0 else -(gamma * {_power(k, False)}))'
+        return f'gamma * {_power(k - 1, False)} * abs(v)'
     return 'copysign(gamma * abs(v) ** n, v)'
 
 
@@ -158,7 +163,7 @@ def compile_step(tableau: Tableau, n: float, branch: bool = False, vector: bool 
         raise ValueError(f'{tableau.name} is not an explicit method')
     if with_error and tableau.E is None:
         raise ValueError(f'{tableau.name} has no embedded error estimate')
-    src = step_source(tableau, damping_expression(n, branch), with_error)
+    src = step_source(tableau, damping_expression(n, branch, scalar=not vector), with_error)
     env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV, n=n)
     exec(compile(src, f'<{tableau.name} step n={n}>', 'exec'), env)
     return env['step']
