@@ -99,3 +99,29 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
             if hh < 1e-14 * max(1.0, h):
                 raise IntegratorError(f'adaptive step fell below {hh:.3g} s')
     return p, v, w_total, hh
+
+
+class Cover:
+    """The embedded adaptive method as an ``Advance``: :func:`cover` with its trial-step memory.
+
+    Parameters
+    ----------
+    eng : Engine
+        The pendulum and method (an embedded pair, e.g. ``dopri5``).
+    rtol, atol : float
+        Tolerances of the error control.
+    """
+
+    def __init__(self, eng: Engine, rtol: float, atol: float) -> None:
+        self.eng, self.rtol, self.atol = eng, rtol, atol
+        self.h_try = 0.0  # the next trial substep, carried from step to step
+
+    def __call__(self, p: float, v: float, h: float, ain: float,
+                 stats: GuardStats) -> tuple[float, float, float]:
+        """Cover one step of h; a non-finite result is replaced by the fallback's."""
+        p1, v1, w, self.h_try = cover(self.eng, p, v, h, ain, self.rtol, self.atol, self.h_try,
+                                      stats)
+        if not (math.isfinite(p1) and math.isfinite(v1)):
+            stats.fallbacks += 1
+            return self.eng.last_resort(p, v, h, ain)
+        return p1, v1, w

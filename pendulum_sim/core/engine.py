@@ -33,7 +33,7 @@ from .explicit import (
     step_source,
 )
 from .guard import FALLBACK, MAX_ANGLE, GuardStats, StabilityGuard, safe_speed_range
-from .methods import FALLBACK_METHOD, Method
+from .methods import FALLBACK_METHOD, Advance, Method
 from .tableaus import BACKWARD_EULER, RK4, Tableau
 
 ENERGY_TOL = 1e-12
@@ -259,7 +259,7 @@ class Engine:
     """
 
     def __init__(self, w2: float, gamma: float, n: float, method: Method, guard: bool = True,
-                 energy_check: bool = True) -> None:
+                 energy_check: bool = True, rtol: float = 1e-8, atol: float = 1e-10) -> None:
         self.w2, self.gamma, self.n = w2, gamma, n
         self.omega0 = math.sqrt(w2)
         self.method = method
@@ -283,6 +283,17 @@ class Engine:
         g = gamma
         self.damping: DampingFn = lambda v: law(v, g, 1.0)
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
+        self.rtol, self.atol = rtol, atol
+        self.advance: Advance = self.fresh_advance()
+
+    def fresh_advance(self) -> Advance:
+        """Return this method's :class:`~pendulum_sim.core.methods.Advance` with fresh memory."""
+        if self.kind == 'explicit':
+            return self.careful
+        if self.kind == 'implicit':
+            return self.implicit_advance
+        from .embedded import Cover  # embedded builds on this module
+        return Cover(self, self.rtol, self.atol)
 
     # ------------------------------------------------------------------ fast path
     def fast_range(self, h: float, ain: float) -> tuple[float, float]:
@@ -309,35 +320,43 @@ class Engine:
     # ------------------------------------------------------------------ careful path
     def careful(self, p: float, v: float, h: float, ain: float,
                 stats: GuardStats) -> tuple[float, float, float]:
-        """Take a step of h from (φ, φ') with every safeguard; return (φ₁, φ'₁, w).
+        """Take an explicit step of h from (φ, φ') with every safeguard; return (φ₁, φ'₁, w).
 
-        ``w`` is the damping work per unit inertia. Explicit methods: Coulomb sticking, the
-        guard's substeps or fallback, reversal splitting, the energy redo; implicit methods:
-        their own DIRK step. A non-finite result is replaced by the fallback's.
+        ``w`` is the damping work per unit inertia. Coulomb sticking, the stiff-transient
+        substeps, the guard's substeps or fallback, reversal splitting, the energy redo; a
+        non-finite result is replaced by the fallback's.
         """
-        if self.kind == 'explicit':
-            try:
-                if self.coulomb and v == 0.0:
-                    p1, v1, w = self.from_rest(p, h, ain)
-                elif self.guard is None:
-                    p1, v1, w = self.micro(p, v, h, ain, stats)
-                elif abs(v) > self.v_acc and stiff_transient(
-                        v, ain - self.damping(v) - self.w2 * math.sin(p), self.gamma, self.n,
-                        self.v_acc):
-                    p1, v1, w = self.stiff(p, v, h, ain, stats)
-                else:
-                    p1, v1, w = self.guarded(p, v, h, ain, stats)
-            except (OverflowError, ValueError):  # |x|^n beyond float64, sin(inf)
-                stats.fallbacks += 1
-                p1, v1, w = self.last_resort(p, v, h, ain)
-            if self.energy_check and ain == 0.0:
-                w2 = self.w2
-                e0 = specific_energy(v, math.sin(0.5 * p), w2)
-                e1 = specific_energy(v1, math.sin(0.5 * p1), w2)
-                if energy_rose(e0, e1, w2):
-                    p1, v1, w = self.redo_energy(p, v, h, e0, stats)
-        else:
-            p1, v1, w = self.dirk_safe(self.method.tableau, p, v, h, ain)
+        try:
+            if self.coulomb and v == 0.0:
+                p1, v1, w = self.from_rest(p, h, ain)
+            elif self.guard is None:
+                p1, v1, w = self.micro(p, v, h, ain, stats)
+            elif abs(v) > self.v_acc and stiff_transient(
+                    v, ain - self.damping(v) - self.w2 * math.sin(p), self.gamma, self.n,
+                    self.v_acc):
+                p1, v1, w = self.stiff(p, v, h, ain, stats)
+            else:
+                p1, v1, w = self.guarded(p, v, h, ain, stats)
+        except (OverflowError, ValueError):  # |x|^n beyond float64, sin(inf)
+            stats.fallbacks += 1
+            p1, v1, w = self.last_resort(p, v, h, ain)
+        if self.energy_check and ain == 0.0:
+            w2 = self.w2
+            e0 = specific_energy(v, math.sin(0.5 * p), w2)
+            e1 = specific_energy(v1, math.sin(0.5 * p1), w2)
+            if energy_rose(e0, e1, w2):
+                p1, v1, w = self.redo_energy(p, v, h, e0, stats)
+        return self._settle(p, v, h, ain, p1, v1, w, stats)
+
+    def implicit_advance(self, p: float, v: float, h: float, ain: float,
+                         stats: GuardStats) -> tuple[float, float, float]:
+        """Take the implicit method's own DIRK step of h (``dirk.py``)."""
+        p1, v1, w = self.dirk_safe(self.method.tableau, p, v, h, ain)
+        return self._settle(p, v, h, ain, p1, v1, w, stats)
+
+    def _settle(self, p: float, v: float, h: float, ain: float, p1: float, v1: float, w: float,
+                stats: GuardStats) -> tuple[float, float, float]:
+        """Replace a non-finite result by the fallback's; count a Coulomb stick."""
         if not (math.isfinite(p1) and math.isfinite(v1) and math.isfinite(w)):
             stats.fallbacks += 1
             p1, v1, w = self.last_resort(p, v, h, ain)

@@ -2,9 +2,25 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 from .errors import IntegratorError
+from .guard import GuardStats
 from .tableaus import DOPRI5, EULER, MIDPOINT, RK4, SDIRK2, SDIRK3, Tableau
+
+
+class Advance(Protocol):
+    """The one protocol every kind of method implements (``Engine.advance``).
+
+    Cover a step of h from (φ, φ') under the input acceleration ``ain`` = τ/I, count what was
+    done beyond a plain step in ``stats`` and return (φ₁, φ'₁, w), w the damping work per unit
+    inertia. Explicit methods: ``Engine.careful`` (generated steps of ``explicit.py``); diagonally
+    implicit: ``Engine.implicit_advance`` (``dirk.py``); embedded adaptive: ``embedded.Cover``.
+    """
+
+    def __call__(self, p: float, v: float, h: float, ain: float,
+                 stats: GuardStats) -> tuple[float, float, float]:
+        """Advance one step of h."""
 
 
 @dataclass(frozen=True)
@@ -23,6 +39,11 @@ class Method:
     def order(self) -> int:
         """Return the declared order (measured by the test suite)."""
         return self.tableau.order
+
+    @property
+    def fixed_step(self) -> bool:
+        """Return True unless the method chooses its own substeps (h is then output spacing)."""
+        return self.kind != 'adaptive'
 
     @property
     def description(self) -> str:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 
-from .embedded import cover
 from .engine import ENERGY_TOL, Engine, compile_fast_step
 from .errors import ModelError
 from .guard import GuardStats
@@ -61,7 +60,6 @@ class Stepper:
         self._guard_on = bool(guard)
         self._energy_check = bool(energy_check)
         self._initial = validate_state(phi0, dphi0, params)
-        self._h_try = 0.0  # the adaptive method's next trial step
         self.stats = GuardStats()
         self._configure(params)
         self.reset()
@@ -70,13 +68,14 @@ class Stepper:
     def _configure(self, params: PendulumParams) -> None:
         self._params = params
         eng = Engine(params.omega0_sq, params.gamma, params.n, self._method, self._guard_on,
-                     self._energy_check)
+                     self._energy_check, self._rtol, self._atol)
         self._engine = eng
         self._w2, self._gamma = eng.w2, eng.gamma
         self._inv_inertia = 1.0 / params.inertia
         self._max_torque = MAX_INPUT_ACCEL * params.inertia
         self._step_fn = eng.step_fn
-        self._fast = eng.kind == 'explicit'
+        self._fast = eng.kind == 'explicit'  # the generated fast path exists
+        self._slow = eng.advance  # the method's Advance: everything the fast path refuses
         self._coulomb = eng.coulomb
         self._fast_fn = compile_fast_step(eng.plain_tableau, eng.n, eng.nonsmooth, eng.reach,
                                           eng.v_acc, eng.energy_check)
@@ -98,7 +97,7 @@ class Stepper:
     def _limited(self, params: PendulumParams) -> PendulumParams | None:
         """Return the parameters that bound h (none for the adaptive method: h is its output
         spacing and its substeps are error-controlled)."""
-        return None if self._method.kind == 'adaptive' else params
+        return params if self._method.fixed_step else None
 
     def reset(self, phi0: float | None = None, dphi0: float | None = None) -> None:
         """Return to t = 0 and the initial state (or a new one), clearing work and counters."""
@@ -112,7 +111,7 @@ class Stepper:
         self._work_damping = 0.0  # per unit inertia, J / (kg m²)
         self._work_input = 0.0  # J
         self._e0 = self.energy()
-        self._h_try = 0.0
+        self._slow = self._engine.fresh_advance()  # no trial-step memory across a reset
         self.stats = GuardStats()
 
     # ------------------------------------------------------------------ state
@@ -206,18 +205,12 @@ class Stepper:
                 except (OverflowError, ValueError):
                     r = None
             if r is None:
-                p1, v1, w = self._engine.careful(p, v, h, ain, self.stats)
+                p1, v1, w = self._slow(p, v, h, ain, self.stats)
                 self._e = math.nan
             else:
                 p1, v1, w, self._e = r
-        elif self._method.kind == 'implicit':
-            p1, v1, w = self._engine.careful(p, v, h, ain, self.stats)
         else:
-            p1, v1, w, self._h_try = cover(self._engine, p, v, h, ain, self._rtol,
-                                           self._atol, self._h_try, self.stats)
-            if not (math.isfinite(p1) and math.isfinite(v1)):
-                self.stats.fallbacks += 1
-                p1, v1, w = self._engine.last_resort(p, v, h, ain)
+            p1, v1, w = self._slow(p, v, h, ain, self.stats)
         self._work_damping += w
         self._work_input += torque * (p1 - p)
         self._p, self._v = p1, v1
@@ -238,14 +231,11 @@ class Stepper:
         p, v, h = self._p, self._v, self._h
         scratch = GuardStats()
         eng = self._engine
-        if eng.kind == 'adaptive':
-            def take(pp: float, vv: float, hh: float) -> tuple[float, float]:
-                r = cover(eng, pp, vv, hh, ain, self._rtol, self._atol, 0.0, scratch)
-                return r[0], r[1]
-        else:
-            def take(pp: float, vv: float, hh: float) -> tuple[float, float]:
-                r = eng.careful(pp, vv, hh, ain, scratch)
-                return r[0], r[1]
+
+        def take(pp: float, vv: float, hh: float) -> tuple[float, float]:
+            r = eng.fresh_advance()(pp, vv, hh, ain, scratch)
+            return r[0], r[1]
+
         pa, va = take(p, v, h)
         pb, vb = take(p, v, 0.5 * h)
         pb, vb = take(pb, vb, 0.5 * h)
