@@ -140,17 +140,18 @@ def _scalar(src: str) -> str:
 
 @functools.lru_cache(maxsize=256)
 def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float, v_acc: float,
-                      check_energy: bool) -> Any:
+                      check_energy: bool, w2: float, gamma: float) -> Any:
     """Compile the Stepper's fast path: one plain step and the fast-path decisions, inlined.
 
-    ``fast(p0, v0, h, ain, w2, gamma, e0)`` returns ``(φ₁, φ'₁, w, E₁/I)`` when the engine's
-    decisions accept the plain step (E₁/I is NaN where the energy check does not apply), and
-    None when the careful path must take it; ``e0`` is E/I at the start or NaN if unknown.
+    ``fast(p0, v0, h, ain, e0)`` (ω0² = ``w2`` and γ = ``gamma`` bound in) returns
+    ``(φ₁, φ'₁, w, E₁/I)`` when the engine's decisions accept the plain step (E₁/I is NaN
+    where the energy check does not apply), and None when the careful path must take it;
+    ``e0`` is E/I at the start or NaN if unknown.
     The step is ``explicit.step_source`` and the decisions are the ``*_SRC`` texts above, so
     this is the same code ``sweep`` runs on arrays, without the calls between its parts.
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
-    lines = ['def fast(p0, v0, h, ain, w2, gamma, e0):', *body,
+    lines = ['def fast(p0, v0, h, ain, e0):', *body,
              '    if not (-INF < p1 < INF and -INF < v1 < INF):', '        return None',
              '    v = v0', '    a0 = a_0']
     if nonsmooth:
@@ -167,7 +168,7 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
     else:
         lines += ['    return p1, v1, w, NAN']
     env: dict[str, object] = dict(SCALAR_ENV, n=n, reach=reach, v_acc=v_acc, INF=math.inf,
-                                  NAN=math.nan, ENERGY_TOL=ENERGY_TOL)
+                                  NAN=math.nan, ENERGY_TOL=ENERGY_TOL, w2=w2, gamma=gamma)
     exec(compile('\n'.join(lines) + '\n', f'<fast {tableau.name} n={n}>', 'exec'), env)
     return env['fast']
 

@@ -78,7 +78,7 @@ class Stepper:
         self._slow = eng.advance  # the method's Advance: everything the fast path refuses
         self._coulomb = eng.coulomb
         self._fast_fn = compile_fast_step(eng.plain_tableau, eng.n, eng.nonsmooth, eng.reach,
-                                          eng.v_acc, eng.energy_check)
+                                          eng.v_acc, eng.energy_check, eng.w2, eng.gamma)
         self._e = math.nan  # E/I of the current state where the fast path knows it
         self._range_ain = math.nan  # the a_in the cached fast range is for
         self._lo, self._hi = math.inf, -math.inf
@@ -201,7 +201,7 @@ class Stepper:
             r = None
             if self._lo <= abs(v) <= self._hi:
                 try:
-                    r = self._fast_fn(p, v, h, ain, self._w2, self._gamma, self._e)
+                    r = self._fast_fn(p, v, h, ain, self._e)
                 except (OverflowError, ValueError):
                     r = None
             if r is None:
