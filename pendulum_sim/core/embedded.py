@@ -6,6 +6,8 @@ within [0.2, 5] (Hairer, Nørsett and Wanner, *Solving ODEs I*, II.4). Where the
 smooth at φ' = 0 (n even, non-integer, or 0) an accepted substep that crosses a reversal is cut
 at it: the reversal is located on the branch continuation of the start (Hermite guess, Newton on
 the substep's own φ'), so no substep straddles the kink and the pair's estimate stays valid.
+The pair is an explicit one (``explicit.py``) or a Rosenbrock one (``rosenbrock.py``): both
+steps have the same signature and results, and this one cover serves both.
 """
 from __future__ import annotations
 
@@ -13,9 +15,18 @@ import math
 
 from .engine import Engine, hermite_root
 from .errors import IntegratorError
-from .explicit import compile_step
+from .explicit import ErrStepFn, compile_step
 from .guard import GuardStats
+from .rosenbrock import compile_rosenbrock
 from .tableaus import Tableau
+
+
+def pair_steps(tab: Tableau, n: float) -> tuple[ErrStepFn, ErrStepFn]:
+    """Return the embedded pair's compiled (plain law, branch law) steps with error estimate."""
+    if tab.rosenbrock:
+        return compile_rosenbrock(tab, n), compile_rosenbrock(tab, n, branch=True)
+    return (compile_step(tab, n, with_error=True),
+            compile_step(tab, n, branch=True, with_error=True))
 
 
 class TooManySubsteps(Exception):
@@ -24,17 +35,18 @@ class TooManySubsteps(Exception):
 
 def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
           h_try: float, stats: GuardStats, tableau: Tableau | None = None,
-          max_trials: int = 0) -> tuple[float, float, float, float]:
+          max_trials: int = 0,
+          steps: tuple[ErrStepFn, ErrStepFn] | None = None) -> tuple[float, float, float, float]:
     """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial).
 
     ``tableau`` is the embedded pair (default: the engine's method); every trial after the
     first counts as a substep in ``stats``; with ``max_trials`` > 0, :class:`TooManySubsteps`
-    is raised once that many trials did not cover h.
+    is raised once that many trials did not cover h. ``steps`` are the pair's compiled steps
+    (:func:`pair_steps`) where the caller keeps them.
     """
     tab = eng.method.tableau if tableau is None else tableau
     trials = 0
-    plain = compile_step(tab, eng.n, with_error=True)
-    branch = compile_step(tab, eng.n, branch=True, with_error=True)
+    plain, branch = pair_steps(tab, eng.n) if steps is None else steps
     w2, g, n = eng.w2, eng.gamma, eng.n
     q = 1.0 / (tab.error_order + 1)
     done, w_total = 0.0, 0.0
@@ -115,12 +127,13 @@ class Cover:
     def __init__(self, eng: Engine, rtol: float, atol: float) -> None:
         self.eng, self.rtol, self.atol = eng, rtol, atol
         self.h_try = 0.0  # the next trial substep, carried from step to step
+        self.steps = pair_steps(eng.method.tableau, eng.n)
 
     def __call__(self, p: float, v: float, h: float, ain: float,
                  stats: GuardStats) -> tuple[float, float, float]:
         """Cover one step of h; a non-finite result is replaced by the fallback's."""
         p1, v1, w, self.h_try = cover(self.eng, p, v, h, ain, self.rtol, self.atol, self.h_try,
-                                      stats)
+                                      stats, steps=self.steps)
         if not (math.isfinite(p1) and math.isfinite(v1)):
             stats.fallbacks += 1
             return self.eng.last_resort(p, v, h, ain)

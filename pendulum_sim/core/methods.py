@@ -6,7 +6,7 @@ from typing import Protocol
 
 from .errors import IntegratorError
 from .guard import GuardStats
-from .tableaus import DOPRI5, EULER, MIDPOINT, RK4, SDIRK2, SDIRK3, Tableau
+from .tableaus import DOPRI5, EULER, MIDPOINT, RK4, RODAS4, SDIRK2, SDIRK3, Tableau
 
 
 class Advance(Protocol):
@@ -15,7 +15,8 @@ class Advance(Protocol):
     Cover a step of h from (φ, φ') under the input acceleration ``ain`` = τ/I, count what was
     done beyond a plain step in ``stats`` and return (φ₁, φ'₁, w), w the damping work per unit
     inertia. Explicit methods: ``Engine.careful`` (generated steps of ``explicit.py``); diagonally
-    implicit: ``Engine.implicit_advance`` (``dirk.py``); embedded adaptive: ``embedded.Cover``.
+    implicit: ``Engine.implicit_advance`` (``dirk.py``); embedded adaptive (explicit or
+    Rosenbrock pair): ``embedded.Cover``.
     """
 
     def __call__(self, p: float, v: float, h: float, ain: float,
@@ -28,7 +29,8 @@ class Method:
     """An integration method of the core.
 
     ``kind`` is ``'explicit'`` (fixed step, guarded), ``'adaptive'`` (embedded pair with error
-    control, for offline accuracy) or ``'implicit'`` (L-stable DIRK, for stiff damping).
+    control: explicit ``dopri5`` for offline accuracy, linearly implicit ``rodas4`` for long
+    stiff runs) or ``'implicit'`` (L-stable DIRK, for stiff damping).
     """
 
     name: str
@@ -58,6 +60,7 @@ METHODS: dict[str, Method] = {
     'dopri5': Method('dopri5', 'adaptive', DOPRI5),
     'sdirk2': Method('sdirk2', 'implicit', SDIRK2),
     'sdirk3': Method('sdirk3', 'implicit', SDIRK3),
+    'rodas4': Method('rodas4', 'adaptive', RODAS4),
 }
 
 FALLBACK_METHOD = METHODS['sdirk3']

@@ -2,8 +2,10 @@
 
 An explicit method is ``A`` (strictly lower triangular), ``B``, ``C`` and its order; an embedded
 pair adds ``E`` (the weights of the error estimate, B − B̂); a diagonally implicit method has a
-lower triangular ``A`` with a non-zero diagonal. One generic step serves each kind
-(``explicit.py``, ``embedded.py``, ``dirk.py``).
+lower triangular ``A`` with a non-zero diagonal; a linearly implicit (Rosenbrock) method adds
+the coupling coefficients ``G`` (cᵢⱼ) and the diagonal ``gamma`` (γ) of its transformed form.
+One generic step serves each kind (``explicit.py``, ``embedded.py``, ``dirk.py``,
+``rosenbrock.py``).
 """
 from __future__ import annotations
 
@@ -28,6 +30,8 @@ class Tableau:
     E: FloatArray | None = None  # error weights of an embedded pair
     error_order: int = 0  # order of the embedded (lower) solution
     description: str = ''
+    G: FloatArray | None = None  # Rosenbrock: cᵢⱼ of the transformed stages (Hairer-Wanner IV.7)
+    gamma: float = 0.0  # Rosenbrock: the diagonal γ
     stability_poly: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -42,12 +46,26 @@ class Tableau:
 
     @property
     def explicit(self) -> bool:
-        """Return True where A is strictly lower triangular."""
-        return bool(np.all(np.triu(self.A) == 0.0))
+        """Return True where A is strictly lower triangular and the method is not Rosenbrock."""
+        return self.G is None and bool(np.all(np.triu(self.A) == 0.0))
+
+    @property
+    def rosenbrock(self) -> bool:
+        """Return True for a linearly implicit (Rosenbrock) method."""
+        return self.G is not None
 
     def stability_function(self, z: complex) -> complex:
         """Return R(z) = 1 + z bᵀ (I − z A)⁻¹ 1, the amplification of y' = λ y at z = h λ."""
         s = self.stages
+        if self.G is not None:
+            # The transformed stages on y' = λ y with the exact Jacobian (z = h λ):
+            # (1/γ − z) kᵢ = z (1 + Σ aᵢⱼ kⱼ) + Σ cᵢⱼ kⱼ, and R = 1 + Σ bᵢ kᵢ.
+            ks: list[complex] = []
+            for i in range(s):
+                arg = 1.0 + sum(self.A[i, j] * ks[j] for j in range(i))
+                cpl = sum(self.G[i, j] * ks[j] for j in range(i))
+                ks.append((z * arg + cpl) / (1.0 / self.gamma - z))
+            return complex(1.0 + sum(self.B[i] * ks[i] for i in range(s)))
         if self.explicit:
             return complex(np.polyval(self.stability_poly[::-1], z))
         m = np.eye(s) - z * self.A
@@ -123,5 +141,38 @@ SDIRK3 = Tableau(
 # sign of φ' against the forces), the last resort of the guard's fallback.
 BACKWARD_EULER = Tableau('backward_euler', 1, _t([[1.0]]), _t([1.0]), _t([1.0]),
                          description='backward Euler, the last resort of the fallback')
+
+# Hairer and Wanner, *Solving ODEs II* (1996), IV.7, Table 7.2: RODAS, the stiffly accurate,
+# L-stable Rosenbrock method of order 4 with an embedded order-3 solution, 6 stages (the last
+# two evaluate f at the embedded and the final solution), in the transformed variables of
+# eq (7.25): A = aᵢⱼ, G = cᵢⱼ, B = mᵢ, E = mᵢ − m̂ᵢ, C = αᵢ (stage times).
+_R51, _R52, _R53, _R54 = (1.221224509226641, 6.019134481288629, 12.53708332932087,
+                          -0.6878860361058950)
+RODAS4 = Tableau(
+    'rodas4', 4,
+    _t([
+        [0, 0, 0, 0, 0, 0],
+        [1.544, 0, 0, 0, 0, 0],
+        [0.9466785280815826, 0.2557011698983284, 0, 0, 0, 0],
+        [3.314825187068521, 2.896124015972201, 0.9986419139977817, 0, 0, 0],
+        [_R51, _R52, _R53, _R54, 0, 0],
+        [_R51, _R52, _R53, _R54, 1.0, 0],
+    ]),
+    _t([_R51, _R52, _R53, _R54, 1.0, 1.0]),
+    _t([0.0, 0.386, 0.21, 0.63, 1.0, 1.0]),
+    E=_t([0, 0, 0, 0, 0, 1.0]),
+    error_order=3,
+    description='RODAS4: L-stable Rosenbrock 4(3), adaptive, for long stiff runs',
+    G=_t([
+        [0, 0, 0, 0, 0, 0],
+        [-5.6688, 0, 0, 0, 0, 0],
+        [-2.430093356833875, -0.2063599157091915, 0, 0, 0, 0],
+        [-0.1073529058151375, -9.594562251023355, -20.47028614809616, 0, 0, 0],
+        [7.496443313967647, -10.24680431464352, -33.99990352819905, 11.70890893206160, 0, 0],
+        [8.083246795921522, -7.981132988064893, -31.52159432874371, 16.31930543123136,
+         -6.058818238834054, 0],
+    ]),
+    gamma=0.25,
+)
 
 TABLEAUS: dict[str, Tableau] = {t.name: t for t in (EULER, MIDPOINT, RK4, DOPRI5, SDIRK2, SDIRK3)}

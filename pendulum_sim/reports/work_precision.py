@@ -1,11 +1,12 @@
 """Work-precision: how accurate for how much CPU time, for every core method and scipy's peers.
 
-For each case, every method of ``METHODS`` runs over a sweep of its fixed step h (``dopri5``: of
-its tolerance), and ``scipy.integrate.solve_ivp`` (RK45, DOP853, Radau, LSODA) runs over a sweep
-of tolerances on the plain vector field (no reversal splitting: what a user calling scipy gets).
-Errors are measured against the independent reference of ``reference.py`` at the final time and
-as the maximum over a uniform output grid; time is CPU time (``time.process_time``), the minimum
-of repeats after a warm-up, as in the SciML work-precision diagrams.
+For each case, every method of ``METHODS`` runs over a sweep of its fixed step h (the adaptive
+``dopri5`` and ``rodas4``: of their tolerance), and ``scipy.integrate.solve_ivp`` (RK45, DOP853,
+Radau, LSODA) runs over a sweep of tolerances on the plain vector field (no reversal splitting:
+what a user calling scipy gets). Errors are measured against the independent reference of
+``reference.py`` at the final time and as the maximum over a uniform output grid; time is CPU
+time (``time.process_time``), the minimum of repeats after a warm-up, as in the SciML
+work-precision diagrams.
 """
 from __future__ import annotations
 
@@ -286,7 +287,8 @@ def _orders(rows: Sequence[dict[str, Any]], cases: Sequence[Case], floors: dict[
                    'fitted': fitted, 'points': used, 'guard_active_points': guarded,
                    'against': 'rtol' if method.kind == 'adaptive' else 'h',
                    'plain_fixed_step_order': math.nan}
-            if method.kind == 'adaptive' and case.params.smooth_damping:
+            if method.kind == 'adaptive' and method.tableau.explicit \
+                    and case.params.smooth_damping:
                 row['plain_fixed_step_order'] = _plain_order(case, name, grid, floors[case.name])
             out.append(row)
     return out
@@ -337,7 +339,8 @@ def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
         f'the final time (`err_final`) and the maximum over a grid of {grid.dt_out:g} s '
         '(`err_max`, used for orders and levels). Time is CPU time (`time.process_time`), the '
         f'minimum of up to {grid.repeats} repeats after a warm-up. Fixed-step methods: '
-        f'h = {grid.dt_out:g}/2^k; `dopri5` and scipy: rtol sweep, atol = rtol·{ATOL_FACTOR:g}. '
+        f'h = {grid.dt_out:g}/2^k; `dopri5`, `rodas4` and scipy: rtol sweep, '
+        f'atol = rtol·{ATOL_FACTOR:g}. '
         'The core runs with its defaults (stability guard, reversal splitting and energy check '
         'on). scipy gets the *plain* vector field of eq 20, without reversal splitting, as a '
         'user calling `solve_ivp` would; Radau and LSODA get the analytic Jacobian.'
@@ -358,7 +361,8 @@ def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
     s.section(
         'Fitted orders',
         'Least-squares slope of log err_max against log h over the 4 smallest steps above the '
-        'floor. For `dopri5` the slope is against rtol (tolerance proportionality, ideally ≈ 1), '
+        'floor. For `dopri5` and `rodas4` the slope is against rtol (tolerance '
+        'proportionality, ideally ≈ 1), '
         "and `plain_fixed_step_order` is its tableau's order measured in a bare fixed-step "
         'loop (smooth cases only).',
         'Where the guard acted on the fitted points (`guard_active_points` > 0: substeps, '
@@ -387,9 +391,10 @@ def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
            if met == len(paper_levels) else
            f'Not met on some level of: {", ".join(missed)}. Typical reasons: at γ = 1000 the '
            "problem is stiff and scipy's LSODA switches to BDF with the analytic Jacobian, "
-           'while the core pays guard substeps (rk4), stability-limited steps (dopri5) or '
-           'Python-level Newton iterations (sdirk); at the tightest levels of the mild cases '
-           "LSODA and DOP853 catch up with the core's dopri5 (order 5)."),
+           'while the core pays guard substeps (rk4), stability-limited steps (dopri5), '
+           'Python-level Newton iterations (sdirk) or, for the linearly implicit rodas4, at '
+           'least one 6-stage step in Python per output interval; at the tightest levels of '
+           "the mild cases LSODA and DOP853 catch up with the core's dopri5 (order 5)."),
         markdown_table(levels, ['case', 'level', 'measurable', 'core_best', 'core_cpu_s',
                                 'scipy_best', 'scipy_cpu_s', 'ratio', 'target_met']))
     s.section('Figures', '\n'.join(f'- `{f}`' for f in figures) if figures else

@@ -1,0 +1,158 @@
+"""The linearly implicit ``rodas4``: L-stable, order 4, accurate on long stiff runs.
+
+Oracles: its stability function against exp(z) and at z → −∞; the textbook Rosenbrock step
+(numpy solve) for the generated one; an independent reference (scipy restarted at every
+reversal, ``reports.reference``) for the runs.
+"""
+from __future__ import annotations
+
+import cmath
+import math
+
+import numpy as np
+import pytest
+
+from pendulum_sim.core import METHODS, PendulumParams, Stepper, simulate
+from pendulum_sim.core.engine import ENERGY_TOL
+from pendulum_sim.core.model import damping_derivative
+from pendulum_sim.core.rosenbrock import compile_rosenbrock, rosenbrock_step
+from pendulum_sim.core.tableaus import RODAS4
+
+W2 = 9.8
+
+
+def test_rodas4_is_registered_as_an_adaptive_method() -> None:
+    m = METHODS['rodas4']
+    assert (m.kind, m.order, m.fixed_step, m.tableau.explicit) == ('adaptive', 4, False, False)
+
+
+def test_stability_function_is_l_stable_and_of_order_four() -> None:
+    r = RODAS4.stability_function
+    assert abs(r(-1e8)) < 1e-6  # L-stable: R(−∞) = 0
+    assert abs(r(-1e4)) < 1e-3
+    ys = np.logspace(-3, 7, 300)
+    assert max(abs(r(1j * y)) for y in ys) <= 1.0 + 1e-12  # A-stable on the imaginary axis
+    # Local error R(z) − e^z = O(z^5): halving z divides it by 32.
+    ratio = abs(r(0.1) - cmath.exp(0.1)) / abs(r(0.05) - cmath.exp(0.05))
+    assert 28.0 < ratio < 36.0, ratio
+
+
+@pytest.mark.parametrize('n', [0.5, 1.0, 2.0, 2.5, 3.0])
+@pytest.mark.parametrize('branch', [False, True])
+def test_generated_step_is_the_reference_rosenbrock_step(n: float, branch: bool) -> None:
+    g, ain = 0.7, 0.3
+    p0, v0, h = 1.1, -0.8, 0.05
+    sign = -1.0  # the branch of the start's direction of motion
+
+    def law(v: float) -> float:
+        if branch:
+            return float(sign * g * abs(v) ** n)
+        return 0.0 if v == 0.0 else g * math.copysign(abs(v) ** n, v)
+
+    def f(y: np.ndarray) -> np.ndarray:
+        d = law(float(y[1]))
+        return np.array([y[1], ain - d - W2 * math.sin(y[0]), y[1] * d])
+
+    d = damping_derivative(g, n, v0)
+    jac = np.array([[0.0, 1.0, 0.0], [-W2 * math.cos(p0), -d, 0.0],
+                    [0.0, law(v0) + v0 * d, 0.0]])
+    y1, err = rosenbrock_step(RODAS4, f, jac, np.array([p0, v0, 0.0]), h)
+    got = compile_rosenbrock(RODAS4, n, branch)(p0, v0, h, ain, W2, g, sign)
+    np.testing.assert_allclose(got[:3], y1, rtol=0.0, atol=1e-15)
+    np.testing.assert_allclose(got[4:], err[:2], rtol=0.0, atol=1e-15)
+    assert got[3] == pytest.approx(ain - law(v0) - W2 * math.sin(p0), abs=1e-15)
+
+
+def test_fixed_step_order_is_four() -> None:
+    # The bare generated step in a fixed-step loop on the smooth n = 1 case: error ∝ h⁴.
+    step = compile_rosenbrock(RODAS4, 1.0)
+    ref = simulate(PendulumParams(gamma=1.0, n=1.0), 2.0, 0.0, 2.0, 2.0, 'dopri5',
+                   rtol=1e-13, atol=1e-15)
+    errs = []
+    for h in (0.1, 0.05, 0.025):
+        p, v = 2.0, 0.0
+        for _ in range(round(2.0 / h)):
+            p, v, _, _, _, _ = step(p, v, h, 0.0, W2, 1.0, 1.0)
+        errs.append(math.hypot(p - ref.phi[-1], v - ref.dphi[-1]))
+    slopes = [math.log2(errs[i] / errs[i + 1]) for i in range(2)]
+    assert all(abs(s - 4.0) < 0.3 for s in slopes), slopes
+
+
+def test_error_follows_the_tolerance() -> None:
+    params = PendulumParams(gamma=1.0, n=1.0)
+    ref = simulate(params, 2.0, 0.0, 5.0, 5.0, 'dopri5', rtol=1e-13, atol=1e-15)
+    errs = []
+    for rtol in (1e-6, 1e-8, 1e-10):
+        r = simulate(params, 2.0, 0.0, 5.0, 5.0, 'rodas4', rtol=rtol, atol=rtol * 1e-2)
+        errs.append(math.hypot(r.phi[-1] - ref.phi[-1], r.dphi[-1] - ref.dphi[-1]))
+    assert errs[0] > errs[1] > errs[2]
+    assert all(e < 50 * rtol for e, rtol in zip(errs, (1e-6, 1e-8, 1e-10), strict=True))
+    # Tolerance proportionality of an order-4(3) pair: two decades of rtol, ≥ 1.5 of error.
+    assert math.log10(errs[0] / errs[2]) >= 3.0, errs
+
+
+def _reference(params: PendulumParams, t: np.ndarray) -> object:
+    pytest.importorskip('scipy')
+    from pendulum_sim.reports.reference import reference
+
+    ref = reference(params, 2.0, 0.0, t)
+    assert ref is not None
+    return ref
+
+
+@pytest.mark.parametrize(('gamma', 'n', 'rtol'), [
+    (1000.0, 1.0, 1e-8), (1000.0, 2.0, 1e-8), (1000.0, 3.0, 1e-8), (1e4, 1.0, 1e-6),
+])
+def test_stiff_runs_are_accurate_with_few_steps(gamma: float, n: float, rtol: float) -> None:
+    # The paper's start on the stiff cases of the work-precision study: the fast mode decays in
+    # 1/(γ n |φ'|^(n−1)), then a slow creep; an L-stable method steps the creep at its own scale.
+    params = PendulumParams(gamma=gamma, n=n)
+    t = np.linspace(0.0, 5.0, 51)
+    ref = _reference(params, t)
+    r = simulate(params, 2.0, 0.0, 5.0, 0.1, 'rodas4', rtol=rtol, atol=rtol * 1e-2)
+    err = float(np.max(ref.error(r.phi, r.dphi)))  # type: ignore[attr-defined]
+    floor = 10.0 * ref.disagreement  # type: ignore[attr-defined]
+    assert err <= max(50.0 * rtol, floor), err
+    # Few substeps where the explicit pair is held at its stability limit (~3e4 at γ = 1e4).
+    assert r.stats.substeps < 1000, r.stats
+    if gamma == 1e4:
+        rd = simulate(params, 2.0, 0.0, 1.0, 0.1, 'dopri5', rtol=rtol, atol=rtol * 1e-2)
+        rr = simulate(params, 2.0, 0.0, 1.0, 0.1, 'rodas4', rtol=rtol, atol=rtol * 1e-2)
+        assert rr.stats.substeps * 20 < rd.stats.substeps
+
+
+@pytest.mark.parametrize('n', [0.3, 0.5, 1.5, 2.5])
+def test_reversals_are_cut_by_the_shared_treatment(n: float) -> None:
+    # Non-smooth laws: the same cut at φ' = 0 as dopri5 (embedded.cover), so the same
+    # reversals as dopri5 and as the reference's restarts, and the error within 10× tol.
+    params = PendulumParams(gamma=1.0, n=n)
+    t = np.linspace(0.0, 10.0, 101)
+    ref = _reference(params, t)
+    tol = 1e-8
+    r = simulate(params, 2.0, 0.0, 10.0, 0.1, 'rodas4', rtol=tol, atol=tol * 1e-2)
+    rd = simulate(params, 2.0, 0.0, 10.0, 0.1, 'dopri5', rtol=tol, atol=tol * 1e-2)
+    assert r.stats.reversals == rd.stats.reversals == ref.segments > 0  # type: ignore[attr-defined]
+    scale = 2.0 + math.sqrt(W2)
+    assert float(np.max(ref.error(r.phi, r.dphi))) <= 10.0 * tol * scale  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize('gamma', [1.0, 1000.0])
+@pytest.mark.parametrize('n', [0.5, 1.0, 2.0, 3.0])
+def test_energy_never_rises_without_input(gamma: float, n: float) -> None:
+    params = PendulumParams(gamma=gamma, n=n)
+    r = simulate(params, 2.0, 0.0, 5.0, 0.01, 'rodas4', rtol=1e-5, atol=1e-7)
+    e = r.energy / params.inertia
+    assert float(np.max(np.diff(e))) <= ENERGY_TOL * (e[0] + W2)
+    # The damping work is integrated with the state: the balance closes to the tolerance.
+    assert float(np.max(np.abs(r.residual))) <= 1e-6 * r.energy[0]
+
+
+def test_coulomb_sticks_and_stepper_matches_simulate() -> None:
+    # n = 0: the shared Coulomb treatment (stick at rest while |ω0² sin φ| ≤ γ).
+    params = PendulumParams(gamma=2.0, n=0.0)
+    r = simulate(params, 1.0, 0.0, 5.0, 0.05, 'rodas4', rtol=1e-8, atol=1e-10)
+    assert r.dphi[-1] == 0.0 and abs(W2 * math.sin(r.phi[-1])) <= 2.0
+    assert r.stats.sticks + r.stats.reversals > 0
+    s = Stepper(params, 1.0, 0.0, 0.05, 'rodas4', rtol=1e-8, atol=1e-10)
+    s.advance(100)
+    assert (s.phi, s.dphi) == (r.phi[-1], r.dphi[-1])
