@@ -114,7 +114,7 @@ class PendulumNode(Node):
         self._joint_name = str(v['joint_name'])
         start_time = float(v['start_time'])
         wall_anchored = start_time < 0.0 and not self._lockstep
-        epoch_ns = time.time_ns() if wall_anchored else round(max(start_time, 0.0) * 1e9)
+        epoch_ns = round(max(start_time, 0.0) * 1e9)
         self._joint = SimulatedJoint(joint_config(v, epoch_ns))
         self._paused = bool(v['start_paused'])
         self._step_budget = 0          # control periods still to take while paused
@@ -169,7 +169,9 @@ class PendulumNode(Node):
 
         # Timing: a steady-clock timer, an absolute schedule and rttest-like measurement.
         # The schedule starts after every entity (and the recorder) exists, so the first wake
-        # has no set-up time to catch up.
+        # has no set-up time to catch up, and a wall-anchored epoch is read at the same moment.
+        if wall_anchored:
+            self._joint = SimulatedJoint(joint_config(v, time.time_ns()))
         now = time.monotonic_ns()
         rate = float(v['publish_rate'])
         if self._sync:
