@@ -240,6 +240,9 @@ class SimulatedJoint:
         self._failed: str | None = None
         self._guard_before_reset: dict[str, int] = {}
         self._commanded = False
+        h_ns = config.h * NS
+        self._h_ns_int = round(h_ns) if abs(h_ns - round(h_ns)) < 1e-6 else 0
+        self._epoch_ns = config.epoch_ns
 
     # ------------------------------------------------------------------ state
     @property
@@ -284,12 +287,10 @@ class SimulatedJoint:
 
     def stamp_ns(self, step: int | None = None) -> int:
         """Return the stamp of step ``step`` (default: now): ``epoch + step h`` in ns."""
-        k = self.steps if step is None else step
-        h = self._config.h
-        h_ns = h * NS
-        if abs(h_ns - round(h_ns)) < 1e-6:   # whole nanoseconds: exact integer grid
-            return self._config.epoch_ns + k * round(h_ns)
-        return self._config.epoch_ns + round(k * h_ns)
+        k = self._base_steps + self._stepper.steps if step is None else step
+        if self._h_ns_int:   # whole nanoseconds: an exact integer grid
+            return self._epoch_ns + k * self._h_ns_int
+        return self._epoch_ns + round(k * self._config.h * NS)
 
     def energy(self) -> float:
         """Return the energy of the true state now, J (finite, or JointError)."""
@@ -430,10 +431,11 @@ class SimulatedJoint:
         """
         d = self._config.sensor_delay_steps
         st = self._stepper
+        now = self._base_steps + st.steps
         if d == 0:
-            step, phi, dphi, tau = self.steps, st.phi, st.dphi, self._torque
+            step, phi, dphi, tau = now, st.phi, st.dphi, self._torque
         else:
-            want = self.steps - d
+            want = now - d
             hist = self._history
             if not hist or hist[0][0] > want:
                 return None

@@ -376,12 +376,14 @@ class PendulumNode(Node):
         k = joint.config.period_steps
         done = 0
         periods = 0
+        steps = joint.steps
         while periods < count and joint.failed is None:
-            n = joint.advance(min(k - joint.steps % k, CHUNK_STEPS))
+            n = joint.advance(min(k - steps % k, CHUNK_STEPS))
             done += n
+            steps += n
             if n == 0:
                 break
-            if joint.steps % k == 0:
+            if steps % k == 0:
                 periods += 1
                 self._publish()
                 if self._paused:
