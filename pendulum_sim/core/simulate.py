@@ -78,8 +78,8 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     t_end : float
         Final time in s (> 0); the last sample lands exactly on it.
     h : float
-        Step in s. For ``'dopri5'`` it is the output spacing; the method chooses its own steps
-        inside it to meet ``rtol``/``atol``.
+        Step in s. For the adaptive ``'dopri5'`` and ``'rodas4'`` it is the output spacing; the
+        method chooses its own steps inside it to meet ``rtol``/``atol``.
     method : str
         A name in ``METHODS`` (default ``'rk4'``, the paper's).
     torque : float or callable, optional
