@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 
 from .explicit import DampingFn
+from .model import damping_derivative
 from .tableaus import Tableau
 
 _EPS = 2.220446049250313e-16
@@ -65,7 +66,7 @@ def _solve_stage(P: float, W: float, alpha: float, w2: float, ain: float, gamma:
             lo = v
         else:
             hi = v
-        dg = (1.0 + alpha * _damping_slope(v, gamma, n)
+        dg = (1.0 + alpha * damping_derivative(gamma, n, v)
               + alpha * alpha * w2 * math.cos(P + alpha * v))
         nv = v - gv / dg if dg > 0.0 and math.isfinite(dg) else 0.5 * (lo + hi)
         if not lo < nv < hi:
@@ -74,18 +75,6 @@ def _solve_stage(P: float, W: float, alpha: float, w2: float, ain: float, gamma:
             return nv
         v = nv
     return v
-
-
-def _damping_slope(v: float, gamma: float, n: float) -> float:
-    if n == 1.0:
-        return gamma
-    a = abs(v)
-    if n == 0.0 or a == 0.0:
-        return 0.0 if n >= 1.0 or n == 0.0 else math.inf
-    try:
-        return float(gamma * n * a ** (n - 1.0))
-    except OverflowError:
-        return math.inf
 
 
 def dirk_step(tableau: Tableau, p0: float, v0: float, h: float, ain: float, w2: float,

@@ -175,7 +175,10 @@ def damping_derivative(gamma: float, n: float, dphi: float) -> float:
     a = abs(dphi)
     if a == 0.0:
         return math.inf if n < 1.0 else 0.0
-    return float(gamma * n * a ** (n - 1.0))
+    try:
+        return float(gamma * n * a ** (n - 1.0))
+    except OverflowError:   # beyond float64: as steep as it gets
+        return math.inf
 
 
 def _eigs(d: float, c: float) -> tuple[complex, complex]:
