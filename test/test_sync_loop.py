@@ -64,6 +64,7 @@ def run_loop(tmp: Path, name: str, hog: bool) -> dict[str, list[Any]]:
             # The controller answers states 0..N and exits by itself.
             assert ctrl.wait(60.0) == 0, ctrl.output()
             assert node.stop(signal.SIGINT) == 0, node.output()
+            assert 'synchronous: a controller is connected; stepping' in node.output()
     finally:
         for p in hogs:
             p.kill()

@@ -129,6 +129,8 @@ class PendulumNode(Node):
                             'ahead': 0}
         self._incompatible: dict[str, int] = {}
         self._failure_logged = False
+        self._sync_started = False
+        self._sync_waiting_logged = False
         self._bad_commands: dict[str, int] = {}
 
         # Entities: only what the scene enables.
@@ -412,7 +414,16 @@ class PendulumNode(Node):
             if self._paused and not self._step_budget:
                 return
             if self._ready():
+                if not self._sync_started:
+                    self._sync_started = True
+                    self.get_logger().info('synchronous: a controller is connected; stepping')
                 self._sync_publish()
+            elif not self._sync_waiting_logged:
+                self._sync_waiting_logged = True
+                topics = ', '.join(str(sub.topic_name) for sub in self._cmd_subs)
+                self.get_logger().info(
+                    f'synchronous: waiting for a controller (a subscriber on '
+                    f'{self._js_pub.topic_name} and a reliable publisher on {topics})')
             return
         if self._paused and not self._step_budget:
             return
