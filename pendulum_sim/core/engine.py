@@ -34,7 +34,7 @@ from .explicit import (
 )
 from .guard import FALLBACK, MAX_ANGLE, GuardStats, StabilityGuard, safe_speed_range
 from .methods import FALLBACK_METHOD, Advance, Method
-from .tableaus import BACKWARD_EULER, RK4, Tableau
+from .tableaus import BACKWARD_EULER, DOPRI5, RK4, Tableau
 
 ENERGY_TOL = 1e-12
 """An explicit step may raise the energy by round-off and by the conservative part of its
@@ -245,6 +245,19 @@ def guard_for(tableau: Tableau) -> StabilityGuard:
     return StabilityGuard(tableau)
 
 
+@functools.lru_cache(maxsize=64)
+def _explicit(tableau: Tableau) -> bool:
+    """Return ``tableau.explicit``, computed once per tableau (an Engine is made per pendulum)."""
+    return tableau.explicit
+
+
+@functools.cache
+def _embedded() -> Any:
+    """Return the ``embedded`` module (it builds on this one, so it is imported on first use)."""
+    from . import embedded
+    return embedded
+
+
 class Engine:
     """The decisions and the careful path for one pendulum's (ω0², γ, n) and method.
 
@@ -275,7 +288,7 @@ class Engine:
         self.w_ref = max(self.omega0, 1.0)
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
         # only for a Coulomb break-away, never for the implicit method's own steps).
-        self.plain_tableau = tab if tab.explicit else RK4
+        self.plain_tableau = tab if _explicit(tab) else RK4
         self.step_fn: StepFn = compile_step(self.plain_tableau, n)
         self.branch_fn: StepFn = compile_step(self.plain_tableau, n, branch=True)
         self.guard = guard_for(tab) if guard and self.kind == 'explicit' else None
@@ -286,6 +299,7 @@ class Engine:
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
         self.rtol, self.atol = rtol, atol
         self.advance: Advance = self.fresh_advance()
+        self._stiff_steps: Any = None  # the Dormand-Prince pair of :meth:`stiff`, on first use
 
     def fresh_advance(self) -> Advance:
         """Return this method's :class:`~pendulum_sim.core.methods.Advance` with fresh memory."""
@@ -374,16 +388,16 @@ class Engine:
         the transient is resolved, not merely kept stable, and its error falls at order ≥ 4
         as h falls. Beyond STIFF_MAX_TRIALS trials the guard takes the step.
         """
-        from .embedded import TooManySubsteps, cover
-        from .tableaus import DOPRI5
-
+        emb = _embedded()
+        if self._stiff_steps is None:
+            self._stiff_steps = emb.pair_steps(DOPRI5, self.n)
         tol = STIFF_TOL * (h * self.w_ref) ** 4
         d = self.gamma * self.n * abs(v) ** (self.n - 1.0)
         first = min(h, 1.0 / d) if d > 0.0 else h
         try:
-            p1, v1, w, _ = cover(self, p, v, h, ain, tol, tol, first, stats, DOPRI5,
-                                 STIFF_MAX_TRIALS)
-        except TooManySubsteps:
+            p1, v1, w, _ = emb.cover(self, p, v, h, ain, tol, tol, first, stats, DOPRI5,
+                                     STIFF_MAX_TRIALS, self._stiff_steps)
+        except emb.TooManySubsteps:
             return self.guarded(p, v, h, ain, stats)
         return p1, v1, w
 

@@ -221,6 +221,28 @@ class _Group:
         self.any_nonsmooth = bool(self.nonsmooth.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
         self.any_check = bool(self.check.any())
+        self.all_check = bool(self.check.all())
+        self.any_lo = bool(self.lo.any())  # lo = 0 everywhere: |φ'| >= lo needs no test
+
+
+def _on_unique(fn: Any, *cols: FloatArray) -> FloatArray:
+    """Return ``fn(*row)`` (a float or a tuple) for every row, called once per distinct row.
+
+    Pendulums often share their parameters (a grid of a few γ, many initial states), and where
+    at most one column varies the distinct rows are found on that column alone.
+    """
+    fixed = [float(c[0]) for c in cols]
+    vary = [k for k, c in enumerate(cols) if not np.all(c == c[0])]
+    if len(vary) > 1:
+        uniq, inv = np.unique(np.column_stack(cols), axis=0, return_inverse=True)
+        rows = uniq.tolist()
+    elif vary:
+        k = vary[0]
+        values, inv = np.unique(cols[k], return_inverse=True)
+        rows = [[*fixed[:k], x, *fixed[k + 1:]] for x in values.tolist()]
+    else:
+        rows, inv = [fixed], np.zeros(cols[0].size, dtype=np.int64)
+    return np.array([fn(*row) for row in rows], dtype=np.float64)[inv.ravel()]
 
 
 def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, method: str,
@@ -228,7 +250,7 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
     tab = METHODS[method].tableau
     g = guard_for(tab)
     out = []
-    bounds = np.array([ain_bound(a) for a in tau]) if np.any(tau) else np.zeros_like(tau)
+    bounds = _on_unique(ain_bound, tau)
     vals, starts = np.unique(nn, return_index=True)
     ends = [*starts[1:].tolist(), nn.size]
     pieces = [(val, a0, min(a0 + BLOCK, b)) for val, a, b in
@@ -238,18 +260,19 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
         smooth = val >= 1.0 and val == int(val) and int(val) % 2 == 1
         lo = np.zeros(b - a)
         hi = np.full(b - a, math.inf)
+        omega0 = np.sqrt(om2[sl])
         if guard:
-            keys = np.column_stack([om2[sl], gam[sl], bounds[sl]])
-            uniq, inv = np.unique(keys, axis=0, return_inverse=True)
-            rng = np.array([safe_speed_range(g, w2, ga, val, h, bd) for w2, ga, bd in uniq])
-            lo, hi = rng[inv.ravel(), 0], rng[inv.ravel(), 1]
+            def lo_hi(w2: float, ga: float, bd: float, n: float = val) -> tuple[float, float]:
+                return safe_speed_range(g, w2, ga, n, h, bd)
+
+            rng = _on_unique(lo_hi, om2[sl], gam[sl], bounds[sl])
+            lo, hi = np.ascontiguousarray(rng[:, 0]), np.ascontiguousarray(rng[:, 1])
         out.append(_Group(
             sl=sl, n=val, step=compile_step(tab, val, vector=True),
             nonsmooth=(gam[sl] > 0.0) & (not smooth), coulomb=(gam[sl] > 0.0) & (val == 0.0),
             check=(gam[sl] > 0.0) & (tau[sl] == 0.0) & energy_check, lo=lo, hi=hi,
-            reach=(_each(grade_window, np.sqrt(om2[sl])) if graded_law(val)
-                   else np.zeros(b - a)),
-            v_acc=(_each(accuracy_speed, gam[sl], np.full(b - a, val), np.sqrt(om2[sl]))
+            reach=_on_unique(grade_window, omega0) if graded_law(val) else np.zeros(b - a),
+            v_acc=(_on_unique(lambda ga, w0, n=val: accuracy_speed(ga, n, w0), gam[sl], omega0)
                    if guard and val > 1.0 else np.full(b - a, math.inf))))
     return out
 
@@ -331,7 +354,9 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
                     p, vv, w2, ga, ain = phi[sl], v[sl], om2[sl], gam[sl], tau[sl]
                     p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
                     av = np.abs(vv)
-                    ok = (grp.lo <= av) & (av <= grp.hi) & np.isfinite(p1) & np.isfinite(v1)
+                    ok = (av <= grp.hi) & np.isfinite(p1) & np.isfinite(v1)
+                    if grp.any_lo:
+                        ok &= grp.lo <= av
                     if grp.any_coulomb:
                         ok &= ~(grp.coulomb & (vv == 0.0))
                     if grp.any_nonsmooth:
@@ -342,21 +367,26 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
                             ok[q] &= ~stiff_transient(vv[q], a0[q], ga[q], grp.n, grp.v_acc[q])
                     if grp.any_check:
                         e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
-                        ok &= ~(grp.check & energy_rose(energy[sl], e1, w2))
+                        rose = energy_rose(energy[sl], e1, w2)
+                        ok &= ~rose if grp.all_check else ~(grp.check & rose)
                     else:
                         e1 = energy[sl]
-                    for j in np.flatnonzero(~ok).tolist():
-                        i = sl.start + j
-                        eng = engines.get(i)
-                        if eng is None:
-                            eng = engines[i] = Engine(float(om2[i]), float(gam[i]),
-                                                      float(nn[i]), meth, guard, energy_check)
-                            stats[i] = GuardStats()
-                        pj, vj, _ = eng.careful(float(p[j]), float(vv[j]), hh, float(ain[j]),
-                                                stats[i])
-                        p1[j], v1[j] = pj, vj
-                        if grp.any_check:
-                            e1[j] = specific_energy(vj, math.sin(0.5 * pj), float(w2[j]))
+                    refused = np.flatnonzero(~ok)
+                    if refused.size:
+                        cols = (p[refused], vv[refused], ain[refused], w2[refused], ga[refused])
+                        for j, pj, vj, aj, w2j, gj in zip(refused.tolist(),
+                                                          *(c.tolist() for c in cols),
+                                                          strict=True):
+                            i = sl.start + j
+                            eng = engines.get(i)
+                            if eng is None:
+                                eng = engines[i] = Engine(w2j, gj, grp.n, meth, guard,
+                                                          energy_check)
+                                stats[i] = GuardStats()
+                            pj, vj, _ = eng.careful(pj, vj, hh, aj, stats[i])
+                            p1[j], v1[j] = pj, vj
+                            if grp.any_check:
+                                e1[j] = specific_energy(vj, math.sin(0.5 * pj), w2j)
                     phi[sl], v[sl], energy[sl] = p1, v1, e1
                 done += 1
                 if record_every is not None and (done % record_every == 0 or done == total):
