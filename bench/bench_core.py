@@ -6,7 +6,8 @@ Run: ``.venv/bin/python bench/bench_core.py [--quick]``. Prints a table; asserts
    target ≤ 1.5 µs.
 2. ``sweep()`` in ns per pendulum-step at 10³, 10⁴, 10⁵ pendulums with mixed n = 1…5
    (γ ∈ [0.1, 2], φ0 ∈ [−2, 2], φ'0 ∈ [−3, 3], h = 1 ms, RK4, guard on), and one damping law
-   at a time.
+   at a time; at 10⁵, where the time goes (the set-up, and the pendulums the fast path refused
+   and the careful path stepped one by one).
 3. With scipy: one right-hand-side call of ``scipy.integrate.solve_ivp`` on the same problem,
    as solve_ivp's time divided by ``nfev`` (RK45) and as a bare call of the function.
 4. With MuJoCo (extra ``peers``): the same pendulum, n = 1 (MuJoCo's joint damping is linear),
@@ -31,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from pendulum_sim.core import PendulumParams, Stepper
+from pendulum_sim.core.engine import Engine
 from pendulum_sim.core.sweep import sweep
 from pendulum_sim.reports.report import machine_info
 
@@ -97,6 +99,40 @@ def bench_sweep(size: int, steps: int, repeats: int, ns: np.ndarray | None = Non
 
     wall, cpu = best_of_both(run, repeats)
     return wall / (size * steps) * 1e9, cpu / (size * steps) * 1e9, res[-1]
+
+
+def sweep_breakdown(size: int, steps: int, repeats: int, ns: np.ndarray | None = None
+                    ) -> tuple[float, float, float, float]:
+    """Return where a sweep's time goes: first step, careful-path calls per step, µs, share.
+
+    The best time of a one-step sweep (the set-up: validation, the guard's speed ranges and the
+    other per-pendulum constants, plus the first step, where transients start) is given in ns
+    per pendulum-step of a ``steps``-step run; the careful path is timed by wrapping
+    ``Engine.careful`` for one ``steps``-step run.
+    """
+    g, n, p0, v0 = sweep_problem(size, ns)
+    setup = best_of(lambda: sweep(W2, g, n, p0, v0, H, H), repeats)
+    calls, spent = 0, 0.0
+    plain = Engine.careful
+
+    def timed(self: Engine, *args: Any) -> tuple[float, float, float]:
+        nonlocal calls, spent
+        t0 = time.perf_counter()
+        try:
+            return plain(self, *args)
+        finally:
+            spent += time.perf_counter() - t0
+            calls += 1
+
+    Engine.careful = timed  # type: ignore[method-assign]
+    try:
+        t0 = time.perf_counter()
+        sweep(W2, g, n, p0, v0, steps * H, H)
+        total = time.perf_counter() - t0
+    finally:
+        Engine.careful = plain  # type: ignore[method-assign]
+    return (setup / (size * steps) * 1e9, calls / steps, spent / max(calls, 1) * 1e6,
+            spent / total)
 
 
 def bench_scipy(repeats: int) -> tuple[float, float, int] | None:
@@ -217,6 +253,13 @@ def main() -> None:
     verdict = ', '.join(f'{"met" if x <= 30.0 else "NOT met"} ({what} {x:.1f} ns)'
                         for what, x in (('wall', sweep_ns), ('CPU', sweep_cpu)))
     print(f'   (the earlier target <= 30 ns at 10^5 mixed: {verdict})')
+    print('   where the time goes at 10^5 (one run each): a one-step sweep (set-up + first step)')
+    print('   as ns per pendulum-step of the run; careful-path calls per step, µs per call, share')
+    for label, ns in (('mixed n=1..5', None), ('n = 1 only', np.full(big, 1.0)),
+                      ('n = 2 only', np.full(big, 2.0)), ('n = 5 only', np.full(big, 5.0))):
+        setup, per_step, us, share = sweep_breakdown(big, steps, reps, ns)
+        print(f'   {big:>9}  {label:<13} 1 step {setup:5.1f} ns, careful {per_step:6.0f}/step '
+              f'x {us:5.1f} µs = {100 * share:3.0f} %')
     print()
 
     mj = bench_mujoco(20000 if args.quick else 100000, reps)
