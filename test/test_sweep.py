@@ -334,3 +334,33 @@ def test_the_sweep_imports_numpy_and_the_core_only() -> None:
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == '[]'
+
+
+@pytest.mark.parametrize('vary', ['none', 'gamma', 'all'])
+def test_per_pendulum_constants_are_the_engines_own(vary: str) -> None:
+    # The sweep computes the guard's speed range, the stiff-transient speed and the grading
+    # window once per distinct (ω0², γ, τ/I) and maps them back: each pendulum must get exactly
+    # what its own Engine computes, whichever columns vary and however rows repeat.
+    from pendulum_sim.core.engine import Engine
+    from pendulum_sim.core.methods import METHODS
+
+    rng = np.random.default_rng(5)
+    size = 40
+    om2 = np.full(size, W2)
+    gam = np.full(size, 0.7)
+    tau = np.zeros(size)
+    if vary != 'none':
+        gam = rng.choice([0.0, 0.3, 0.7, 2.0, 50.0], size)
+    if vary == 'all':
+        om2 = rng.choice([1.0, W2, 40.0], size)
+        tau = rng.choice([0.0, -3.0, 0.4, 9.0], size)
+    h = 2e-2
+    for n in (0.5, 2.0, 5.0):
+        nn = np.full(size, n)
+        (grp,) = sweep_module._groups(nn, gam, om2, tau, 'rk4', h, True, True)
+        for i in range(size):
+            eng = Engine(float(om2[i]), float(gam[i]), n, METHODS['rk4'])
+            assert (grp.lo[i], grp.hi[i]) == eng.fast_range(h, float(tau[i])), (n, i)
+            assert grp.v_acc[i] == eng.v_acc, (n, i)
+            if gam[i] > 0.0:  # the window is used only where the damping is not smooth
+                assert grp.reach[i] == eng.reach, (n, i)
