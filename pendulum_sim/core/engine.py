@@ -353,6 +353,8 @@ class Engine:
             else:
                 p1, v1, w = self.guarded(p, v, h, ain, stats)
         except (OverflowError, ValueError):  # |x|^n beyond float64, sin(inf)
+            if self.unguarded:
+                raise self._diverged(p, v) from None
             stats.fallbacks += 1
             p1, v1, w = self.last_resort(p, v, h, ain)
         if self.energy_check and ain == 0.0:
@@ -373,6 +375,8 @@ class Engine:
                 stats: GuardStats) -> tuple[float, float, float]:
         """Replace a non-finite result by the fallback's; count a Coulomb stick."""
         if not (math.isfinite(p1) and math.isfinite(v1) and math.isfinite(w)):
+            if self.unguarded:   # plain steps as asked: a divergence is the answer, not fixed
+                raise self._diverged(p, v)
             stats.fallbacks += 1
             p1, v1, w = self.last_resort(p, v, h, ain)
         if v1 == 0.0 and v != 0.0 and self.coulomb:
@@ -401,16 +405,24 @@ class Engine:
             return self.guarded(p, v, h, ain, stats)
         return p1, v1, w
 
+    @property
+    def unguarded(self) -> bool:
+        """Return True for an explicit method run without the guard (plain steps)."""
+        return self.kind == 'explicit' and self.guard is None
+
+    def _diverged(self, p: float, v: float) -> IntegratorError:
+        return IntegratorError(
+            f'the unguarded {self.method.name} step diverged beyond float64 from '
+            f'phi = {p:g} rad, dphi = {v:g} rad/s; run with guard=True')
+
     def last_resort(self, p: float, v: float, h: float,
                     ain: float) -> tuple[float, float, float]:
         """Replace a step that overflowed or came out non-finite by the fallback's."""
         try:
             return self.implicit(p, v, h, ain)
         except (OverflowError, ValueError):
-            # Reachable only without the guard, once the state itself has blown up.
-            raise IntegratorError(
-                f'the unguarded {self.method.name} step diverged beyond float64 from '
-                f'phi = {p:g} rad, dphi = {v:g} rad/s; run with guard=True') from None
+            # Reachable only once the state itself has blown up.
+            raise self._diverged(p, v) from None
 
     def guarded(self, p: float, v: float, h: float, ain: float,
                 stats: GuardStats) -> tuple[float, float, float]:

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.errors import IntegratorError
 from ..core.guard import real_axis_bound
 from ..core.model import PendulumParams
 from ..core.simulate import simulate
@@ -127,7 +128,7 @@ def _unguarded(params: PendulumParams, sc: Scenario, t_end: float,
         with np.errstate(over='ignore', invalid='ignore'):
             run = simulate(params, sc.phi0, sc.dphi0, t_end, h, 'rk4', torque=sc.torque,
                            guard=False, energy_check=False)
-    except (OverflowError, ValueError, ZeroDivisionError) as exc:
+    except (OverflowError, ValueError, ZeroDivisionError, IntegratorError) as exc:
         return {'rk4_outcome': f'overflow ({type(exc).__name__})', 'rk4_unstable_run': True,
                 'rk4_energy_excess': math.inf}
     finite = bool(np.all(np.isfinite(run.phi)) and np.all(np.isfinite(run.dphi)))
