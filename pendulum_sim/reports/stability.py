@@ -260,9 +260,9 @@ def _summary(grid: StabilityGrid, cells: Sequence[dict[str, Any]],
         + (' Quick grid (for the test suite).' if grid.quick else ''),
         'Columns: `rk4_criterion_stable` — |R(hλ)| ≤ 1 for RK4 at every decaying eigenvalue '
         'of the linearisation along the (guarded) trajectory; `rk4_outcome` — an actual '
-        'plain RK4 loop (`plain.plain_run`: no guard, no reversal splitting), judged unstable when '
-        f'it overflows, goes non-finite, or its energy exceeds E(0) + input work by more than '
-        f'{GROWTH_TOL:g}·(E0 + m g l); `substeps`, `fallbacks`, `reversals`, '
+        'plain RK4 loop (`plain.plain_run`: no guard, no reversal splitting), judged unstable '
+        f'when it overflows, goes non-finite, or its energy exceeds E(0) + input work by more '
+        f'than {GROWTH_TOL:g}·(E0 + m g l); `substeps`, `fallbacks`, `reversals`, '
         '`energy_rejections` — what the guarded run did; `max_step_energy_increase_rel` — the '
         'largest one-sample increase of E − W_in, relative to E0 + m g l; `error_final` — the '
         'final state against the reference (scipy DOP853 or Radau restarted at reversals), '
