@@ -15,7 +15,7 @@ from pendulum_sim.core.tableaus import RK4
 PAPER = PendulumParams()
 
 
-def test_plain_rk4_blows_up_where_model_md_says_and_the_guard_does_not() -> None:
+def test_plain_rk4_blows_up_where_its_stability_region_says_and_the_guard_does_not() -> None:
     # n = 1, γ = 1000: the fast eigenvalue is about −γ, RK4 needs h < 2.785 ms; 60 Hz is not.
     params = PAPER.with_changes(gamma=1000.0, n=1.0)
     with np.errstate(all='ignore'):

@@ -28,7 +28,7 @@ def test_tableau_is_consistent(name: str) -> None:
         assert t.E.sum() == pytest.approx(0.0, abs=1e-15)
 
 
-def test_rk4_stability_region_meets_the_axes_where_model_md_says() -> None:
+def test_rk4_stability_region_meets_the_axes_at_the_known_bounds() -> None:
     rk4 = TABLEAUS['rk4']
     assert abs(rk4.stability_function(-2.785293563405)) == pytest.approx(1.0, abs=1e-11)
     assert abs(rk4.stability_function(2j * math.sqrt(2))) == pytest.approx(1.0, abs=1e-12)

@@ -261,11 +261,6 @@ class SimulatedJoint:
         return self._base_steps + self._stepper.steps
 
     @property
-    def periods(self) -> int:
-        """Return the number of whole control periods since the start."""
-        return self.steps // self._config.period_steps
-
-    @property
     def torque(self) -> float:
         """Return the torque applied in the last step, N m."""
         return self._torque
@@ -322,8 +317,7 @@ class SimulatedJoint:
         takes effect ``command_delay_steps`` from now and holds for ``timeout_steps``.
         """
         c = self._config
-        if not math.isfinite(value):
-            self.counters.rejected_nonfinite += 1
+        if not self.accepts(value):
             return False
         kind = c.command_interface
         if kind == 'effort':
@@ -343,6 +337,13 @@ class SimulatedJoint:
             self._set_target(limited, self.steps)
         return True
 
+    def accepts(self, value: float) -> bool:
+        """Return True for a usable command value; count a refused (non-finite) one."""
+        if math.isfinite(value):
+            return True
+        self.counters.rejected_nonfinite += 1
+        return False
+
     def _set_target(self, value: float, step: int) -> None:
         self._target = value
         self._target_step = step
@@ -361,11 +362,13 @@ class SimulatedJoint:
             tau = c.servo.velocity_p * (self._target - dphi)
         else:
             tau = c.servo.position_p * (self._target - phi) - c.servo.position_d * dphi
-        tau = min(max(tau, -c.max_effort), c.max_effort)
-        # The velocity limit: no torque that drives the joint further past max_velocity.
-        if tau * dphi > 0.0 and abs(dphi) >= c.max_velocity:
+        return self._velocity_limited(min(max(tau, -c.max_effort), c.max_effort), dphi)
+
+    def _velocity_limited(self, tau: float, dphi: float) -> float:
+        """Return ``tau``, or 0 (counted) if it would drive the joint further past max_velocity."""
+        if tau * dphi > 0.0 and abs(dphi) >= self._config.max_velocity:
             self.counters.limited += 1
-            tau = 0.0
+            return 0.0
         return tau
 
     # ------------------------------------------------------------------ stepping
@@ -380,7 +383,6 @@ class SimulatedJoint:
         pending = self._pending
         history = self._history if c.sensor_delay_steps else None
         effort_mode = c.command_interface == 'effort'
-        max_v = c.max_velocity
         base = self._base_steps
         done = 0
         tau = self._torque
@@ -396,12 +398,8 @@ class SimulatedJoint:
                         self.counters.timeouts += 1
                 if effort_mode:
                     tau = self._target
-                    # The velocity limit, inline for the common case (see _torque_for).
-                    if tau != 0.0:
-                        v = st.dphi
-                        if tau * v > 0.0 and abs(v) >= max_v:
-                            self.counters.limited += 1
-                            tau = 0.0
+                    if tau != 0.0:   # the velocity limit matters only under torque
+                        tau = self._velocity_limited(tau, st.dphi)
                 else:
                     tau = self._torque_for(st.phi, st.dphi)
                 step(tau)

@@ -91,7 +91,6 @@ SYNC_WATCH_PERIOD = 0.02
 # (counted) instead of freezing the node after a long stall.
 CATCH_UP_SECONDS = 0.25
 ENERGY_TERMS = ('kinetic', 'potential', 'dissipated_power', 'residual')
-RESET_TOPIC_FALLBACK = '/pendulum_sim/reset'
 
 
 def _stamp(ns: int) -> Time:
@@ -186,7 +185,7 @@ class PendulumNode(Node):
         rtf = float(v['real_time_factor'])
         self._schedule = Schedule(self._h, rtf if rtf > 0.0 else 1.0, now)
         self._asap = self._lockstep and rtf == 0.0
-        self._wakes = WakeStats(0 if (self._asap or self._sync) else self._period_ns)
+        self._wakes = WakeStats(0 if self._asap else self._period_ns)
         self._rate = RateMeter(now)
         if self._paused:
             self._rate.pause(now)
@@ -560,8 +559,7 @@ class PendulumNode(Node):
 
     def _take(self, topic: str, msg: Any, value: float, stamp_ns: int | None) -> None:
         """Apply (or, in synchronous mode, answer with) a valid command value."""
-        if not math.isfinite(value):
-            self._joint.counters.rejected_nonfinite += 1
+        if not self._joint.accepts(value):
             self._drop(topic, f'non-finite value {value}')
             return
         stamp = self._joint.stamp_ns()

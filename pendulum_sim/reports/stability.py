@@ -101,8 +101,9 @@ def criterion(params: PendulumParams, h: float, phi: np.ndarray,
     """Return (stable, max h|λ|): |R(hλ)| ≤ 1 for every decaying eigenvalue along the states.
 
     The eigenvalues are those of the linearisation [[0, 1], [−ω0² cos φ, −γ n |φ'|^(n−1)]]
-    (MODEL.md) at up to CRITERION_SAMPLES states of the trajectory; eigenvalues with
-    non-negative real part (above the horizontal) are physics, not a stability limit.
+    (the paper's eq 18-19, linearised) at up to CRITERION_SAMPLES states of the trajectory;
+    eigenvalues with non-negative real part (above the horizontal) are physics, not a
+    stability limit.
     """
     idx = np.unique(np.linspace(0, len(phi) - 1, min(len(phi), CRITERION_SAMPLES)).astype(int))
     stable = True
