@@ -37,8 +37,9 @@ def test_rk4_keeps_order_four_through_reversals(n: float) -> None:
     assert 14.0 <= float(np.nanmedian(q)) <= 18.0
 
 
+@pytest.mark.parametrize('method', ['dopri5', 'dop853'])
 @pytest.mark.parametrize('n', [0.3, 0.5, 1.5])
-def test_dopri5_meets_its_tolerance_through_reversals(n: float) -> None:
+def test_embedded_pairs_meet_their_tolerance_through_reversals(n: float, method: str) -> None:
     # Each accepted substep that crosses a reversal is cut there, so the pair's estimate stays
     # valid: the global error is within 10 × tol × state scale (it was ~900 × at n = 0.3).
     params = PendulumParams(gamma=1.0, n=n)
@@ -46,7 +47,33 @@ def test_dopri5_meets_its_tolerance_through_reversals(n: float) -> None:
     ref = reference(params, 2.0, 0.0, t)
     scale = float(np.max(np.hypot(ref.phi, ref.dphi)))
     for rtol in (1e-6, 1e-9):
-        r = simulate(params, 2.0, 0.0, T_END, 0.1, method='dopri5', rtol=rtol, atol=rtol * 1e-2)
+        r = simulate(params, 2.0, 0.0, T_END, 0.1, method=method, rtol=rtol, atol=rtol * 1e-2)
         assert r.stats.reversals == 5
         err = float(np.max(np.hypot(r.phi - ref.phi, r.dphi - ref.dphi)))
         assert err <= 10.0 * rtol * scale, (n, rtol, err)
+
+
+def test_dop853_step_is_of_order_eight() -> None:
+    # The bare tableau in a fixed-step loop on a smooth case (n = 1): the error falls as h^8.
+    # Its linear part: R(z) = Σ z^k / k! up to k = 8.
+    from math import factorial
+
+    from pendulum_sim.core.explicit import compile_step
+    from pendulum_sim.core.tableaus import DOP853
+
+    poly = DOP853.stability_poly
+    for k in range(9):
+        assert poly[k] == pytest.approx(1.0 / factorial(k), rel=1e-12)
+    params = PendulumParams(gamma=1.0, n=1.0)
+    step = compile_step(DOP853, 1.0)
+    t_end = 4.0
+    ref = reference(params, 1.0, 0.0, np.array([0.0, t_end]))
+    hs, errs = [0.4, 0.2, 0.1], []
+    for h in hs:
+        p, v = 1.0, 0.0
+        for _ in range(round(t_end / h)):
+            p, v, _, _ = step(p, v, h, 0.0, params.omega0_sq, 1.0, 1.0)
+        errs.append(float(np.hypot(p - ref.phi[-1], v - ref.dphi[-1])))
+    assert min(errs) > 100.0 * ref.disagreement
+    slope = float(np.polyfit(np.log(hs), np.log(errs), 1)[0])
+    assert 7.5 <= slope <= 8.5, (errs, slope)

@@ -49,7 +49,7 @@ def test_stepper_and_sweep_take_the_same_decisions(h: float) -> None:
     assert acted >= len(cells) // 6  # the grid exercises the careful path, not just plain steps
 
 
-@pytest.mark.parametrize('name', ['euler', 'midpoint', 'rk4', 'dopri5'])
+@pytest.mark.parametrize('name', ['euler', 'midpoint', 'rk4', 'dopri5', 'dop853'])
 @pytest.mark.parametrize('n', [0.0, 0.5, 1.0, 2.0, 2.5, 3.0])
 def test_generated_steps_are_the_reference_rk_step(name: str, n: float) -> None:
     tab = TABLEAUS[name]

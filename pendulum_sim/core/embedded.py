@@ -2,7 +2,7 @@
 
 The pair's two solutions differ by ``E`` (``tableaus.py``); a trial substep is accepted when
 the scaled error norm is at most 1 and the next trial is ``0.9 err^(−1/(p̂+1))`` times the last,
-within [0.2, 5] (Hairer, Nørsett and Wanner, *Solving ODEs I*, II.4). Where the damping is not
+within [0.2, 10] (Hairer, Nørsett and Wanner, *Solving ODEs I*, II.4). Where the damping is not
 smooth at φ' = 0 (n even, non-integer, or 0) an accepted substep that crosses a reversal is cut
 at it: the reversal is located on the branch continuation of the start (Hermite guess, Newton on
 the substep's own φ'), so no substep straddles the kink and the pair's estimate stays valid.
@@ -13,10 +13,13 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .engine import Engine, hermite_root
 from .errors import IntegratorError
-from .explicit import ErrStepFn, compile_step
+from .explicit import ErrStepFn, compile_damping, compile_step
 from .guard import GuardStats
+from .model import FloatArray
 from .rosenbrock import compile_rosenbrock
 from .tableaus import Tableau
 
@@ -29,6 +32,40 @@ def pair_steps(tab: Tableau, n: float) -> tuple[ErrStepFn, ErrStepFn]:
             compile_step(tab, n, branch=True, with_error=True))
 
 
+MAX_GROWTH = 10.0
+"""The largest factor by which a substep may grow after an accepted one (Hairer's facmax)."""
+
+
+def initial_step(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float,
+                 atol: float, order: int) -> float:
+    """Return a first trial substep from the scale of y and its first two derivatives.
+
+    The starting-step rule of Hairer, Nørsett and Wanner (*Solving ODEs I*, II.4): h₀ =
+    0.01 ‖y‖/‖f‖, then h₁ = (0.01 / max(‖f‖, ‖f'‖ h₀-estimate))^(1/(p+1)), the smaller of 100 h₀
+    and h₁, at most h. It resolves a fast start (a stiff transient from rest) instead of
+    stepping over it.
+    """
+    w2, damp = eng.w2, eng.damping
+
+    def rms(x: float, y: float, sp: float, sv: float) -> float:
+        return math.sqrt(0.5 * ((x / sp) ** 2 + (y / sv) ** 2))
+
+    try:
+        a0 = ain - damp(v) - w2 * math.sin(p)
+        sp, sv = atol + rtol * abs(p), atol + rtol * abs(v)
+        d0, d1 = rms(p, v, sp, sv), rms(v, a0, sp, sv)
+        h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = min(h0, h)
+        p1, v1 = p + h0 * v, v + h0 * a0
+        a1 = ain - damp(v1) - w2 * math.sin(p1)
+        d2 = rms(v1 - v, a1 - a0, sp, sv) / h0
+        big = max(d1, d2)
+        h1 = max(1e-6, h0 * 1e-3) if big <= 1e-15 else (0.01 / big) ** (1.0 / (order + 1))
+    except (OverflowError, ValueError, ZeroDivisionError):
+        return h * 1e-3
+    return min(100.0 * h0, h1, h)
+
+
 class TooManySubsteps(Exception):
     """Raised by :func:`cover` when ``max_trials`` trial substeps did not cover the step."""
 
@@ -36,13 +73,16 @@ class TooManySubsteps(Exception):
 def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
           h_try: float, stats: GuardStats, tableau: Tableau | None = None,
           max_trials: int = 0,
-          steps: tuple[ErrStepFn, ErrStepFn] | None = None) -> tuple[float, float, float, float]:
+          steps: tuple[ErrStepFn, ErrStepFn] | None = None,
+          trace: list[float] | None = None) -> tuple[float, float, float, float]:
     """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial).
 
     ``tableau`` is the embedded pair (default: the engine's method); every trial after the
     first counts as a substep in ``stats``; with ``max_trials`` > 0, :class:`TooManySubsteps`
     is raised once that many trials did not cover h. ``steps`` are the pair's compiled steps
-    (:func:`pair_steps`) where the caller keeps them.
+    (:func:`pair_steps`) where the caller keeps them. ``trace``, if given, receives
+    ``t, φ, φ', w`` after every accepted substep (t from the start of h): the mesh of
+    :func:`dense_run`.
     """
     tab = eng.method.tableau if tableau is None else tableau
     trials = 0
@@ -50,7 +90,7 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
     w2, g, n = eng.w2, eng.gamma, eng.n
     q = 1.0 / (tab.error_order + 1)
     done, w_total = 0.0, 0.0
-    hh = h_try if h_try > 0.0 else h * 0.1
+    hh = h_try if h_try > 0.0 else initial_step(eng, p, v, h, ain, rtol, atol, tab.order)
     while done < h:
         if eng.coulomb and v == 0.0:
             p, v, w = eng.from_rest(p, h - done, ain)
@@ -92,6 +132,8 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
                 p, v = pm, 0.0
                 w_total += wm
                 done += th * step_h
+                if trace is not None:
+                    trace += (done, p, v, w_total)
                 hh = max(th * step_h, 1e-6 * h)
                 if eng.coulomb:
                     continue
@@ -103,7 +145,9 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
             done = h if last else done + step_h
             p, v = p1, v1
             w_total += w
-            factor = 5.0 if err == 0.0 else min(5.0, 0.9 * err ** -q)
+            if trace is not None:
+                trace += (done, p, v, w_total)
+            factor = MAX_GROWTH if err == 0.0 else min(MAX_GROWTH, 0.9 * err ** -q)
             hh = step_h * factor if not last else max(hh, step_h * factor)
         else:
             factor = 0.2 if not math.isfinite(err) else max(0.2, 0.9 * err ** -q)
@@ -138,3 +182,83 @@ class Cover:
             stats.fallbacks += 1
             return self.eng.last_resort(p, v, h, ain)
         return p1, v1, w
+
+
+DENSE_MAX_ORDER = 4
+"""The interpolant of :func:`dense_run` is the quintic Hermite polynomial through the value and
+first two derivatives at both ends of a step (error O(δ⁶) in φ and the damping work, O(δ⁵) in
+φ' by its derivative): order 5, above the order of the methods it serves, so it does not lower
+their accuracy. Methods of order 5 and more stop at every output instead."""
+
+
+def dense_capable(eng: Engine) -> bool:
+    """Return True where :func:`dense_run` may serve the engine's adaptive method.
+
+    Its order is at most :data:`DENSE_MAX_ORDER`, and the damping is not Coulomb friction
+    (n = 0: sticking at rest is decided per step, not by a smooth interpolant).
+    """
+    return (eng.kind == 'adaptive' and eng.method.tableau.order <= DENSE_MAX_ORDER
+            and not eng.coulomb)
+
+
+def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rtol: float,
+              atol: float, stats: GuardStats) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Integrate over [0, t_out[-1]] in free adaptive steps; return φ, φ', w at ``t_out``.
+
+    The error-controlled substeps of :func:`cover` run over the whole span (cut at velocity
+    reversals, so no step straddles a kink) and land on the last output; every other output
+    is interpolated on the step that contains it by the quintic Hermite polynomials of φ (φ'
+    by its derivative) and of the damping work, instead of cutting a step at each output.
+    ``t_out`` is increasing from 0; ``a_in`` is constant over the run.
+    """
+    if not dense_capable(eng):
+        raise IntegratorError(f'{eng.method.name} has no dense output here')
+    trace: list[float] = [0.0, p, v, 0.0]
+    cover(eng, p, v, float(t_out[-1]), ain, rtol, atol, 0.0, stats, trace=trace)
+    mesh = np.asarray(trace).reshape(-1, 4)
+    ts, ps, vs, ws = mesh[:, 0], mesh[:, 1], mesh[:, 2], mesh[:, 3]
+    law = compile_damping(eng.n, vector=True)
+    d = law(vs, eng.gamma, 1.0)
+    acc = ain - d - eng.w2 * np.sin(ps)
+    k = np.searchsorted(ts, t_out, side='right') - 1
+    np.clip(k, 0, len(ts) - 2, out=k)
+    dt = ts[1:] - ts[:-1]
+    th = (t_out - ts[k]) / dt[k]
+    dt2 = dt * dt
+    # Per step, the end values in θ = (t − t₀)/δ: φ, δ φ', δ² φ'' at both ends, and the same
+    # of the damping work w, whose rate is φ' D(φ') and, since φ' D'(φ') = n D(φ') for the
+    # power law, whose second derivative is (n + 1) φ'' D(φ').
+    rate, curv = vs * d, (eng.n + 1.0) * acc * d
+    ends = np.stack((ps[:-1], dt * vs[:-1], dt2 * acc[:-1], ps[1:], dt * vs[1:], dt2 * acc[1:],
+                     ws[:-1], dt * rate[:-1], dt2 * curv[:-1], ws[1:], dt * rate[1:],
+                     dt2 * curv[1:]))
+    coef = (_HERMITE @ ends)[:, :, k]  # (power, [φ, dφ/dθ, w], output)
+    out = coef[5]
+    for row in coef[4::-1]:
+        out = out * th + row
+    return out[0], out[1] / dt[k], out[2]
+
+
+def _hermite_matrix() -> FloatArray:
+    """Return the map from a step's end values to its interpolants' coefficients in θ.
+
+    Rows: power θ⁰ … θ⁵ of (quintic Hermite φ(θ), its derivative dφ/dθ, quintic Hermite
+    w(θ)); columns: y₀, δy'₀, δ²y''₀, y₁, δy'₁, δ²y''₁ of φ, then of w.
+    """
+    quintic = np.array([
+        [1, 0, 0, 0, 0, 0],
+        [0, 1, 0, 0, 0, 0],
+        [0, 0, 0.5, 0, 0, 0],
+        [-10, -6, -1.5, 10, -4, 0.5],
+        [15, 8, 1.5, -15, 7, -1],
+        [-6, -3, -0.5, 6, -3, 0.5],
+    ])
+    m = np.zeros((6, 3, 12))
+    m[:, 0, :6] = quintic
+    m[:5, 1, :6] = quintic[1:] * np.arange(1.0, 6.0)[:, None]
+    m[:, 2, 6:] = quintic
+    m.setflags(write=False)
+    return m
+
+
+_HERMITE = _hermite_matrix()

@@ -37,9 +37,9 @@ def _sign(x: float) -> float:
 
 
 SCALAR_ENV: dict[str, object] = {'sin': math.sin, 'copysign': math.copysign, 'sign': _sign,
-                                 'abs': abs}
+                                 'abs': abs, 'sqrt': math.sqrt}
 VECTOR_ENV: dict[str, object] = {'sin': np.sin, 'copysign': np.copysign, 'sign': np.sign,
-                                 'abs': np.abs}
+                                 'abs': np.abs, 'sqrt': np.sqrt}
 
 
 def _power(n: int, odd_abs: bool) -> str:
@@ -81,12 +81,12 @@ def damping_expression(n: float, branch: bool = False, scalar: bool = False) -> 
 
 
 @functools.lru_cache(maxsize=256)
-def compile_damping(n: float, branch: bool = False) -> Callable[[float, float, float], float]:
-    """Return the scalar damping law ``D(v, gamma, s)`` for exponent ``n``."""
+def compile_damping(n: float, branch: bool = False, vector: bool = False) -> Any:
+    """Return the damping law ``D(v, gamma, s)`` for exponent ``n`` (numpy with ``vector``)."""
     src = f'def damping(v, gamma, s):\n    return {damping_expression(n, branch)}\n'
-    env: dict[str, object] = dict(SCALAR_ENV, n=n)
+    env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV, n=n)
     exec(compile(src, f'<damping n={n}>', 'exec'), env)
-    return env['damping']  # type: ignore[return-value]
+    return env['damping']
 
 
 def _num(x: float) -> str:
@@ -125,6 +125,7 @@ def step_source(tableau: Tableau, damping: str, with_error: bool = False) -> str
             body.append(f'    v_{i} = v0 + {dv}')
         used = B[i] != 0.0 or i == 0 or any(A[k, i] != 0.0 for k in range(i + 1, s))
         used = used or (with_error and tableau.E is not None and tableau.E[i] != 0.0)
+        used = used or (with_error and tableau.E3 is not None and tableau.E3[i] != 0.0)
         if not used:
             continue
         pi, vi = ('p0', 'v0') if i == 0 else (f'p_{i}', f'v_{i}')
@@ -142,6 +143,17 @@ def step_source(tableau: Tableau, damping: str, with_error: bool = False) -> str
         ne = [i for i in range(s) if tableau.E[i] != 0.0]
         ep = _weighted([(float(tableau.E[i]), f'v_{i}') for i in ne], hs)
         ev = _weighted([(float(tableau.E[i]), f'a_{i}') for i in ne], hs)
+        if tableau.E3 is not None:
+            # Two estimates (DOP853): e₅ |e₅| / hypot(e₅, 0.1 e₃) per component, the
+            # combination of Hairer's code (an estimate of order h^8, homogeneous in scale).
+            n3 = [i for i in range(s) if tableau.E3[i] != 0.0]
+            body.append(f'    e5p = {ep}')
+            body.append(f'    e5v = {ev}')
+            e3 = tableau.E3
+            body.append('    e3p = ' + _weighted([(float(e3[i]), f'v_{i}') for i in n3], hs))
+            body.append('    e3v = ' + _weighted([(float(e3[i]), f'a_{i}') for i in n3], hs))
+            ep = 'e5p * abs(e5p) / sqrt(e5p * e5p + 0.01 * e3p * e3p + 1e-300)'
+            ev = 'e5v * abs(e5v) / sqrt(e5v * e5v + 0.01 * e3v * e3v + 1e-300)'
         body.append(f'    return p1, v1, w, a_0, {ep}, {ev}')
     else:
         body.append('    return p1, v1, w, a_0')

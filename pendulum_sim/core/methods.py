@@ -6,7 +6,7 @@ from typing import Protocol
 
 from .errors import IntegratorError
 from .guard import GuardStats
-from .tableaus import DOPRI5, EULER, MIDPOINT, RK4, RODAS4, SDIRK2, SDIRK3, Tableau
+from .tableaus import DOP853, DOPRI5, EULER, MIDPOINT, RK4, RODAS4, SDIRK2, SDIRK3, Tableau
 
 
 class Advance(Protocol):
@@ -29,8 +29,9 @@ class Method:
     """An integration method of the core.
 
     ``kind`` is ``'explicit'`` (fixed step, guarded), ``'adaptive'`` (embedded pair with error
-    control: explicit ``dopri5`` for offline accuracy, linearly implicit ``rodas4`` for long
-    stiff runs) or ``'implicit'`` (L-stable DIRK, for stiff damping).
+    control: explicit ``dopri5`` for offline accuracy, ``dop853`` for tight tolerances,
+    linearly implicit ``rodas4`` for long stiff runs) or ``'implicit'`` (L-stable DIRK, for
+    stiff damping).
     """
 
     name: str
@@ -58,6 +59,7 @@ METHODS: dict[str, Method] = {
     'midpoint': Method('midpoint', 'explicit', MIDPOINT),
     'rk4': Method('rk4', 'explicit', RK4),
     'dopri5': Method('dopri5', 'adaptive', DOPRI5),
+    'dop853': Method('dop853', 'adaptive', DOP853),
     'sdirk2': Method('sdirk2', 'implicit', SDIRK2),
     'sdirk3': Method('sdirk3', 'implicit', SDIRK3),
     'rodas4': Method('rodas4', 'adaptive', RODAS4),

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .embedded import dense_capable, dense_run
 from .guard import GuardStats
 from .model import (
     MAX_STEPS,
@@ -107,6 +108,8 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         tau_of: Callable[[float, float, float], float] = torque
     else:
         tau_const = 0.0 if torque is None else check_torque(torque, params)
+        if dense_capable(stepper.engine):
+            return _dense(stepper, t_end, k_full, last, record_every, tau_const)
 
         def tau_of(t: float, phi: float, dphi: float) -> float:
             return tau_const
@@ -138,4 +141,35 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         t=np.array(ts), phi=phi, dphi=dphi, energy=np.asarray(energy(params, phi, dphi)),
         dissipated_work=np.array(wd), input_work=np.array(wi), torque=np.array(taus),
         stats=stepper.stats, params=params, method=stepper.method, h=h)
+
+
+def output_times(t_end: float, h: float, k_full: int, last: float,
+                 record_every: int) -> FloatArray:
+    """Return the sample times of a run: every ``record_every``-th step of h, and ``t_end``."""
+    ks = np.arange(record_every, k_full + 1, record_every, dtype=float)
+    t = ks * h
+    if last == 0.0 and k_full and len(t) and ks[-1] == k_full:
+        t[-1] = t_end
+    elif last == 0.0 and k_full:
+        t = np.append(t, t_end)
+    if last > 0.0:
+        t = np.append(t, t_end)
+    return np.concatenate(([0.0], t))
+
+
+def _dense(stepper: Stepper, t_end: float, k_full: int, last: float, record_every: int,
+           tau: float) -> Trajectory:
+    """Run an adaptive method in free steps with dense output (``embedded.dense_run``)."""
+    params = stepper.params
+    t = output_times(t_end, stepper.h, k_full, last, record_every)
+    p0, v0 = stepper.phi, stepper.dphi
+    phi, dphi, w = dense_run(stepper.engine, p0, v0, t, tau / params.inertia,
+                             stepper.engine.rtol, stepper.engine.atol, stepper.stats)
+    phi[0], dphi[0], w[0] = p0, v0, 0.0
+    stepper.stats.steps = k_full + (1 if last > 0.0 else 0)
+    return Trajectory(
+        t=t, phi=phi, dphi=dphi, energy=np.asarray(energy(params, phi, dphi)),
+        dissipated_work=w * params.inertia, input_work=tau * (phi - p0),
+        torque=np.full(len(t), tau), stats=stepper.stats, params=params,
+        method=stepper.method, h=stepper.h)
 

@@ -127,6 +127,11 @@ class Stepper:
         return self._method.name
 
     @property
+    def engine(self) -> Engine:
+        """Return the engine that takes the decisions for the current parameters and method."""
+        return self._engine
+
+    @property
     def h(self) -> float:
         """Return the fixed step in s."""
         return self._h

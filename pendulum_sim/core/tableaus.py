@@ -1,9 +1,10 @@
 """Butcher tableaus: every Runge-Kutta method of the core, as data.
 
 An explicit method is ``A`` (strictly lower triangular), ``B``, ``C`` and its order; an embedded
-pair adds ``E`` (the weights of the error estimate, B − B̂); a diagonally implicit method has a
-lower triangular ``A`` with a non-zero diagonal; a linearly implicit (Rosenbrock) method adds
-the coupling coefficients ``G`` (cᵢⱼ) and the diagonal ``gamma`` (γ) of its transformed form.
+pair adds ``E`` (the weights of the error estimate, B − B̂; DOP853 a second one, ``E3``); a
+diagonally implicit method has a lower triangular ``A`` with a non-zero diagonal; a linearly
+implicit (Rosenbrock) method adds the coupling coefficients ``G`` (cᵢⱼ) and the diagonal
+``gamma`` (γ) of its transformed form.
 One generic step serves each kind (``explicit.py``, ``embedded.py``, ``dirk.py``,
 ``rosenbrock.py``).
 """
@@ -32,6 +33,7 @@ class Tableau:
     description: str = ''
     G: FloatArray | None = None  # Rosenbrock: cᵢⱼ of the transformed stages (Hairer-Wanner IV.7)
     gamma: float = 0.0  # Rosenbrock: the diagonal γ
+    E3: FloatArray | None = None  # a second, lower-order error estimate (DOP853's order 3)
     stability_poly: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -120,6 +122,50 @@ DOPRI5 = Tableau(
     description='Dormand-Prince 5(4), adaptive, for offline accuracy',
 )
 
+# Dormand and Prince's RK8(5,3) (Hairer, Nørsett and Wanner, *Solving ODEs I*, 2nd ed. 1993,
+# II.10, their code DOP853; the values as in scipy's ``dop853_coefficients``): 12 stages of
+# order 8 with two embedded estimates, E (order 5) and E3 (order 3), combined per component as
+# e₅ |e₅| / hypot(e₅, 0.1 e₃), which behaves as h^8 (``explicit.step_source``).
+_D8 = {
+    1: {0: 0.05260015195876773},
+    2: {0: 0.0197250569845379, 1: 0.0591751709536137},
+    3: {0: 0.02958758547680685, 2: 0.08876275643042054},
+    4: {0: 0.2413651341592667, 2: -0.8845494793282861, 3: 0.924834003261792},
+    5: {0: 0.037037037037037035, 3: 0.17082860872947386, 4: 0.12546768756682242},
+    6: {0: 0.037109375, 3: 0.17025221101954405, 4: 0.06021653898045596, 5: -0.017578125},
+    7: {0: 0.03709200011850479, 3: 0.17038392571223998, 4: 0.10726203044637328,
+         5: -0.015319437748624402, 6: 0.008273789163814023},
+    8: {0: 0.6241109587160757, 3: -3.3608926294469414, 4: -0.868219346841726, 5: 27.59209969944671,
+         6: 20.154067550477894, 7: -43.48988418106996},
+    9: {0: 0.47766253643826434, 3: -2.4881146199716677, 4: -0.590290826836843,
+         5: 21.230051448181193, 6: 15.279233632882423, 7: -33.28821096898486,
+         8: -0.020331201708508627},
+    10: {0: -0.9371424300859873, 3: 5.186372428844064, 4: 1.0914373489967295,
+         5: -8.149787010746927, 6: -18.52006565999696, 7: 22.739487099350505,
+         8: 2.4936055526796523, 9: -3.0467644718982196},
+    11: {0: 2.273310147516538, 3: -10.53449546673725, 4: -2.0008720582248625, 5: -17.9589318631188,
+         6: 27.94888452941996, 7: -2.8589982771350235, 8: -8.87285693353063, 9: 12.360567175794303,
+         10: 0.6433927460157636},
+}
+DOP853 = Tableau(
+    'dop853', 8,
+    _t([[_D8.get(i, {}).get(j, 0.0) for j in range(12)] for i in range(12)]),
+    _t([0.054293734116568765, 0.0, 0.0, 0.0, 0.0, 4.450312892752409, 1.8915178993145003,
+        -5.801203960010585, 0.3111643669578199, -0.1521609496625161, 0.20136540080403034,
+        0.04471061572777259]),
+    _t([0.0, 0.05260015195876773, 0.0789002279381516, 0.1183503419072274, 0.2816496580927726,
+        0.3333333333333333, 0.25, 0.3076923076923077, 0.6512820512820513, 0.6, 0.8571428571428571,
+        1.0]),
+    E=_t([0.01312004499419488, 0.0, 0.0, 0.0, 0.0, -1.2251564463762044, -0.4957589496572502,
+        1.6643771824549864, -0.35032884874997366, 0.3341791187130175, 0.08192320648511571,
+        -0.022355307863886294]),
+    E3=_t([-0.18980075407240762, 0.0, 0.0, 0.0, 0.0, 4.450312892752409, 1.8915178993145003,
+        -5.801203960010585, -0.4226823213237919, -0.1521609496625161, 0.20136540080403034,
+        0.02265179219836082]),
+    error_order=7,
+    description='Dormand-Prince 8(5,3), adaptive, for tight tolerances',
+)
+
 _G2 = 1.0 - math.sqrt(2.0) / 2.0
 # Alexander (1977): 2-stage, order 2, L-stable, stiffly accurate SDIRK.
 SDIRK2 = Tableau('sdirk2', 2, _t([[_G2, 0.0], [1.0 - _G2, _G2]]), _t([1.0 - _G2, _G2]),
@@ -175,4 +221,5 @@ RODAS4 = Tableau(
     gamma=0.25,
 )
 
-TABLEAUS: dict[str, Tableau] = {t.name: t for t in (EULER, MIDPOINT, RK4, DOPRI5, SDIRK2, SDIRK3)}
+TABLEAUS: dict[str, Tableau] = {t.name: t for t in (EULER, MIDPOINT, RK4, DOPRI5, DOP853, SDIRK2,
+                                                    SDIRK3)}
