@@ -364,3 +364,53 @@ def test_per_pendulum_constants_are_the_engines_own(vary: str) -> None:
             assert grp.v_acc[i] == eng.v_acc, (n, i)
             if gam[i] > 0.0:  # the window is used only where the damping is not smooth
                 assert grp.reach[i] == eng.reach, (n, i)
+
+
+def test_array_safe_speed_ranges_are_the_scalar_ones_exactly() -> None:
+    # The sweep's guard ranges come from the array version: every element must be the scalar
+    # function's float, bit for bit (numpy's power differs from C's pow in the last bit for a
+    # few % of random inputs, so the random rows catch a numpy power), on the grid's edges too:
+    # ω0² = 0, γ = 0 and extreme, n = 0, 1 and next to 1 (the power overflows), large torque.
+    from pendulum_sim.core.guard import safe_speed_range, safe_speed_ranges
+
+    guard = guard_for(TABLEAUS['rk4'])
+    rng = np.random.default_rng(17)
+    grid = np.array(list(itertools.product(
+        [0.0, 1.0, W2, 1e4, 4e6], [0.0, 1e-300, 0.1, 1.0, 30.0, 1e3, 1e6, 1e300],
+        [0.0, 1.0, 2.0 ** 20])))
+    rand = np.column_stack((rng.uniform(0.0, 50.0, 400), 10.0 ** rng.uniform(-3.0, 4.0, 400),
+                            2.0 ** rng.integers(-2, 8, 400)))
+    rows = np.vstack((grid, rand))
+    kinds = set()
+    for n in (0.0, 0.3, 0.5, 0.999999, 1.0, 1.0000001, 1.5, 2.0, 2.7, 5.0, 30.0):
+        for h in (1e-3, 2e-2, 0.3):
+            lo, hi = safe_speed_ranges(guard, rows[:, 0], rows[:, 1], n, h, rows[:, 2])
+            for k, (w2, gamma, bound) in enumerate(rows.tolist()):
+                ref = safe_speed_range(guard, w2, gamma, n, h, bound)
+                assert (lo[k], hi[k]) == ref, (n, h, w2, gamma, bound)
+                kinds.add('empty' if ref[0] > ref[1] else 'low end' if ref[0] > 0.0
+                          else 'open')
+    assert kinds == {'empty', 'low end', 'open'}
+
+
+@pytest.mark.parametrize('column', ['omega0_sq', 'gamma', 'torque'])
+def test_uniform_constants_give_the_same_floats_as_arrays(column: str) -> None:
+    # A group passes ω0², γ and τ/I to the numpy step as one float where they are uniform and
+    # as an array where not: one extra pendulum per damping law with a different value turns
+    # every group's constant into an array; the other pendulums' results must not move a bit.
+    rng = np.random.default_rng(23)
+    ns = np.repeat([0.5, 1.0, 2.0, 3.0, 5.0], 6)
+    size = ns.size
+    args = {'omega0_sq': np.full(size, W2), 'gamma': np.full(size, 0.8), 'n': ns,
+            'phi0': rng.uniform(-3.0, 3.0, size), 'dphi0': rng.uniform(-4.0, 4.0, size),
+            'torque': np.zeros(size)}
+    if column == 'torque':
+        args['torque'] = np.full(size, 0.6)
+    base = sweep(**args, t_end=0.3, h=1e-2)
+    other = {'omega0_sq': 4.0, 'gamma': 2.5, 'torque': -1.5}[column]
+    extra = {k: np.concatenate((a, a[::6])) for k, a in args.items()}
+    extra[column][size:] = other
+    mixed = sweep(**extra, t_end=0.3, h=1e-2)
+    for name in ('phi', 'dphi', 'substeps', 'fallbacks', 'reversals', 'sticks'):
+        assert np.array_equal(getattr(mixed, name)[:size], getattr(base, name)), name
+    assert np.any(mixed.reversals[:size] > 0)  # the careful path took part

@@ -31,6 +31,8 @@ import numpy as np
 import numpy.typing as npt
 
 from .engine import (
+    CROSS_SRC,
+    REVERSAL_SRC,
     Engine,
     accuracy_speed,
     ain_bound,
@@ -38,13 +40,12 @@ from .engine import (
     grade_window,
     graded_law,
     guard_for,
-    reversal_suspect,
     specific_energy,
     stiff_transient,
 )
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step
-from .guard import GuardStats, safe_speed_range
+from .guard import GuardStats, safe_speed_ranges
 from .methods import METHODS
 from .model import (
     MAX_INPUT_ACCEL,
@@ -201,9 +202,37 @@ def _one(arrs: dict[str, FloatArray], i: int, check: Any, only: str | None = Non
 # --------------------------------------------------------------------------- the sweep
 
 
+def _decision(args: str, src: str) -> Any:
+    """Compile one of the engine's decision texts for arrays, ``abs(v)`` read from ``av``.
+
+    The text is the engine's own (``engine.CROSS_SRC``, ``REVERSAL_SRC``); only the speed
+    |φ'|, which the sweep has already formed for the guard's range, is passed in instead of
+    being formed again.
+    """
+    env: dict[str, object] = {}
+    body = src.replace('abs(v)', 'av')
+    exec(compile(f'def f({args}):\n    return {body}\n', '<sweep decision>', 'exec'), env)
+    return env['f']
+
+
+_CROSS = _decision('v, av, v1, a0, h', CROSS_SRC)
+_NEAR_OR_CROSS = _decision('v, av, v1, a0, h, reach', REVERSAL_SRC)
+
+
+def _uniform(x: FloatArray) -> Any:
+    """Return ``x`` as one float where all its entries are equal (numpy broadcasts it alike)."""
+    first = x[0]
+    return float(first) if bool(np.all(x == first)) else x
+
+
 @dataclass
 class _Group:
-    """Pendulums with one exponent n: a contiguous run of the n-sorted arrays."""
+    """Pendulums with one exponent n: a contiguous run of the n-sorted arrays.
+
+    While a piece of the run (steps of one length) is integrated, the group holds its own
+    state arrays ``p``, ``v``, ``e`` (φ, φ', E/I), and its constants as one float where they
+    are uniform.
+    """
 
     sl: slice
     n: float
@@ -219,10 +248,29 @@ class _Group:
     def __post_init__(self) -> None:
         self.any_coulomb = bool(self.coulomb.any())
         self.any_nonsmooth = bool(self.nonsmooth.any())
+        self.all_nonsmooth = bool(self.nonsmooth.all())
+        # reach = 0 makes the near-reversal test false everywhere: the crossing test decides.
+        self.graded = bool(self.reach.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
         self.any_check = bool(self.check.any())
         self.all_check = bool(self.check.all())
         self.any_lo = bool(self.lo.any())  # lo = 0 everywhere: |φ'| >= lo needs no test
+        self.p = self.v = self.e = np.empty(0)
+        self.w2: Any = 0.0
+        self.gamma: Any = 0.0
+        self.ain: Any = 0.0
+
+    def load(self, phi: FloatArray, v: FloatArray, energy: FloatArray, om2: FloatArray,
+             gam: FloatArray, tau: FloatArray) -> None:
+        """Take the group's state and constants from the n-sorted arrays."""
+        sl = self.sl
+        self.p, self.v, self.e = phi[sl].copy(), v[sl].copy(), energy[sl].copy()
+        self.w2, self.gamma, self.ain = _uniform(om2[sl]), _uniform(gam[sl]), _uniform(tau[sl])
+
+    def store(self, phi: FloatArray, v: FloatArray, energy: FloatArray) -> None:
+        """Write the group's state back into the n-sorted arrays."""
+        sl = self.sl
+        phi[sl], v[sl], energy[sl] = self.p, self.v, self.e
 
 
 def _on_unique(fn: Any, *cols: FloatArray) -> FloatArray:
@@ -262,11 +310,7 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
         hi = np.full(b - a, math.inf)
         omega0 = np.sqrt(om2[sl])
         if guard:
-            def lo_hi(w2: float, ga: float, bd: float, n: float = val) -> tuple[float, float]:
-                return safe_speed_range(g, w2, ga, n, h, bd)
-
-            rng = _on_unique(lo_hi, om2[sl], gam[sl], bounds[sl])
-            lo, hi = np.ascontiguousarray(rng[:, 0]), np.ascontiguousarray(rng[:, 1])
+            lo, hi = safe_speed_ranges(g, om2[sl], gam[sl], val, h, bounds[sl])
         out.append(_Group(
             sl=sl, n=val, step=compile_step(tab, val, vector=True),
             nonsmooth=(gam[sl] > 0.0) & (not smooth), coulomb=(gam[sl] > 0.0) & (val == 0.0),
@@ -275,6 +319,60 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
             v_acc=(_on_unique(lambda ga, w0, n=val: accuracy_speed(ga, n, w0), gam[sl], omega0)
                    if guard and val > 1.0 else np.full(b - a, math.inf))))
     return out
+
+
+def _advance(grp: _Group, hh: float, engines: dict[tuple[float, float, float], Engine],
+             stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool) -> None:
+    """Advance one group by a step of hh: the plain step, the decisions, the careful path."""
+    p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
+    p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
+    av = np.abs(vv)
+    ok = av <= grp.hi
+    ok &= np.isfinite(p1)
+    ok &= np.isfinite(v1)
+    if grp.any_lo:
+        ok &= grp.lo <= av
+    if grp.any_coulomb:
+        ok &= ~(grp.coulomb & (vv == 0.0))
+    if grp.any_nonsmooth:
+        sus = (_NEAR_OR_CROSS(vv, av, v1, a0, hh, grp.reach) if grp.graded
+               else _CROSS(vv, av, v1, a0, hh))
+        if not grp.all_nonsmooth:
+            sus &= grp.nonsmooth
+        ok &= ~sus
+    if grp.any_stiff:
+        q = np.flatnonzero(av > grp.v_acc)  # the test's first part, then all of it
+        if q.size:
+            gq = ga if isinstance(ga, float) else ga[q]
+            ok[q] &= ~stiff_transient(vv[q], a0[q], gq, grp.n, grp.v_acc[q])
+    if grp.any_check:
+        e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
+        rose = energy_rose(grp.e, e1, w2)
+        if not grp.all_check:
+            rose &= grp.check
+        ok &= ~rose
+    else:
+        e1 = grp.e
+    refused = np.flatnonzero(~ok)
+    if refused.size:
+        cols = [p[refused], vv[refused]] + [
+            np.broadcast_to(c, p.shape)[refused] for c in (ain, w2, ga)]
+        start = grp.sl.start
+        for j, pj, vj, aj, w2j, gj in zip(refused.tolist(), *(c.tolist() for c in cols),
+                                          strict=True):
+            i = start + j
+            key = (w2j, gj, grp.n)
+            eng = engines.get(key)
+            if eng is None:
+                eng = engines[key] = Engine(w2j, gj, grp.n, meth, guard, energy_check)
+            st = stats.get(i)
+            if st is None:
+                st = stats[i] = GuardStats()
+            pj, vj, _ = eng.careful(pj, vj, hh, aj, st)
+            p1[j], v1[j] = pj, vj
+            if grp.any_check:
+                e1[j] = specific_energy(vj, math.sin(0.5 * pj), w2j)
+    grp.p, grp.v, grp.e = p1, v1, e1
 
 
 def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: float, h: float,
@@ -329,18 +427,19 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     phi, v = p0[order].copy(), v0[order].copy()
     energy = specific_energy(v, np.sin(0.5 * phi), om2)
     stats: dict[int, GuardStats] = {}
-    engines: dict[int, Engine] = {}
+    engines: dict[tuple[float, float, float], Engine] = {}  # per (ω0², γ, n): no state
     meth = METHODS[method]
     steps = [(h, k_full)] + ([(last, 1)] if last > 0.0 else [])
     total = k_full + (1 if last > 0.0 else 0)
     rec_t: list[float] = []
     rec_p: list[FloatArray] = []
     rec_v: list[FloatArray] = []
+    groups: list[_Group] = []
 
     def record(t: float) -> None:
         rec_t.append(t)
-        rec_p.append(phi.copy())
-        rec_v.append(v.copy())
+        rec_p.append(np.concatenate([grp.p for grp in groups]) if groups else phi.copy())
+        rec_v.append(np.concatenate([grp.v for grp in groups]) if groups else v.copy())
 
     if record_every is not None:
         record(0.0)
@@ -348,49 +447,16 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     with np.errstate(all='ignore'):
         for hh, count in steps:
             groups = _groups(nn, gam, om2, tau, method, hh, guard, energy_check)
+            for grp in groups:
+                grp.load(phi, v, energy, om2, gam, tau)
             for _ in range(count):
                 for grp in groups:
-                    sl = grp.sl
-                    p, vv, w2, ga, ain = phi[sl], v[sl], om2[sl], gam[sl], tau[sl]
-                    p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
-                    av = np.abs(vv)
-                    ok = (av <= grp.hi) & np.isfinite(p1) & np.isfinite(v1)
-                    if grp.any_lo:
-                        ok &= grp.lo <= av
-                    if grp.any_coulomb:
-                        ok &= ~(grp.coulomb & (vv == 0.0))
-                    if grp.any_nonsmooth:
-                        ok &= ~(grp.nonsmooth & reversal_suspect(vv, v1, a0, hh, grp.reach))
-                    if grp.any_stiff:
-                        q = np.flatnonzero(av > grp.v_acc)  # the test's first part, then all
-                        if q.size:
-                            ok[q] &= ~stiff_transient(vv[q], a0[q], ga[q], grp.n, grp.v_acc[q])
-                    if grp.any_check:
-                        e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
-                        rose = energy_rose(energy[sl], e1, w2)
-                        ok &= ~rose if grp.all_check else ~(grp.check & rose)
-                    else:
-                        e1 = energy[sl]
-                    refused = np.flatnonzero(~ok)
-                    if refused.size:
-                        cols = (p[refused], vv[refused], ain[refused], w2[refused], ga[refused])
-                        for j, pj, vj, aj, w2j, gj in zip(refused.tolist(),
-                                                          *(c.tolist() for c in cols),
-                                                          strict=True):
-                            i = sl.start + j
-                            eng = engines.get(i)
-                            if eng is None:
-                                eng = engines[i] = Engine(w2j, gj, grp.n, meth, guard,
-                                                          energy_check)
-                                stats[i] = GuardStats()
-                            pj, vj, _ = eng.careful(pj, vj, hh, aj, stats[i])
-                            p1[j], v1[j] = pj, vj
-                            if grp.any_check:
-                                e1[j] = specific_energy(vj, math.sin(0.5 * pj), w2j)
-                    phi[sl], v[sl], energy[sl] = p1, v1, e1
+                    _advance(grp, hh, engines, stats, meth, guard, energy_check)
                 done += 1
                 if record_every is not None and (done % record_every == 0 or done == total):
                     record(t_end if done == total else done * h)
+            for grp in groups:
+                grp.store(phi, v, energy)
     inv = np.empty_like(order)
     inv[order] = np.arange(size)
     counters = {k: np.zeros(size, dtype=np.int64)
