@@ -160,20 +160,24 @@ def test_coulomb_sticks_and_stepper_matches_simulate() -> None:
 
 
 def test_dense_interpolant_reproduces_quintics_and_their_derivative() -> None:
-    # The continuous extension of embedded.dense_run: Hermite through y, δy', δ²y'' at both
-    # ends of a step is exact for every polynomial of degree ≤ 5 (and its derivative).
-    from pendulum_sim.core.embedded import _HERMITE
+    # The continuous extension of embedded.dense_run: Hermite through (y, y') at three nodes
+    # of any spacing is exact for every polynomial of degree ≤ 5 (and so its derivative); at
+    # two nodes (three = False) for every cubic.
+    from pendulum_sim.core.embedded import _hermite3
 
     rng = np.random.default_rng(5)
-    c = rng.normal(size=6)  # y(θ) = Σ c_k θ^k on one step θ ∈ [0, 1]
-    y = np.polynomial.Polynomial(c)
-    d1, d2 = y.deriv(1), y.deriv(2)
-    ends = np.array([y(0.0), d1(0.0), d2(0.0), y(1.0), d1(1.0), d2(1.0)])
-    coef = _HERMITE[:, :, :6] @ ends  # (power, [y, dy/dθ, -])
-    np.testing.assert_allclose(coef[:, 0], c, atol=1e-12)
-    np.testing.assert_allclose(coef[:5, 1], d1.coef, atol=1e-12)
-    coef_w = _HERMITE[:, 2, 6:] @ ends
-    np.testing.assert_allclose(coef_w, c, atol=1e-12)
+    x = np.sort(rng.uniform(0.0, 3.0, (3, 40)), axis=0)
+    t = rng.uniform(x[0], x[2])
+    for degree, three in ((5, True), (3, False)):
+        polys = [np.polynomial.Polynomial(rng.normal(size=degree + 1)) for _ in range(2)]
+        y = np.array([[q(x[i]) for i in range(3)] for q in polys])
+        dy = np.array([[q.deriv()(x[i]) for i in range(3)] for q in polys])
+        if not three:
+            t = rng.uniform(x[0], x[1])
+        val, der = _hermite3(x, y, dy, np.full(40, three), t)
+        for c, q in enumerate(polys):
+            np.testing.assert_allclose(val[c], q(t), rtol=1e-10, atol=1e-10)
+            np.testing.assert_allclose(der[c], q.deriv()(t), rtol=1e-9, atol=1e-9)
 
 
 @pytest.mark.parametrize('rtol', [1e-3, 1e-6])

@@ -14,18 +14,24 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from .engine import Engine, hermite_root
 from .errors import IntegratorError
 from .explicit import ErrStepFn, compile_damping, compile_step
+from .extrapolation import compile_extrapolation
 from .guard import GuardStats
 from .model import FloatArray
 from .rosenbrock import compile_rosenbrock
-from .tableaus import Tableau
+from .tableaus import Extrapolation, Tableau
+
+BoolArray = npt.NDArray[np.bool_]
 
 
-def pair_steps(tab: Tableau, n: float) -> tuple[ErrStepFn, ErrStepFn]:
+def pair_steps(tab: Tableau | Extrapolation, n: float) -> tuple[ErrStepFn, ErrStepFn]:
     """Return the embedded pair's compiled (plain law, branch law) steps with error estimate."""
+    if isinstance(tab, Extrapolation):
+        return compile_extrapolation(tab, n), compile_extrapolation(tab, n, branch=True)
     if tab.rosenbrock:
         return compile_rosenbrock(tab, n), compile_rosenbrock(tab, n, branch=True)
     return (compile_step(tab, n, with_error=True),
@@ -71,7 +77,7 @@ class TooManySubsteps(Exception):
 
 
 def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
-          h_try: float, stats: GuardStats, tableau: Tableau | None = None,
+          h_try: float, stats: GuardStats, tableau: Tableau | Extrapolation | None = None,
           max_trials: int = 0,
           steps: tuple[ErrStepFn, ErrStepFn] | None = None,
           trace: list[float] | None = None) -> tuple[float, float, float, float]:
@@ -88,11 +94,13 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
     trials = 0
     plain, branch = pair_steps(tab, eng.n) if steps is None else steps
     w2, g, n = eng.w2, eng.gamma, eng.n
+    coulomb, nonsmooth = eng.coulomb, eng.nonsmooth
+    sqrt = math.sqrt
     q = 1.0 / (tab.error_order + 1)
     done, w_total = 0.0, 0.0
     hh = h_try if h_try > 0.0 else initial_step(eng, p, v, h, ain, rtol, atol, tab.order)
     while done < h:
-        if eng.coulomb and v == 0.0:
+        if coulomb and v == 0.0:
             p, v, w = eng.from_rest(p, h - done, ain)
             w_total += w
             break
@@ -104,16 +112,17 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
         last = hh >= h - done
         step_h = h - done if last else hh
         sign = 1.0 if v > 0.0 else -1.0
-        fn = branch if (eng.nonsmooth and v != 0.0) else plain
+        fn = branch if (nonsmooth and v != 0.0) else plain
         try:
             p1, v1, w, a0, ep, ev = fn(p, v, step_h, ain, w2, g, sign)
-            sp = atol + rtol * max(abs(p), abs(p1))
-            sv = atol + rtol * max(abs(v), abs(v1))
-            err = math.sqrt(0.5 * ((ep / sp) ** 2 + (ev / sv) ** 2))
+            ap, ap1, av, av1 = abs(p), abs(p1), abs(v), abs(v1)
+            ep /= atol + rtol * (ap if ap > ap1 else ap1)
+            ev /= atol + rtol * (av if av > av1 else av1)
+            err = sqrt(0.5 * (ep * ep + ev * ev))
         except (OverflowError, ValueError):
             err = math.inf  # a trial step that overflows is rejected like any other
-        if err <= 1.0 and math.isfinite(err):
-            if eng.nonsmooth and v1 * v < 0.0:
+        if err <= 1.0:  # (False for inf and NaN)
+            if nonsmooth and v1 * v < 0.0:
                 # Cut at the reversal: the branch continuation's φ'(θ step_h) = 0.
                 def accel(pp: float, vv: float, sg: float = sign) -> float:
                     return float(ain - sg * g * abs(vv) ** n - w2 * math.sin(pp))
@@ -135,11 +144,10 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
                 if trace is not None:
                     trace += (done, p, v, w_total)
                 hh = max(th * step_h, 1e-6 * h)
-                if eng.coulomb:
-                    continue
-                # Leave rest on the side the forces push to (a kink: the pair restarts small).
+                # Leave rest on the side the forces push to (a kink: the pair restarts small;
+                # with Coulomb friction the next trial decides sticking).
                 continue
-            if eng.coulomb and (v1 < 0.0 < v or v < 0.0 < v1) and abs(
+            if coulomb and (v1 < 0.0 < v or v < 0.0 < v1) and abs(
                     ain - w2 * math.sin(p1)) <= g:
                 v1 = 0.0
             done = h if last else done + step_h
@@ -185,10 +193,13 @@ class Cover:
 
 
 DENSE_MAX_ORDER = 4
-"""The interpolant of :func:`dense_run` is the quintic Hermite polynomial through the value and
-first two derivatives at both ends of a step (error O(δ⁶) in φ and the damping work, O(δ⁵) in
-φ' by its derivative): order 5, above the order of the methods it serves, so it does not lower
-their accuracy. Methods of order 5 and more stop at every output instead."""
+"""The interpolant of :func:`dense_run` is the quintic Hermite polynomial through φ and φ' at
+three consecutive mesh points (φ' by its derivative): its error is O(δ⁶) in φ and O(δ⁵) in φ',
+order 5, above the order of the methods it serves (so it does not lower their accuracy); methods
+of order 5 and more stop at every output instead. It uses the states only, never the vector
+field: on a stiff creep the states carry errors of the tolerance's size across the fast mode,
+which f = φ'' would multiply by the fast rate (a Hermite interpolant through φ'' at the ends of
+a 2 s step on the γ = 1000, n = 2 creep was 80× less accurate than the states it joined)."""
 
 
 def dense_capable(eng: Engine) -> bool:
@@ -207,58 +218,71 @@ def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rt
 
     The error-controlled substeps of :func:`cover` run over the whole span (cut at velocity
     reversals, so no step straddles a kink) and land on the last output; every other output
-    is interpolated on the step that contains it by the quintic Hermite polynomials of φ (φ'
-    by its derivative) and of the damping work, instead of cutting a step at each output.
-    ``t_out`` is increasing from 0; ``a_in`` is constant over the run.
+    is interpolated instead of cutting a step at it: φ and the damping work w by the quintic
+    Hermite polynomial through their values and rates (φ' and φ' D(φ')) at the ends of the step
+    that contains the output and at one neighbouring mesh point (the one before, else the one
+    after), φ' by the derivative of φ's. A stencil never reaches across a kink of the law (a
+    mesh point at rest where the damping is not smooth); a step with kinks on both sides uses
+    the cubic through its own two ends. ``t_out`` is increasing from 0; ``a_in`` is constant
+    over the run.
     """
     if not dense_capable(eng):
         raise IntegratorError(f'{eng.method.name} has no dense output here')
     trace: list[float] = [0.0, p, v, 0.0]
     cover(eng, p, v, float(t_out[-1]), ain, rtol, atol, 0.0, stats, trace=trace)
-    mesh = np.asarray(trace).reshape(-1, 4)
-    ts, ps, vs, ws = mesh[:, 0], mesh[:, 1], mesh[:, 2], mesh[:, 3]
-    law = compile_damping(eng.n, vector=True)
-    d = law(vs, eng.gamma, 1.0)
-    acc = ain - d - eng.w2 * np.sin(ps)
+    ts, ps, vs, ws = np.asarray(trace).reshape(-1, 4).T
+    last = len(ts) - 1
     k = np.searchsorted(ts, t_out, side='right') - 1
-    np.clip(k, 0, len(ts) - 2, out=k)
-    dt = ts[1:] - ts[:-1]
-    th = (t_out - ts[k]) / dt[k]
-    dt2 = dt * dt
-    # Per step, the end values in θ = (t − t₀)/δ: φ, δ φ', δ² φ'' at both ends, and the same
-    # of the damping work w, whose rate is φ' D(φ') and, since φ' D'(φ') = n D(φ') for the
-    # power law, whose second derivative is (n + 1) φ'' D(φ').
-    rate, curv = vs * d, (eng.n + 1.0) * acc * d
-    ends = np.stack((ps[:-1], dt * vs[:-1], dt2 * acc[:-1], ps[1:], dt * vs[1:], dt2 * acc[1:],
-                     ws[:-1], dt * rate[:-1], dt2 * curv[:-1], ws[1:], dt * rate[1:],
-                     dt2 * curv[1:]))
-    coef = (_HERMITE @ ends)[:, :, k]  # (power, [φ, dφ/dθ, w], output)
-    out = coef[5]
-    for row in coef[4::-1]:
-        out = out * th + row
-    return out[0], out[1] / dt[k], out[2]
+    np.minimum(k, last - 1, out=k)  # t_out[-1] = ts[-1] belongs to the last step
+    kink = (vs == 0.0) if eng.nonsmooth else np.zeros(len(ts), dtype=bool)
+    back = (k >= 1) & ~kink[k]
+    ahead = ~back & (k + 2 <= last)
+    ahead[ahead] = ~kink[k[ahead] + 1]
+    start = np.where(back, k - 1, k)
+    three = back | ahead
+    i0, i1 = start, start + 1
+    i2 = np.where(three, start + 2, start + 1)
+    rate = vs * compile_damping(eng.n, vector=True)(vs, eng.gamma, 1.0)  # dw/dt = φ' D(φ')
+    x = np.array((ts[i0], ts[i1], ts[i2]))
+    y = np.array(((ps[i0], ps[i1], ps[i2]), (ws[i0], ws[i1], ws[i2])))  # (φ | w, node, out)
+    dy = np.array(((vs[i0], vs[i1], vs[i2]), (rate[i0], rate[i1], rate[i2])))
+    val, der = _hermite3(x, y, dy, three, t_out)
+    return val[0], der[0], val[1]
 
 
-def _hermite_matrix() -> FloatArray:
-    """Return the map from a step's end values to its interpolants' coefficients in θ.
+def _hermite3(x: FloatArray, y: FloatArray, dy: FloatArray, three: BoolArray,
+              t: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Return the Hermite interpolant through (y, y') at nodes x and its derivative, at t.
 
-    Rows: power θ⁰ … θ⁵ of (quintic Hermite φ(θ), its derivative dφ/dθ, quintic Hermite
-    w(θ)); columns: y₀, δy'₀, δ²y''₀, y₁, δy'₁, δ²y''₁ of φ, then of w.
+    ``x`` is (3, m), ``y`` and ``dy`` (c, 3, m): per point of ``t`` (m of them), three nodes
+    with values and slopes of c components; where ``three`` is False only the first two nodes
+    are used (a cubic). Newton's form on the doubled nodes x₀ x₀ x₁ x₁ x₂ x₂ (confluent
+    divided differences), evaluated with its derivative by the nested product rule.
     """
-    quintic = np.array([
-        [1, 0, 0, 0, 0, 0],
-        [0, 1, 0, 0, 0, 0],
-        [0, 0, 0.5, 0, 0, 0],
-        [-10, -6, -1.5, 10, -4, 0.5],
-        [15, 8, 1.5, -15, 7, -1],
-        [-6, -3, -0.5, 6, -3, 0.5],
-    ])
-    m = np.zeros((6, 3, 12))
-    m[:, 0, :6] = quintic
-    m[:5, 1, :6] = quintic[1:] * np.arange(1.0, 6.0)[:, None]
-    m[:, 2, 6:] = quintic
-    m.setflags(write=False)
-    return m
-
-
-_HERMITE = _hermite_matrix()
+    x0, x1, x2 = x
+    h0 = x1 - x0
+    h1 = np.where(three, x2 - x1, 1.0)  # a cubic's third node is a placeholder
+    h01 = h0 + h1
+    s0 = (y[:, 1] - y[:, 0]) / h0
+    s1 = (y[:, 2] - y[:, 1]) / h1
+    # Divided differences of orders 2 … 5 on x₀ x₀ x₁ x₁ x₂ x₂.
+    a0 = (s0 - dy[:, 0]) / h0
+    a1 = (dy[:, 1] - s0) / h0
+    a2 = (s1 - dy[:, 1]) / h1
+    a3 = (dy[:, 2] - s1) / h1
+    b0 = (a1 - a0) / h0
+    b1 = (a2 - a1) / h01
+    b2 = (a3 - a2) / h1
+    c0 = (b1 - b0) / h01
+    c1 = (b2 - b1) / h01
+    e0 = (c1 - c0) / h01
+    if not three.all():
+        c0 = np.where(three, c0, 0.0)
+        e0 = np.where(three, e0, 0.0)
+    u0, u1 = t - x0, t - x1
+    # Horner on the nodes x₀ x₀ x₁ x₁ x₂, the derivative by the nested product rule.
+    val, der = e0, np.zeros_like(e0)
+    for coef, step in ((c0, t - x2), (b0, u1), (a0, u1), (dy[:, 0], u0), (y[:, 0], u0)):
+        der = der * step + val
+        val = val * step + coef
+    return val, der

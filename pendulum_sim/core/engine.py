@@ -368,7 +368,9 @@ class Engine:
     def implicit_advance(self, p: float, v: float, h: float, ain: float,
                          stats: GuardStats) -> tuple[float, float, float]:
         """Take the implicit method's own DIRK step of h (``dirk.py``)."""
-        p1, v1, w = self.dirk_safe(self.method.tableau, p, v, h, ain)
+        tab = self.method.tableau
+        assert isinstance(tab, Tableau)  # an 'implicit' method is a DIRK tableau
+        p1, v1, w = self.dirk_safe(tab, p, v, h, ain)
         return self._settle(p, v, h, ain, p1, v1, w, stats)
 
     def _settle(self, p: float, v: float, h: float, ain: float, p1: float, v1: float, w: float,
@@ -597,6 +599,7 @@ class Engine:
         bounds the speed) and resolves ω0, re-judged after each one.
         """
         tab = FALLBACK_METHOD.tableau
+        assert isinstance(tab, Tableau)
         force = abs(ain) + self.w2
         left, w = h, 0.0
         while left > 0.0:

@@ -6,7 +6,19 @@ from typing import Protocol
 
 from .errors import IntegratorError
 from .guard import GuardStats
-from .tableaus import DOP853, DOPRI5, EULER, MIDPOINT, RK4, RODAS4, SDIRK2, SDIRK3, Tableau
+from .tableaus import (
+    DOP853,
+    DOPRI5,
+    EULER,
+    EXTRAP6,
+    MIDPOINT,
+    RK4,
+    RODAS4,
+    SDIRK2,
+    SDIRK3,
+    Extrapolation,
+    Tableau,
+)
 
 
 class Advance(Protocol):
@@ -30,13 +42,14 @@ class Method:
 
     ``kind`` is ``'explicit'`` (fixed step, guarded), ``'adaptive'`` (embedded pair with error
     control: explicit ``dopri5`` for offline accuracy, ``dop853`` for tight tolerances,
-    linearly implicit ``rodas4`` for long stiff runs) or ``'implicit'`` (L-stable DIRK, for
-    stiff damping).
+    linearly implicit ``rodas4`` for long stiff runs and ``extrap6`` for tight tolerances on
+    them) or ``'implicit'`` (L-stable DIRK, for stiff damping). ``tableau`` is the method's
+    data: a Butcher tableau, or the step sequence of an extrapolation method.
     """
 
     name: str
     kind: str
-    tableau: Tableau
+    tableau: Tableau | Extrapolation
 
     @property
     def order(self) -> int:
@@ -63,6 +76,7 @@ METHODS: dict[str, Method] = {
     'sdirk2': Method('sdirk2', 'implicit', SDIRK2),
     'sdirk3': Method('sdirk3', 'implicit', SDIRK3),
     'rodas4': Method('rodas4', 'adaptive', RODAS4),
+    'extrap6': Method('extrap6', 'adaptive', EXTRAP6),
 }
 
 FALLBACK_METHOD = METHODS['sdirk3']

@@ -221,5 +221,57 @@ RODAS4 = Tableau(
     gamma=0.25,
 )
 
+@dataclass(frozen=True, eq=False)
+class Extrapolation:
+    """An extrapolation method as data: its base step is linearly implicit Euler (L-stable).
+
+    ``sequence`` is the step-number sequence n₁ < n₂ < … < n_k; the extrapolated value T_kk has
+    order k and T_kk − T_{k,k−1} is its error estimate, of order k − 1 (``extrapolation.py``).
+    It answers the questions a tableau answers (order, kind, stability function), so the
+    methods table and the embedded cover take either.
+    """
+
+    name: str
+    sequence: tuple[int, ...]
+    description: str = ''
+
+    @property
+    def order(self) -> int:
+        """Return the order k of T_kk."""
+        return len(self.sequence)
+
+    @property
+    def error_order(self) -> int:
+        """Return the order of the estimated value T_{k,k−1}."""
+        return len(self.sequence) - 1
+
+    @property
+    def explicit(self) -> bool:
+        """Return False: the base step solves a linear system."""
+        return False
+
+    @property
+    def rosenbrock(self) -> bool:
+        """Return False: not a Rosenbrock tableau (its own generated step)."""
+        return False
+
+    def stability_function(self, z: complex) -> complex:
+        """Return R(z) of T_kk on y' = λ y at z = h λ (exact Jacobian)."""
+        rows: list[list[complex]] = []
+        for j, nj in enumerate(self.sequence):
+            row = [complex((1.0 - z / nj) ** -nj)]
+            for k in range(1, j + 1):
+                ratio = nj / self.sequence[j - k]
+                row.append(row[k - 1] + (row[k - 1] - rows[j - 1][k - 1]) / (ratio - 1.0))
+            rows.append(row)
+        return rows[-1][-1]
+
+
+# The harmonic sequence 1, 2, …, 6 (Deuflhard's choice for linearly implicit Euler; Hairer and
+# Wanner, *Solving ODEs II*, IV.9): order 6, 16 evaluations of f and 21 2×2 solves per step.
+EXTRAP6 = Extrapolation('extrap6', (1, 2, 3, 4, 5, 6),
+                        'linearly implicit Euler extrapolated to order 6, adaptive, for tight '
+                        'tolerances on stiff runs')
+
 TABLEAUS: dict[str, Tableau] = {t.name: t for t in (EULER, MIDPOINT, RK4, DOPRI5, DOP853, SDIRK2,
                                                     SDIRK3)}
