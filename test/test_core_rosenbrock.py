@@ -159,25 +159,25 @@ def test_coulomb_sticks_and_stepper_matches_simulate() -> None:
     assert (s.phi, s.dphi) == (r.phi[-1], r.dphi[-1])
 
 
-def test_dense_interpolant_reproduces_quintics_and_their_derivative() -> None:
-    # The continuous extension of embedded.dense_run: Hermite through (y, y') at three nodes
-    # of any spacing is exact for every polynomial of degree ≤ 5 (and so its derivative); at
-    # two nodes (three = False) for every cubic.
-    from pendulum_sim.core.embedded import _hermite3
+@pytest.mark.parametrize('nodes', [2, 3, 4])
+def test_dense_interpolant_reproduces_polynomials_and_their_derivative(nodes: int) -> None:
+    # The continuous extension of embedded.dense_run: Hermite through (y, y') at m nodes of
+    # any spacing is exact for every polynomial of degree ≤ 2m − 1, and so is its derivative;
+    # keeping the first 2j terms interpolates the first j nodes (the stencil cut at a kink).
+    from pendulum_sim.core.embedded import hermite_eval
 
-    rng = np.random.default_rng(5)
-    x = np.sort(rng.uniform(0.0, 3.0, (3, 40)), axis=0)
-    t = rng.uniform(x[0], x[2])
-    for degree, three in ((5, True), (3, False)):
-        polys = [np.polynomial.Polynomial(rng.normal(size=degree + 1)) for _ in range(2)]
-        y = np.array([[q(x[i]) for i in range(3)] for q in polys])
-        dy = np.array([[q.deriv()(x[i]) for i in range(3)] for q in polys])
-        if not three:
-            t = rng.uniform(x[0], x[1])
-        val, der = _hermite3(x, y, dy, np.full(40, three), t)
-        for c, q in enumerate(polys):
-            np.testing.assert_allclose(val[c], q(t), rtol=1e-10, atol=1e-10)
-            np.testing.assert_allclose(der[c], q.deriv()(t), rtol=1e-9, atol=1e-9)
+    rng = np.random.default_rng(nodes)
+    size = 40
+    x = np.cumsum(rng.uniform(0.05, 1.0, (4, size)), axis=0)  # spacings vary 20-fold
+    t = rng.uniform(x[0], x[nodes - 1])
+    polys = [np.polynomial.Polynomial(rng.normal(size=2 * nodes)) for _ in range(2)]
+    y = np.array([[q(x[i]) for i in range(4)] for q in polys])
+    dy = np.array([[q.deriv()(x[i]) for i in range(4)] for q in polys])
+    terms = None if nodes == 4 else np.full(size, 2 * nodes)
+    val, der = hermite_eval(x, y, dy, terms, t)
+    for c, q in enumerate(polys):
+        np.testing.assert_allclose(val[c], q(t), rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(der[c], q.deriv()(t), rtol=1e-8, atol=1e-8)
 
 
 @pytest.mark.parametrize('rtol', [1e-3, 1e-6])

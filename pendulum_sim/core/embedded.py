@@ -25,7 +25,7 @@ from .model import FloatArray
 from .rosenbrock import compile_rosenbrock
 from .tableaus import Extrapolation, Tableau
 
-BoolArray = npt.NDArray[np.bool_]
+IntArray = npt.NDArray[np.intp]
 
 
 def pair_steps(tab: Tableau | Extrapolation, n: float) -> tuple[ErrStepFn, ErrStepFn]:
@@ -192,14 +192,20 @@ class Cover:
         return p1, v1, w
 
 
-DENSE_MAX_ORDER = 4
-"""The interpolant of :func:`dense_run` is the quintic Hermite polynomial through φ and φ' at
-three consecutive mesh points (φ' by its derivative): its error is O(δ⁶) in φ and O(δ⁵) in φ',
-order 5, above the order of the methods it serves (so it does not lower their accuracy); methods
-of order 5 and more stop at every output instead. It uses the states only, never the vector
-field: on a stiff creep the states carry errors of the tolerance's size across the fast mode,
-which f = φ'' would multiply by the fast rate (a Hermite interpolant through φ'' at the ends of
-a 2 s step on the γ = 1000, n = 2 creep was 80× less accurate than the states it joined)."""
+DENSE_NODES = {4: 3}
+"""Mesh points per interpolant, by the largest order of the methods it serves: the Hermite
+polynomial through φ and φ' at m consecutive mesh points has degree 2m − 1, error O(δ^2m) in φ
+and, by its derivative, O(δ^(2m−1)) in φ', so three points serve methods of order up to 4
+(``rodas4``). Higher orders stop at every output: their steps are long enough that an
+interpolant of their own order joins points too far apart (measured: four points for
+``extrap6`` on the γ = 1000 creep were 500× less accurate than stopping at the outputs)."""
+
+DENSE_MAX_ORDER = max(DENSE_NODES)
+
+
+def dense_nodes(order: int) -> int:
+    """Return the mesh points the interpolant of a method of ``order`` uses (0: none)."""
+    return min((m for o, m in DENSE_NODES.items() if order <= o), default=0)
 
 
 def dense_capable(eng: Engine) -> bool:
@@ -218,71 +224,71 @@ def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rt
 
     The error-controlled substeps of :func:`cover` run over the whole span (cut at velocity
     reversals, so no step straddles a kink) and land on the last output; every other output
-    is interpolated instead of cutting a step at it: φ and the damping work w by the quintic
-    Hermite polynomial through their values and rates (φ' and φ' D(φ')) at the ends of the step
-    that contains the output and at one neighbouring mesh point (the one before, else the one
-    after), φ' by the derivative of φ's. A stencil never reaches across a kink of the law (a
-    mesh point at rest where the damping is not smooth); a step with kinks on both sides uses
-    the cubic through its own two ends. ``t_out`` is increasing from 0; ``a_in`` is constant
-    over the run.
+    is interpolated instead of cutting a step at it: φ and the damping work w by the Hermite
+    polynomial through their values and rates (φ' and φ' D(φ')) at the m mesh points
+    (:data:`DENSE_NODES`) around the step that contains the output, φ' by the derivative of
+    φ's. The interpolant uses the states only, never the vector field: on a stiff creep the
+    states carry errors of the tolerance's size across the fast mode, which f = φ'' would
+    multiply by the fast rate (through φ'' at the ends of a 2 s step on the γ = 1000, n = 2
+    creep the interpolant was 80× less accurate than the states it joined). A stencil never
+    reaches across a kink of the law (a mesh point at rest where the damping is not smooth);
+    where fewer than m points lie between kinks it uses those (at least the step's two ends).
+    ``t_out`` is increasing from 0; ``a_in`` is constant over the run.
     """
     if not dense_capable(eng):
         raise IntegratorError(f'{eng.method.name} has no dense output here')
+    m = dense_nodes(eng.method.tableau.order)
     trace: list[float] = [0.0, p, v, 0.0]
     cover(eng, p, v, float(t_out[-1]), ain, rtol, atol, 0.0, stats, trace=trace)
     ts, ps, vs, ws = np.asarray(trace).reshape(-1, 4).T
     last = len(ts) - 1
     k = np.searchsorted(ts, t_out, side='right') - 1
     np.minimum(k, last - 1, out=k)  # t_out[-1] = ts[-1] belongs to the last step
-    kink = (vs == 0.0) if eng.nonsmooth else np.zeros(len(ts), dtype=bool)
-    back = (k >= 1) & ~kink[k]
-    ahead = ~back & (k + 2 <= last)
-    ahead[ahead] = ~kink[k[ahead] + 1]
-    start = np.where(back, k - 1, k)
-    three = back | ahead
-    i0, i1 = start, start + 1
-    i2 = np.where(three, start + 2, start + 1)
+    # The stretch between kinks that holds the step, and m points of it centred on the step.
+    ends = np.array([0, last])
+    if eng.nonsmooth:
+        ends = np.union1d(ends, np.flatnonzero(vs == 0.0))
+    seg = np.searchsorted(ends, k, side='right') - 1
+    lo, hi = ends[seg], ends[seg + 1]
+    nodes = np.minimum(hi - lo + 1, m)
+    start = np.clip(k - (m - 1) // 2, lo, hi - nodes + 1)
+    idx = start + np.arange(m)[:, None]  # (node, output)
+    extra = idx > hi  # beyond the stretch: placeholders, their terms are dropped below
+    x = ts[np.minimum(idx, hi)] + extra  # distinct placeholder abscissae keep it finite
+    idx = np.minimum(idx, hi)
     rate = vs * compile_damping(eng.n, vector=True)(vs, eng.gamma, 1.0)  # dw/dt = φ' D(φ')
-    x = np.array((ts[i0], ts[i1], ts[i2]))
-    y = np.array(((ps[i0], ps[i1], ps[i2]), (ws[i0], ws[i1], ws[i2])))  # (φ | w, node, out)
-    dy = np.array(((vs[i0], vs[i1], vs[i2]), (rate[i0], rate[i1], rate[i2])))
-    val, der = _hermite3(x, y, dy, three, t_out)
+    y = np.array((ps[idx], ws[idx]))  # (φ | w, node, output)
+    dy = np.array((vs[idx], rate[idx]))
+    val, der = hermite_eval(x, y, dy, 2 * nodes if extra.any() else None, t_out)
     return val[0], der[0], val[1]
 
 
-def _hermite3(x: FloatArray, y: FloatArray, dy: FloatArray, three: BoolArray,
-              t: FloatArray) -> tuple[FloatArray, FloatArray]:
+def hermite_eval(x: FloatArray, y: FloatArray, dy: FloatArray, terms: IntArray | None,
+                 t: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Return the Hermite interpolant through (y, y') at nodes x and its derivative, at t.
 
-    ``x`` is (3, m), ``y`` and ``dy`` (c, 3, m): per point of ``t`` (m of them), three nodes
-    with values and slopes of c components; where ``three`` is False only the first two nodes
-    are used (a cubic). Newton's form on the doubled nodes x₀ x₀ x₁ x₁ x₂ x₂ (confluent
-    divided differences), evaluated with its derivative by the nested product rule.
+    ``x`` is (m, P) and ``y``, ``dy`` (c, m, P): per point of ``t`` (P of them) m nodes with
+    the values and slopes of c components. Newton's form on the doubled nodes x₀ x₀ x₁ x₁ …
+    (confluent divided differences; Hermite interpolation, e.g. Stoer and Bulirsch,
+    *Introduction to Numerical Analysis*, 2.1.5), of which the first ``terms`` (per point; None:
+    all) are kept: 2j terms interpolate the first j nodes. Evaluated with its derivative by the nested
+    product rule.
     """
-    x0, x1, x2 = x
-    h0 = x1 - x0
-    h1 = np.where(three, x2 - x1, 1.0)  # a cubic's third node is a placeholder
-    h01 = h0 + h1
-    s0 = (y[:, 1] - y[:, 0]) / h0
-    s1 = (y[:, 2] - y[:, 1]) / h1
-    # Divided differences of orders 2 … 5 on x₀ x₀ x₁ x₁ x₂ x₂.
-    a0 = (s0 - dy[:, 0]) / h0
-    a1 = (dy[:, 1] - s0) / h0
-    a2 = (s1 - dy[:, 1]) / h1
-    a3 = (dy[:, 2] - s1) / h1
-    b0 = (a1 - a0) / h0
-    b1 = (a2 - a1) / h01
-    b2 = (a3 - a2) / h1
-    c0 = (b1 - b0) / h01
-    c1 = (b2 - b1) / h01
-    e0 = (c1 - c0) / h01
-    if not three.all():
-        c0 = np.where(three, c0, 0.0)
-        e0 = np.where(three, e0, 0.0)
-    u0, u1 = t - x0, t - x1
-    # Horner on the nodes x₀ x₀ x₁ x₁ x₂, the derivative by the nested product rule.
-    val, der = e0, np.zeros_like(e0)
-    for coef, step in ((c0, t - x2), (b0, u1), (a0, u1), (dy[:, 0], u0), (y[:, 0], u0)):
+    m = len(x)
+    z = np.repeat(x, 2, axis=0)
+    # First differences: the slope at a doubled node, the chord between neighbours.
+    level = [dy[:, 0]]
+    for j in range(1, m):
+        level.append((y[:, j] - y[:, j - 1]) / (x[j] - x[j - 1]))
+        level.append(dy[:, j])
+    coef = [y[:, 0], level[0]]
+    for order in range(2, 2 * m):
+        level = [(level[i + 1] - level[i]) / (z[i + order] - z[i])
+                 for i in range(len(level) - 1)]
+        coef.append(level[0] if terms is None else np.where(terms > order, level[0], 0.0))
+    val, der = coef[-1], np.zeros_like(coef[-1])
+    for j in range(2 * m - 2, -1, -1):
+        step = t - z[j]
         der = der * step + val
-        val = val * step + coef
+        val = val * step + coef[j]
     return val, der
