@@ -270,9 +270,9 @@ def hermite_eval(x: FloatArray, y: FloatArray, dy: FloatArray, terms: IntArray |
     ``x`` is (m, P) and ``y``, ``dy`` (c, m, P): per point of ``t`` (P of them) m nodes with
     the values and slopes of c components. Newton's form on the doubled nodes x₀ x₀ x₁ x₁ …
     (confluent divided differences; Hermite interpolation, e.g. Stoer and Bulirsch,
-    *Introduction to Numerical Analysis*, 2.1.5), of which the first ``terms`` (per point; None:
-    all) are kept: 2j terms interpolate the first j nodes. Evaluated with its derivative by the nested
-    product rule.
+    *Introduction to Numerical Analysis*, 2.1.5), of which the first ``terms`` (per point;
+    None: all) are kept: 2j terms interpolate the first j nodes. Evaluated with its derivative
+    by the nested product rule.
     """
     m = len(x)
     z = np.repeat(x, 2, axis=0)
