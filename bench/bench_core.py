@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from pendulum_sim.core import PendulumParams, Stepper
+from pendulum_sim.core import sweep as sweep_module
 from pendulum_sim.core.engine import Engine
 from pendulum_sim.core.sweep import sweep
 from pendulum_sim.reports.report import machine_info
@@ -102,18 +103,21 @@ def bench_sweep(size: int, steps: int, repeats: int, ns: np.ndarray | None = Non
 
 
 def sweep_breakdown(size: int, steps: int, repeats: int, ns: np.ndarray | None = None
-                    ) -> tuple[float, float, float, float]:
-    """Return where a sweep's time goes: first step, careful-path calls per step, µs, share.
+                    ) -> tuple[float, float, float, float, float]:
+    """Return where a sweep's time goes: first step, careful-path calls, µs, share, plain step.
 
     The best time of a one-step sweep (the set-up: validation, the guard's speed ranges and the
     other per-pendulum constants, plus the first step, where transients start) is given in ns
     per pendulum-step of a ``steps``-step run; the careful path is timed by wrapping
-    ``Engine.careful`` for one ``steps``-step run.
+    ``Engine.careful``, and the plain numpy step by wrapping the steps the sweep compiles, for
+    one ``steps``-step run (ns per pendulum-step). The rest is the fast-path decisions and the
+    sweep's own bookkeeping.
     """
     g, n, p0, v0 = sweep_problem(size, ns)
     setup = best_of(lambda: sweep(W2, g, n, p0, v0, H, H), repeats)
-    calls, spent = 0, 0.0
+    calls, spent, stepping = 0, 0.0, 0.0
     plain = Engine.careful
+    compile_plain = sweep_module.compile_step  # type: ignore[attr-defined]
 
     def timed(self: Engine, *args: Any) -> tuple[float, float, float]:
         nonlocal calls, spent
@@ -124,15 +128,30 @@ def sweep_breakdown(size: int, steps: int, repeats: int, ns: np.ndarray | None =
             spent += time.perf_counter() - t0
             calls += 1
 
+    def timed_compile(*args: Any, **kwargs: Any) -> Callable[..., Any]:
+        step = compile_plain(*args, **kwargs)
+
+        def timed_step(*a: Any) -> Any:
+            nonlocal stepping
+            t0 = time.perf_counter()
+            try:
+                return step(*a)
+            finally:
+                stepping += time.perf_counter() - t0
+
+        return timed_step
+
     Engine.careful = timed  # type: ignore[method-assign]
+    sweep_module.compile_step = timed_compile  # type: ignore[attr-defined,assignment]
     try:
         t0 = time.perf_counter()
         sweep(W2, g, n, p0, v0, steps * H, H)
         total = time.perf_counter() - t0
     finally:
         Engine.careful = plain  # type: ignore[method-assign]
+        sweep_module.compile_step = compile_plain  # type: ignore[attr-defined]
     return (setup / (size * steps) * 1e9, calls / steps, spent / max(calls, 1) * 1e6,
-            spent / total)
+            spent / total, stepping / (size * steps) * 1e9)
 
 
 def bench_scipy(repeats: int) -> tuple[float, float, int] | None:
@@ -254,12 +273,13 @@ def main() -> None:
                         for what, x in (('wall', sweep_ns), ('CPU', sweep_cpu)))
     print(f'   (the earlier target <= 30 ns at 10^5 mixed: {verdict})')
     print('   where the time goes at 10^5 (one run each): a one-step sweep (set-up + first step)')
-    print('   as ns per pendulum-step of the run; careful-path calls per step, µs per call, share')
+    print('   as ns per pendulum-step of the run; careful-path calls per step, µs per call,')
+    print('   share; the plain numpy step (all pendulums, every step) in ns per pendulum-step')
     for label, ns in (('mixed n=1..5', None), ('n = 1 only', np.full(big, 1.0)),
                       ('n = 2 only', np.full(big, 2.0)), ('n = 5 only', np.full(big, 5.0))):
-        setup, per_step, us, share = sweep_breakdown(big, steps, reps, ns)
+        setup, per_step, us, share, plain_ns = sweep_breakdown(big, steps, reps, ns)
         print(f'   {big:>9}  {label:<13} 1 step {setup:5.1f} ns, careful {per_step:6.0f}/step '
-              f'x {us:5.1f} µs = {100 * share:3.0f} %')
+              f'x {us:5.1f} µs = {100 * share:3.0f} %, plain step {plain_ns:5.1f} ns')
     print()
 
     mj = bench_mujoco(20000 if args.quick else 100000, reps)
