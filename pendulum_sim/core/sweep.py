@@ -223,9 +223,12 @@ _NEAR_OR_CROSS = _decision('v, av, v1, a0, h, reach', REVERSAL_SRC)
 
 
 def _uniform(x: FloatArray) -> Any:
-    """Return ``x`` as one float where all its entries are equal (numpy broadcasts it alike)."""
-    first = x[0]
-    return float(first) if bool(np.all(x == first)) else x
+    """Return ``x`` as one float where its entries are all one float (numpy broadcasts it alike).
+
+    The same to the bit, so that a zero's sign is kept as well.
+    """
+    bits = x.view(np.uint64)
+    return float(x[0]) if bool(np.all(bits == bits[0])) else x
 
 
 @dataclass
@@ -324,7 +327,7 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
     return out
 
 
-def _advance(grp: _Group, hh: float, engines: dict[tuple[float, float, float], Engine],
+def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool) -> None:
     """Advance one group by a step of hh: the plain step, the decisions, the careful path."""
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
@@ -369,9 +372,12 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, float, float], E
         for j, pj, vj, aj, w2j, gj in zip(refused.tolist(), p[refused].tolist(),
                                           vv[refused].tolist(), *(c.tolist() for c in consts),
                                           strict=True):
-            eng = engines.get((w2j, gj, n))
+            # Pendulums with the same (ω0², γ, n) share an Engine; a zero's sign is kept apart.
+            key = (w2j, gj, n) if w2j and gj else (
+                w2j, gj, n, math.copysign(1.0, w2j), math.copysign(1.0, gj))
+            eng = engines.get(key)
             if eng is None:
-                eng = engines[(w2j, gj, n)] = Engine(w2j, gj, n, meth, guard, energy_check)
+                eng = engines[key] = Engine(w2j, gj, n, meth, guard, energy_check)
             st = stats.get(start + j)
             if st is None:
                 st = stats[start + j] = GuardStats()
@@ -438,7 +444,7 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     phi, v = p0[order].copy(), v0[order].copy()
     energy = specific_energy(v, np.sin(0.5 * phi), om2)
     stats: dict[int, GuardStats] = {}
-    engines: dict[tuple[float, float, float], Engine] = {}  # per (ω0², γ, n): no state
+    engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
     meth = METHODS[method]
     steps = [(h, k_full)] + ([(last, 1)] if last > 0.0 else [])
     total = k_full + (1 if last > 0.0 else 0)
