@@ -21,7 +21,7 @@ from .errors import IntegratorError
 from .explicit import ErrStepFn, compile_damping, compile_step
 from .extrapolation import compile_extrapolation
 from .guard import GuardStats
-from .model import FloatArray
+from .model import FloatArray, damping_derivative
 from .rosenbrock import compile_rosenbrock
 from .tableaus import Extrapolation, Tableau
 
@@ -48,8 +48,9 @@ def initial_step(eng: Engine, p: float, v: float, h: float, ain: float, rtol: fl
 
     The starting-step rule of Hairer, Nørsett and Wanner (*Solving ODEs I*, II.4): h₀ =
     0.01 ‖y‖/‖f‖, then h₁ = (0.01 / max(‖f‖, ‖f'‖ h₀-estimate))^(1/(p+1)), the smaller of 100 h₀
-    and h₁, at most h. It resolves a fast start (a stiff transient from rest) instead of
-    stepping over it.
+    and h₁, at most h, and at most 1/ρ with ρ = d + ω0 √|cos φ| a bound on the Jacobian's
+    spectral radius (d the damping slope, eq 18-19): the first step resolves the fastest rate
+    at the start (a stiff transient from rest) instead of stepping over it.
     """
     w2, damp = eng.w2, eng.damping
 
@@ -67,9 +68,12 @@ def initial_step(eng: Engine, p: float, v: float, h: float, ain: float, rtol: fl
         d2 = rms(v1 - v, a1 - a0, sp, sv) / h0
         big = max(d1, d2)
         h1 = max(1e-6, h0 * 1e-3) if big <= 1e-15 else (0.01 / big) ** (1.0 / (order + 1))
+        rho = damping_derivative(eng.gamma, eng.n, v) + math.sqrt(w2 * abs(math.cos(p)))
     except (OverflowError, ValueError, ZeroDivisionError):
         return h * 1e-3
-    return min(100.0 * h0, h1, h)
+    first = min(100.0 * h0, h1, h)
+    # An unbounded slope (n < 1 at rest) is the kink itself, not a rate to resolve.
+    return min(first, 1.0 / rho) if 0.0 < rho < math.inf else first
 
 
 class TooManySubsteps(Exception):
@@ -244,22 +248,26 @@ def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rt
     last = len(ts) - 1
     k = np.searchsorted(ts, t_out, side='right') - 1
     np.minimum(k, last - 1, out=k)  # t_out[-1] = ts[-1] belongs to the last step
-    # The stretch between kinks that holds the step, and m points of it centred on the step.
-    ends = np.array([0, last])
-    if eng.nonsmooth:
-        ends = np.union1d(ends, np.flatnonzero(vs == 0.0))
-    seg = np.searchsorted(ends, k, side='right') - 1
-    lo, hi = ends[seg], ends[seg + 1]
-    nodes = np.minimum(hi - lo + 1, m)
-    start = np.clip(k - (m - 1) // 2, lo, hi - nodes + 1)
+    # m mesh points around the step, within the stretch between kinks that holds it.
+    kinks = np.flatnonzero(vs[1:-1] == 0.0) + 1 if eng.nonsmooth else ()
+    if len(kinks):
+        ends = np.concatenate(([0], kinks, [last]))
+        seg = np.searchsorted(ends, k, side='right') - 1
+        lo, hi = ends[seg], ends[seg + 1]
+        nodes = np.minimum(hi - lo + 1, m)
+        start = np.minimum(np.maximum(k - (m - 1) // 2, lo), hi - nodes + 1)
+    else:
+        nodes = np.full_like(k, min(last + 1, m))
+        start = np.minimum(np.maximum(k - (m - 1) // 2, 0), last + 1 - nodes)
     idx = start + np.arange(m)[:, None]  # (node, output)
-    extra = idx > hi  # beyond the stretch: placeholders, their terms are dropped below
-    x = ts[np.minimum(idx, hi)] + extra  # distinct placeholder abscissae keep it finite
-    idx = np.minimum(idx, hi)
+    extra = idx > start + nodes - 1  # beyond the stretch: placeholders, terms dropped below
+    short = bool(extra.any())
+    if short:
+        idx = np.minimum(idx, start + nodes - 1)
+    x = ts[idx] + extra if short else ts[idx]  # distinct placeholder abscissae: finite
     rate = vs * compile_damping(eng.n, vector=True)(vs, eng.gamma, 1.0)  # dw/dt = φ' D(φ')
-    y = np.array((ps[idx], ws[idx]))  # (φ | w, node, output)
-    dy = np.array((vs[idx], rate[idx]))
-    val, der = hermite_eval(x, y, dy, 2 * nodes if extra.any() else None, t_out)
+    data = np.array((ps, ws, vs, rate))[:, idx]  # (φ, w, then their rates; node; output)
+    val, der = hermite_eval(x, data[:2], data[2:], 2 * nodes if short else None, t_out)
     return val[0], der[0], val[1]
 
 
@@ -275,20 +283,25 @@ def hermite_eval(x: FloatArray, y: FloatArray, dy: FloatArray, terms: IntArray |
     by the nested product rule.
     """
     m = len(x)
-    z = np.repeat(x, 2, axis=0)
+    # The divided differences' denominators, z_{i+r} − z_i on z = x₀ x₀ x₁ x₁ …: x_b − x_a.
+    gaps = {(a, b): x[b] - x[a] for a in range(m) for b in range(a + 1, m)}
     # First differences: the slope at a doubled node, the chord between neighbours.
     level = [dy[:, 0]]
     for j in range(1, m):
-        level.append((y[:, j] - y[:, j - 1]) / (x[j] - x[j - 1]))
+        level.append((y[:, j] - y[:, j - 1]) / gaps[j - 1, j])
         level.append(dy[:, j])
     coef = [y[:, 0], level[0]]
     for order in range(2, 2 * m):
-        level = [(level[i + 1] - level[i]) / (z[i + order] - z[i])
+        level = [(level[i + 1] - level[i]) / gaps[i // 2, (i + order) // 2]
                  for i in range(len(level) - 1)]
         coef.append(level[0] if terms is None else np.where(terms > order, level[0], 0.0))
-    val, der = coef[-1], np.zeros_like(coef[-1])
-    for j in range(2 * m - 2, -1, -1):
-        step = t - z[j]
-        der = der * step + val
-        val = val * step + coef[j]
+    steps = [t - x[j] for j in range(m)]
+    val = coef[-1] * steps[m - 1] + coef[-2]
+    der = coef[-1].copy()
+    for j in range(2 * m - 3, -1, -1):
+        step = steps[j // 2]
+        der *= step
+        der += val
+        val *= step
+        val += coef[j]
     return val, der

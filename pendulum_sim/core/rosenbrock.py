@@ -66,6 +66,13 @@ def _lin(terms: list[tuple[float, str]]) -> str:
     return ' + '.join(parts)
 
 
+def _extends(row: FloatArray, prev: FloatArray) -> bool:
+    """Return True where ``row`` is ``prev`` (padded with 0) plus 1 in its last place."""
+    k = len(row) - 1
+    return bool(k >= 1 and row[k] == 1.0 and np.array_equal(row[:k], prev[:k])
+                and not np.any(prev[k:]))
+
+
 def step_source(tableau: Tableau, damping: str) -> str:
     """Return the unrolled source of one Rosenbrock step of ``tableau`` with the law ``damping``.
 
@@ -95,7 +102,12 @@ def step_source(tableau: Tableau, damping: str) -> str:
     for i in range(s):
         pi, vi = ('p0', 'v0')
         dp = _lin([(float(A[i, j]), f'kp_{j}') for j in range(i)])
-        if dp:
+        if dp and _extends(A[i, :i], A[i - 1, :i]):
+            # This stage's sum is the previous stage's plus its own k (stiffly accurate rows).
+            body.append(f'    P_{i} = P_{i - 1} + kp_{i - 1}')
+            body.append(f'    V_{i} = V_{i - 1} + kv_{i - 1}')
+            pi, vi = f'P_{i}', f'V_{i}'
+        elif dp:
             dv = _lin([(float(A[i, j]), f'kv_{j}') for j in range(i)])
             body.append(f'    P_{i} = p0 + {dp}')
             body.append(f'    V_{i} = v0 + {dv}')
@@ -120,8 +132,12 @@ def step_source(tableau: Tableau, damping: str) -> str:
         body.append(f'    kp_{i} = qcd * rp + q * rv')
         body.append(f'    kv_{i} = qc * rv - qk * rp')
         body.append(f'    kw_{i} = hg * ({rw} + jw * kv_{i})')
-    body.append(f'    p1 = p0 + {_lin([(float(B[i]), f"kp_{i}") for i in range(s)])}')
-    body.append(f'    v1 = v0 + {_lin([(float(B[i]), f"kv_{i}") for i in range(s)])}')
+    if _extends(B, A[s - 1]) and any(A[s - 1, :s - 1]):
+        body.append(f'    p1 = P_{s - 1} + kp_{s - 1}')
+        body.append(f'    v1 = V_{s - 1} + kv_{s - 1}')
+    else:
+        body.append(f'    p1 = p0 + {_lin([(float(B[i]), f"kp_{i}") for i in range(s)])}')
+        body.append(f'    v1 = v0 + {_lin([(float(B[i]), f"kv_{i}") for i in range(s)])}')
     body.append(f'    w = {_lin([(float(B[i]), f"kw_{i}") for i in range(s)])}')
     ep = _lin([(float(E[i]), f'kp_{i}') for i in range(s)]) or '0.0'
     ev = _lin([(float(E[i]), f'kv_{i}') for i in range(s)]) or '0.0'
