@@ -171,8 +171,8 @@ def test_dense_interpolant_reproduces_polynomials_and_their_derivative(nodes: in
     x = np.cumsum(rng.uniform(0.05, 1.0, (4, size)), axis=0)  # spacings vary 20-fold
     t = rng.uniform(x[0], x[nodes - 1])
     polys = [np.polynomial.Polynomial(rng.normal(size=2 * nodes)) for _ in range(2)]
-    y = np.array([[q(x[i]) for i in range(4)] for q in polys])
-    dy = np.array([[q.deriv()(x[i]) for i in range(4)] for q in polys])
+    y = np.array([[q(x[i]) for q in polys] for i in range(4)])  # (node, component, point)
+    dy = np.array([[q.deriv()(x[i]) for q in polys] for i in range(4)])
     terms = None if nodes == 4 else np.full(size, 2 * nodes)
     val, der = hermite_eval(x, y, dy, terms, t)
     for c, q in enumerate(polys):

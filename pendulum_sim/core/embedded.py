@@ -256,18 +256,26 @@ def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rt
         lo, hi = ends[seg], ends[seg + 1]
         nodes = np.minimum(hi - lo + 1, m)
         start = np.minimum(np.maximum(k - (m - 1) // 2, lo), hi - nodes + 1)
-    else:
-        nodes = np.full_like(k, min(last + 1, m))
-        start = np.minimum(np.maximum(k - (m - 1) // 2, 0), last + 1 - nodes)
-    idx = start + np.arange(m)[:, None]  # (node, output)
-    extra = idx > start + nodes - 1  # beyond the stretch: placeholders, terms dropped below
-    short = bool(extra.any())
+        idx = start + np.arange(m)[:, None]  # (node, output)
+        top: IntArray | int = start + nodes - 1
+        extra = idx > top  # beyond the stretch: placeholders, their terms are dropped
+        short = bool(extra.any())
+        terms: IntArray | None = 2 * nodes
+    else:  # one stretch: the whole mesh
+        size = min(last + 1, m)
+        start = np.minimum(np.maximum(k - (m - 1) // 2, 0), last + 1 - size)
+        idx = start + np.arange(m)[:, None]
+        top = last
+        short = size < m
+        extra = idx > last
+        terms = np.full_like(k, 2 * size)
     if short:
-        idx = np.minimum(idx, start + nodes - 1)
+        idx = np.minimum(idx, top)
     x = ts[idx] + extra if short else ts[idx]  # distinct placeholder abscissae: finite
     rate = vs * compile_damping(eng.n, vector=True)(vs, eng.gamma, 1.0)  # dw/dt = φ' D(φ')
-    data = np.array((ps, ws, vs, rate))[:, idx]  # (φ, w, then their rates; node; output)
-    val, der = hermite_eval(x, data[:2], data[2:], 2 * nodes if short else None, t_out)
+    # (node, [φ, w, φ', dw/dt], output), contiguous per node
+    data = np.ascontiguousarray(np.array((ps, ws, vs, rate)).T[idx].transpose(0, 2, 1))
+    val, der = hermite_eval(x, data[:, :2], data[:, 2:], terms if short else None, t_out)
     return val[0], der[0], val[1]
 
 
@@ -275,27 +283,30 @@ def hermite_eval(x: FloatArray, y: FloatArray, dy: FloatArray, terms: IntArray |
                  t: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Return the Hermite interpolant through (y, y') at nodes x and its derivative, at t.
 
-    ``x`` is (m, P) and ``y``, ``dy`` (c, m, P): per point of ``t`` (P of them) m nodes with
+    ``x`` is (m, P) and ``y``, ``dy`` (m, c, P): per point of ``t`` (P of them) m nodes with
     the values and slopes of c components. Newton's form on the doubled nodes x₀ x₀ x₁ x₁ …
     (confluent divided differences; Hermite interpolation, e.g. Stoer and Bulirsch,
     *Introduction to Numerical Analysis*, 2.1.5), of which the first ``terms`` (per point;
     None: all) are kept: 2j terms interpolate the first j nodes. Evaluated with its derivative
-    by the nested product rule.
+    by the nested product rule. (Every operand is made a contiguous (c, P) block first: numpy's
+    small-array passes cost 2-5× more when strided or broadcast.)
     """
-    m = len(x)
+    m, c = y.shape[0], y.shape[1]
+    xs = np.repeat(x[:, None, :], c, axis=1)  # (m, c, P)
     # The divided differences' denominators, z_{i+r} − z_i on z = x₀ x₀ x₁ x₁ …: x_b − x_a.
-    gaps = {(a, b): x[b] - x[a] for a in range(m) for b in range(a + 1, m)}
+    gaps = {(a, b): xs[b] - xs[a] for a in range(m) for b in range(a + 1, m)}
     # First differences: the slope at a doubled node, the chord between neighbours.
-    level = [dy[:, 0]]
+    level = [dy[0]]
     for j in range(1, m):
-        level.append((y[:, j] - y[:, j - 1]) / gaps[j - 1, j])
-        level.append(dy[:, j])
-    coef = [y[:, 0], level[0]]
+        level.append((y[j] - y[j - 1]) / gaps[j - 1, j])
+        level.append(dy[j])
+    coef = [y[0], level[0]]
     for order in range(2, 2 * m):
         level = [(level[i + 1] - level[i]) / gaps[i // 2, (i + order) // 2]
                  for i in range(len(level) - 1)]
         coef.append(level[0] if terms is None else np.where(terms > order, level[0], 0.0))
-    steps = [t - x[j] for j in range(m)]
+    tc = np.repeat(t[None, :], c, axis=0)
+    steps = [tc - xs[j] for j in range(m)]
     val = coef[-1] * steps[m - 1] + coef[-2]
     der = coef[-1].copy()
     for j in range(2 * m - 3, -1, -1):

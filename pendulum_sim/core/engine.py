@@ -298,7 +298,6 @@ class Engine:
         self.damping: DampingFn = lambda v: law(v, g, 1.0)
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
         self.rtol, self.atol = rtol, atol
-        self.advance: Advance = self.fresh_advance()
         self._stiff_steps: Any = None  # the Dormand-Prince pair of :meth:`stiff`, on first use
 
     def fresh_advance(self) -> Advance:
@@ -307,8 +306,7 @@ class Engine:
             return self.careful
         if self.kind == 'implicit':
             return self.implicit_advance
-        from .embedded import Cover  # embedded builds on this module
-        return Cover(self, self.rtol, self.atol)
+        return _embedded().Cover(self, self.rtol, self.atol)  # type: ignore[no-any-return]
 
     # ------------------------------------------------------------------ fast path
     def fast_range(self, h: float, ain: float) -> tuple[float, float]:

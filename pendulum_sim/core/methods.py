@@ -22,7 +22,7 @@ from .tableaus import (
 
 
 class Advance(Protocol):
-    """The one protocol every kind of method implements (``Engine.advance``).
+    """The one protocol every kind of method implements (``Engine.fresh_advance``).
 
     Cover a step of h from (φ, φ') under the input acceleration ``ain`` = τ/I, count what was
     done beyond a plain step in ``stats`` and return (φ₁, φ'₁, w), w the damping work per unit

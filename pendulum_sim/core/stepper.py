@@ -76,7 +76,9 @@ class Stepper:
         self._max_torque = MAX_INPUT_ACCEL * params.inertia
         self._step_fn = eng.step_fn
         self._fast = eng.kind == 'explicit'  # the generated fast path exists
-        self._slow = eng.advance  # the method's Advance: everything the fast path refuses
+        # The method's Advance (everything the fast path refuses), with fresh memory: a new
+        # pendulum or method starts its adaptive substeps afresh.
+        self._slow = eng.fresh_advance()
         self._coulomb = eng.coulomb
         self._fast_fn = compile_fast_step(eng.plain_tableau, eng.n, eng.nonsmooth, eng.reach,
                                           eng.v_acc, eng.energy_check, eng.w2, eng.gamma)
