@@ -108,14 +108,16 @@ def step_source(ext: Extrapolation, damping: str) -> str:
                 '    P += q * (m11 * rp + hs * rv)',
                 '    V += dv',
             ]
-        body.append(f'    p_{j}_0, v_{j}_0, w_{j}_0 = P, V, W')
+        # Extrapolate the increments, not the states: the weights (their magnitudes sum to
+        # ~300 for six rows) then multiply the round-off of the increments only.
+        body.append(f'    p_{j}_0, v_{j}_0, w_{j}_0 = P - p0, V - v0, W')
         for k in range(1, j + 1):
             c = 1.0 / (nj / seq[j - k] - 1.0)
             for x in 'pvw':
                 body.append(f'    {x}_{j}_{k} = {x}_{j}_{k - 1} + {c!r} * '
                             f'({x}_{j}_{k - 1} - {x}_{j - 1}_{k - 1})')
     last = len(seq) - 1
-    body.append(f'    return (p_{last}_{last}, v_{last}_{last}, w_{last}_{last}, a0, '
+    body.append(f'    return (p0 + p_{last}_{last}, v0 + v_{last}_{last}, w_{last}_{last}, a0, '
                 f'p_{last}_{last} - p_{last}_{last - 1}, v_{last}_{last} - v_{last}_{last - 1})')
     return '\n'.join(body) + '\n'
 
