@@ -11,10 +11,10 @@ import math
 
 import numpy as np
 import pytest
+from augmented_field import augmented
 
 from pendulum_sim.core import METHODS, PendulumParams, Stepper, simulate
 from pendulum_sim.core.engine import ENERGY_TOL
-from pendulum_sim.core.model import damping_derivative
 from pendulum_sim.core.rosenbrock import compile_rosenbrock, rosenbrock_step
 from pendulum_sim.core.tableaus import RODAS4
 
@@ -44,18 +44,7 @@ def test_generated_step_is_the_reference_rosenbrock_step(n: float, branch: bool)
     p0, v0, h = 1.1, -0.8, 0.05
     sign = -1.0  # the branch of the start's direction of motion
 
-    def law(v: float) -> float:
-        if branch:
-            return float(sign * g * abs(v) ** n)
-        return 0.0 if v == 0.0 else g * math.copysign(abs(v) ** n, v)
-
-    def f(y: np.ndarray) -> np.ndarray:
-        d = law(float(y[1]))
-        return np.array([y[1], ain - d - W2 * math.sin(y[0]), y[1] * d])
-
-    d = damping_derivative(g, n, v0)
-    jac = np.array([[0.0, 1.0, 0.0], [-W2 * math.cos(p0), -d, 0.0],
-                    [0.0, law(v0) + v0 * d, 0.0]])
+    law, f, jac = augmented(g, n, ain, branch, sign, p0, v0)
     y1, err = rosenbrock_step(RODAS4, f, jac, np.array([p0, v0, 0.0]), h)
     got = compile_rosenbrock(RODAS4, n, branch)(p0, v0, h, ain, W2, g, sign)
     np.testing.assert_allclose(got[:3], y1, rtol=0.0, atol=1e-15)
