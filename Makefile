@@ -46,6 +46,7 @@ bench: setup
 	$(PY) bench/bench_node.py --duration 60
 	$(PY) bench/bench_recording.py --seconds 10 --node
 	$(PY) bench/bench_sync.py --seconds 10
+	$(PY) bench/bench_work_precision.py
 
 clean:
 	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache
