@@ -79,8 +79,10 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     t_end : float
         Final time in s (> 0); the last sample lands exactly on it.
     h : float
-        Step in s. For the adaptive ``'dopri5'`` and ``'rodas4'`` it is the output spacing; the
-        method chooses its own steps inside it to meet ``rtol``/``atol``.
+        Step in s. For the adaptive methods it is the output spacing; the method chooses its own
+        substeps to meet ``rtol``/``atol``: inside each output interval, or, for methods of
+        order ≤ 4 (``'rodas4'``) with a constant torque, freely across the outputs, which are
+        then interpolated (``embedded.dense_run``).
     method : str
         A name in ``METHODS`` (default ``'rk4'``, the paper's).
     torque : float or callable, optional

@@ -39,8 +39,9 @@ class Stepper:
         The fixed step in s (> 0, h ω0 <= 100).
     method : str
         A name of ``METHODS``: ``'rk4'`` (default, the paper's), ``'euler'``, ``'midpoint'``,
-        ``'sdirk2'``, ``'sdirk3'``, or the adaptive ``'dopri5'`` and ``'rodas4'`` (linearly
-        implicit, for long stiff runs), error-controlled inside each step of h.
+        ``'sdirk2'``, ``'sdirk3'``, or the adaptive ``'dopri5'``, ``'dop853'``, ``'rodas4'``
+        (linearly implicit, for long stiff runs) and ``'extrap6'``, error-controlled inside
+        each step of h.
     guard : bool
         Keep explicit steps inside their stability region (substeps or implicit fallback).
     energy_check : bool
