@@ -6,8 +6,11 @@ within [0.2, 10] (Hairer, Nørsett and Wanner, *Solving ODEs I*, II.4). Where th
 smooth at φ' = 0 (n even, non-integer, or 0) an accepted substep that crosses a reversal is cut
 at it: the reversal is located on the branch continuation of the start (Hermite guess, Newton on
 the substep's own φ'), so no substep straddles the kink and the pair's estimate stays valid.
-The pair is an explicit one (``explicit.py``) or a Rosenbrock one (``rosenbrock.py``): both
-steps have the same signature and results, and this one cover serves both.
+The pair is an explicit one (``explicit.py``), a Rosenbrock one (``rosenbrock.py``) or an
+extrapolated linearly implicit Euler step (``extrapolation.py``): all have the same signature
+and results, and this one cover serves them. The first trial comes from the scale of the
+solution and its derivatives (:func:`initial_step`). :func:`dense_run` lets the substeps run
+free across many output times and interpolates them (dense output, order ≤ 4 methods).
 """
 from __future__ import annotations
 
