@@ -11,7 +11,8 @@ import pytest
 
 from pendulum_sim.core import IntegratorError, ModelError, PendulumParams, Stepper, simulate
 from pendulum_sim.core import sweep as sweep_module
-from pendulum_sim.core.engine import guard_for, hermite_root
+from pendulum_sim.core.engine import guard_for
+from pendulum_sim.core.reversal import hermite_root
 from pendulum_sim.core.sweep import sweep
 from pendulum_sim.core.tableaus import TABLEAUS
 

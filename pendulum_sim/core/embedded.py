@@ -15,20 +15,24 @@ free across many output times and interpolates them (dense output, order ≤ 4 m
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
-from .engine import Engine, hermite_root
 from .errors import IntegratorError
 from .explicit import ErrStepFn, compile_damping, compile_step
 from .extrapolation import compile_extrapolation
 from .guard import GuardStats
 from .model import FloatArray, damping_derivative
+from .reversal import hermite_root
 from .rosenbrock import compile_rosenbrock
 from .tableaus import Extrapolation, Tableau
 
 IntArray = npt.NDArray[np.intp]
+
+if TYPE_CHECKING:  # the engine builds on this module; its type only is needed here
+    from .engine import Engine
 
 
 def pair_steps(tab: Tableau | Extrapolation, n: float) -> tuple[ErrStepFn, ErrStepFn]:

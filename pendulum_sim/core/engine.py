@@ -21,6 +21,7 @@ import functools
 import math
 from typing import Any
 
+from . import embedded
 from .dirk import dirk_step
 from .errors import IntegratorError
 from .explicit import (
@@ -34,22 +35,13 @@ from .explicit import (
 )
 from .guard import FALLBACK, MAX_ANGLE, GuardStats, StabilityGuard, safe_speed_range
 from .methods import FALLBACK_METHOD, Advance, Method
+from .reversal import grade_window, graded_law, graded_mesh, hermite_root
 from .tableaus import BACKWARD_EULER, DOPRI5, RK4, Tableau
 
 ENERGY_TOL = 1e-12
 """An explicit step may raise the energy by round-off and by the conservative part of its
 truncation error near turning points, where the damping removes almost nothing; anything above
 this relative size (of E/I + ω0²) is a defect and the step is redone implicitly."""
-
-GRADE_WINDOW = 1.0
-"""Laws graded at reversals: the window, in units of 1/ω0 (1 s without gravity), on either
-side of a reversal inside which steps are graded (:func:`graded_mesh`)."""
-
-
-def grade_window(omega0: float) -> float:
-    """Return the time S on either side of a reversal within which steps are graded."""
-    return GRADE_WINDOW / omega0 if omega0 > 0.0 else GRADE_WINDOW
-
 
 CROSS_SRC = '(v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))'
 NEAR_SRC = 'abs(v) < reach * abs(a0)'
@@ -119,11 +111,6 @@ def stiff_transient(v: Any, a0: Any, gamma: Any, n: float, v_acc: Any) -> Any:
     return _STIFF(v, a0, gamma, n, v_acc)
 
 
-def graded_law(n: float) -> bool:
-    """Return True where steps next to a reversal need grading: non-integer 0 < n < 3."""
-    return 0.0 < n < 3.0 and n != int(n)
-
-
 def specific_energy(v: Any, sin_half: Any, w2: Any) -> Any:
     """Return E/I = ½ φ'² + 2 ω0² sin²(φ/2) (eq 23 divided by I) from ``sin(φ/2)``."""
     return _ENERGY(v, sin_half, w2)
@@ -173,67 +160,6 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
     return env['fast']
 
 
-def hermite_root(v0: float, v1: float, dv0: float, dv1: float) -> float:
-    """Return θ in (0, 1) where the cubic Hermite interpolant of φ' vanishes.
-
-    ``v0``, ``v1`` are φ' at both ends (opposite signs), ``dv0``, ``dv1`` the derivatives
-    h φ''. Newton's method, safeguarded by bisection on the bracket.
-    """
-    lo, hi = 0.0, 1.0
-    flo = v0
-    th = v0 / (v0 - v1)
-    for _ in range(60):
-        t2 = th * th
-        t3 = t2 * th
-        f = ((2 * t3 - 3 * t2 + 1) * v0 + (t3 - 2 * t2 + th) * dv0
-             + (-2 * t3 + 3 * t2) * v1 + (t3 - t2) * dv1)
-        if f == 0.0:
-            return th
-        if (f < 0.0) == (flo < 0.0):
-            lo = th
-        else:
-            hi = th
-        df = ((6 * t2 - 6 * th) * v0 + (3 * t2 - 4 * th + 1) * dv0
-              + (-6 * t2 + 6 * th) * v1 + (3 * t2 - 2 * th) * dv1)
-        nt = th - f / df if df != 0.0 else 0.5 * (lo + hi)
-        if not lo < nt < hi:
-            nt = 0.5 * (lo + hi)
-        if abs(nt - th) <= 1e-15:
-            return nt
-        th = nt
-    return th
-
-
-def graded_mesh(x_a: float, x_b: float, h: float, n: float, window: float) -> list[float]:
-    """Return substep lengths covering distances [x_a, x_b] (s) from a velocity reversal.
-
-    On either side of a reversal the damping branch s γ |φ'|^n with φ' ∝ t is only as smooth
-    as t^n, so a plain step at distance x from it has a local error h^5 x^(n−4), which summed
-    over the steps near the reversal is O(h^(n+1)): for non-integer n < 3 that lowers RK4's
-    order. Substeps of δ(x) = h (x/S)^α with α = 1 − (n+1)/5 inside the window S (and h
-    beyond) make every substep's error h^5 S^(n−4), so the order is kept for about
-    (5/(n+1) − 1) S/h extra substeps per side (the classic graded mesh for a t^n singularity;
-    e.g. Brunner, *Collocation Methods for Volterra Integral and Related Functional Equations*,
-    2004, section 2.4). The lengths are listed from x_a outwards.
-    """
-    length = x_b - x_a
-    if not graded_law(n) or length <= 0.0 or x_a >= window:
-        return [length]
-    alpha = 1.0 - (n + 1.0) / 5.0
-    first = window * (h / window) ** (1.0 / (1.0 - alpha))  # δ(x) = x at the reversal
-    lens: list[float] = []
-    x = x_a
-    while x < x_b:
-        d = h if x >= window else max(first, h * (x / window) ** alpha)
-        d = min(d, x_b - x)
-        if x_b - x - d < 1e-3 * d:
-            d = x_b - x
-        lens.append(d)
-        x += d
-    lens[-1] += length - sum(lens)  # land on the end exactly
-    return lens
-
-
 def ain_bound(ain: float) -> float:
     """Return the power of two just above |a_in| (0 for 0): the torque octave of a fast range."""
     a = abs(ain)
@@ -249,13 +175,6 @@ def guard_for(tableau: Tableau) -> StabilityGuard:
 def _explicit(tableau: Tableau) -> bool:
     """Return ``tableau.explicit``, computed once per tableau (an Engine is made per pendulum)."""
     return tableau.explicit
-
-
-@functools.cache
-def _embedded() -> Any:
-    """Return the ``embedded`` module (it builds on this one, so it is imported on first use)."""
-    from . import embedded
-    return embedded
 
 
 class Engine:
@@ -306,7 +225,7 @@ class Engine:
             return self.careful
         if self.kind == 'implicit':
             return self.implicit_advance
-        return _embedded().Cover(self, self.rtol, self.atol)  # type: ignore[no-any-return]
+        return embedded.Cover(self, self.rtol, self.atol)
 
     # ------------------------------------------------------------------ fast path
     def fast_range(self, h: float, ain: float) -> tuple[float, float]:
@@ -392,16 +311,15 @@ class Engine:
         the transient is resolved, not merely kept stable, and its error falls at order ≥ 4
         as h falls. Beyond STIFF_MAX_TRIALS trials the guard takes the step.
         """
-        emb = _embedded()
         if self._stiff_steps is None:
-            self._stiff_steps = emb.pair_steps(DOPRI5, self.n)
+            self._stiff_steps = embedded.pair_steps(DOPRI5, self.n)
         tol = STIFF_TOL * (h * self.w_ref) ** 4
         d = self.gamma * self.n * abs(v) ** (self.n - 1.0)
         first = min(h, 1.0 / d) if d > 0.0 else h
         try:
-            p1, v1, w, _ = emb.cover(self, p, v, h, ain, tol, tol, first, stats, DOPRI5,
+            p1, v1, w, _ = embedded.cover(self, p, v, h, ain, tol, tol, first, stats, DOPRI5,
                                      STIFF_MAX_TRIALS, self._stiff_steps)
-        except emb.TooManySubsteps:
+        except embedded.TooManySubsteps:
             return self.guarded(p, v, h, ain, stats)
         return p1, v1, w
 
@@ -631,11 +549,7 @@ __all__ = [
     'ain_bound',
     'compile_fast_step',
     'energy_rose',
-    'grade_window',
-    'graded_law',
-    'graded_mesh',
     'guard_for',
-    'hermite_root',
     'reversal_suspect',
     'specific_energy',
     'stiff_transient',

@@ -37,8 +37,6 @@ from .engine import (
     accuracy_speed,
     ain_bound,
     energy_rose,
-    grade_window,
-    graded_law,
     guard_for,
     specific_energy,
     stiff_transient,
@@ -58,6 +56,7 @@ from .model import (
     speed_limit,
     validate_state,
 )
+from .reversal import grade_window, graded_law
 from .simulate import step_count
 
 FloatArray = npt.NDArray[np.float64]
