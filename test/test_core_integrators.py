@@ -239,3 +239,25 @@ def test_bad_integrator_arguments_raise_exact_messages(kwargs: dict[str, object]
     with pytest.raises(IntegratorError) as info:
         simulate(PAPER, 2.0, 0.0, **args)  # type: ignore[arg-type]
     assert str(info.value) == message
+
+
+@pytest.mark.parametrize('method', ['dopri5', 'dop853', 'extrap6'])
+@pytest.mark.parametrize(('gamma', 'n'), [(1.0, 1.0), (1.0, 2.5), (1000.0, 2.0)])
+def test_one_cover_lands_on_every_output_like_a_cover_per_output(method: str, gamma: float,
+                                                                 n: float) -> None:
+    # simulate runs an adaptive method of order > 4 in one cover with a landing at every output
+    # (embedded.dense_run); the Stepper covers one output interval per call. Same decisions:
+    # the same reversals and substeps, states equal to round-off (the interval's remaining
+    # length is computed from global instead of local times).
+    params = PendulumParams(gamma=gamma, n=n)
+    r = simulate(params, 2.0, 0.0, 5.0, 0.1, method, rtol=1e-8, atol=1e-10)
+    s = Stepper(params, 2.0, 0.0, 0.1, method, rtol=1e-8, atol=1e-10)
+    ps, vs = [s.phi], [s.dphi]
+    for _ in range(50):
+        s.step()
+        ps.append(s.phi)
+        vs.append(s.dphi)
+    assert r.stats.reversals == s.stats.reversals
+    assert abs(r.stats.substeps - s.stats.substeps) <= 2
+    assert float(np.max(np.abs(r.phi - np.array(ps)))) <= 1e-10
+    assert float(np.max(np.abs(r.dphi - np.array(vs)))) <= 1e-10

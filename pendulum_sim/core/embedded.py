@@ -15,6 +15,7 @@ free across many output times and interpolates them (dense output, order ≤ 4 m
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -91,7 +92,8 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
           h_try: float, stats: GuardStats, tableau: Tableau | Extrapolation | None = None,
           max_trials: int = 0,
           steps: tuple[ErrStepFn, ErrStepFn] | None = None,
-          trace: list[float] | None = None) -> tuple[float, float, float, float]:
+          trace: list[float] | None = None,
+          stops: Sequence[float] = ()) -> tuple[float, float, float, float]:
     """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial).
 
     ``tableau`` is the embedded pair (default: the engine's method); every trial after the
@@ -99,7 +101,8 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
     is raised once that many trials did not cover h. ``steps`` are the pair's compiled steps
     (:func:`pair_steps`) where the caller keeps them. ``trace``, if given, receives
     ``t, φ, φ', w`` after every accepted substep (t from the start of h): the mesh of
-    :func:`dense_run`.
+    :func:`dense_run`. ``stops`` (increasing, inside (0, h)) are times a substep must land on,
+    as if h were covered by one call per stretch between them, the trial-step memory carried.
     """
     tab = eng.method.tableau if tableau is None else tableau
     trials = 0
@@ -110,7 +113,11 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
     q = 1.0 / (tab.error_order + 1)
     done, w_total = 0.0, 0.0
     hh = h_try if h_try > 0.0 else initial_step(eng, p, v, h, ain, rtol, atol, tab.order)
+    ahead = iter(stops)
+    target = next(ahead, h)
     while done < h:
+        while done >= target:
+            target = next(ahead, h)
         if coulomb and v == 0.0:
             p, v, w = eng.from_rest(p, h - done, ain)
             w_total += w
@@ -120,8 +127,8 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
             stats.substeps += 1
         if max_trials and trials > max_trials:
             raise TooManySubsteps(f'{max_trials} trial substeps did not cover h = {h:g} s')
-        last = hh >= h - done
-        step_h = h - done if last else hh
+        last = hh >= target - done
+        step_h = target - done if last else hh
         sign = 1.0 if v > 0.0 else -1.0
         fn = branch if (nonsmooth and v != 0.0) else plain
         try:
@@ -161,7 +168,7 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
             if coulomb and (v1 < 0.0 < v or v < 0.0 < v1) and abs(
                     ain - w2 * math.sin(p1)) <= g:
                 v1 = 0.0
-            done = h if last else done + step_h
+            done = target if last else done + step_h
             p, v = p1, v1
             w_total += w
             if trace is not None:
@@ -222,37 +229,48 @@ def dense_nodes(order: int) -> int:
 def dense_capable(eng: Engine) -> bool:
     """Return True where :func:`dense_run` may serve the engine's adaptive method.
 
-    Its order is at most :data:`DENSE_MAX_ORDER`, and the damping is not Coulomb friction
-    (n = 0: sticking at rest is decided per step, not by a smooth interpolant).
+    Every adaptive method but under Coulomb friction (n = 0: sticking at rest is decided per
+    output interval by the cover, and the interval's end matters).
     """
-    return (eng.kind == 'adaptive' and eng.method.tableau.order <= DENSE_MAX_ORDER
-            and not eng.coulomb)
+    return eng.kind == 'adaptive' and not eng.coulomb
 
 
 def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rtol: float,
               atol: float, stats: GuardStats) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Integrate over [0, t_out[-1]] in free adaptive steps; return φ, φ', w at ``t_out``.
+    """Integrate over [0, t_out[-1]] in one cover; return φ, φ', w at ``t_out``.
 
-    The error-controlled substeps of :func:`cover` run over the whole span (cut at velocity
-    reversals, so no step straddles a kink) and land on the last output; every other output
-    is interpolated instead of cutting a step at it: φ and the damping work w by the Hermite
-    polynomial through their values and rates (φ' and φ' D(φ')) at the m mesh points
-    (:data:`DENSE_NODES`) around the step that contains the output, φ' by the derivative of
-    φ's. The interpolant uses the states only, never the vector field: on a stiff creep the
-    states carry errors of the tolerance's size across the fast mode, which f = φ'' would
-    multiply by the fast rate (through φ'' at the ends of a 2 s step on the γ = 1000, n = 2
-    creep the interpolant was 80× less accurate than the states it joined). A stencil never
-    reaches across a kink of the law (a mesh point at rest where the damping is not smooth);
-    where fewer than m points lie between kinks it uses those (at least the step's two ends).
-    ``t_out`` is increasing from 0; ``a_in`` is constant over the run.
+    The error-controlled substeps of :func:`cover` run over the whole span in one call (cut at
+    velocity reversals, so no step straddles a kink). A method of order above
+    :data:`DENSE_MAX_ORDER` lands a substep on every output (the ``stops`` of :func:`cover`: the
+    decisions of one cover per output interval, without a call per output). For the others the
+    substeps run free across the outputs and land on the last one; every other output is
+    interpolated: φ and the damping work w by the Hermite polynomial through their values and
+    rates (φ' and φ' D(φ')) at the m mesh points (:data:`DENSE_NODES`) around the step that
+    contains the output, φ' by the derivative of φ's. The interpolant uses the states only,
+    never the vector field: on a stiff creep the states carry errors of the tolerance's size
+    across the fast mode, which f = φ'' would multiply by the fast rate (through φ'' at the ends
+    of a 2 s step on the γ = 1000, n = 2 creep the interpolant was 80× less accurate than the
+    states it joined). A stencil never reaches across a kink of the law (a mesh point at rest
+    where the damping is not smooth); where fewer than m points lie between kinks it uses those
+    (at least the step's two ends). ``t_out`` is increasing from 0; ``a_in`` is constant over
+    the run.
     """
     if not dense_capable(eng):
         raise IntegratorError(f'{eng.method.name} has no dense output here')
     m = dense_nodes(eng.method.tableau.order)
     trace: list[float] = [0.0, p, v, 0.0]
-    cover(eng, p, v, float(t_out[-1]), ain, rtol, atol, 0.0, stats, trace=trace)
+    stops = () if m else t_out[1:-1].tolist()
+    cover(eng, p, v, float(t_out[-1]), ain, rtol, atol, 0.0, stats, trace=trace, stops=stops)
+    # Counted as one cover per output interval would count them: the first trial of each
+    # stretch after a landing is a step, not a substep.
+    stats.substeps -= len(stops)
     ts, ps, vs, ws = np.asarray(trace).reshape(-1, 4).T
     last = len(ts) - 1
+    if not m:  # every output is a mesh point
+        at = np.minimum(np.searchsorted(ts, t_out), last)
+        if not np.array_equal(ts[at], t_out):
+            raise IntegratorError('the substeps did not land on every output time')
+        return ps[at], vs[at], ws[at]
     k = np.searchsorted(ts, t_out, side='right') - 1
     np.minimum(k, last - 1, out=k)  # t_out[-1] = ts[-1] belongs to the last step
     # m mesh points around the step, within the stretch between kinks that holds it.

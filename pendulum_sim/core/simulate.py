@@ -80,9 +80,9 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         Final time in s (> 0); the last sample lands exactly on it.
     h : float
         Step in s. For the adaptive methods it is the output spacing; the method chooses its own
-        substeps to meet ``rtol``/``atol``: inside each output interval, or, for methods of
-        order ≤ 4 (``'rodas4'``) with a constant torque, freely across the outputs, which are
-        then interpolated (``embedded.dense_run``).
+        substeps to meet ``rtol``/``atol`` and lands one on every output, or, for methods of
+        order ≤ 4 (``'rodas4'``) with a constant torque, runs them freely across the outputs,
+        which are then interpolated (``embedded.dense_run``).
     method : str
         A name in ``METHODS`` (default ``'rk4'``, the paper's).
     torque : float or callable, optional
@@ -161,7 +161,7 @@ def output_times(t_end: float, h: float, k_full: int, last: float,
 
 def _dense(stepper: Stepper, t_end: float, k_full: int, last: float, record_every: int,
            tau: float) -> Trajectory:
-    """Run an adaptive method in free steps with dense output (``embedded.dense_run``)."""
+    """Run an adaptive method over all outputs in one cover (``embedded.dense_run``)."""
     params = stepper.params
     t = output_times(t_end, stepper.h, k_full, last, record_every)
     p0, v0 = stepper.phi, stepper.dphi
