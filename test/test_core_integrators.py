@@ -228,8 +228,8 @@ def test_stepper_takes_live_parameter_changes_without_a_jump() -> None:
     ({'h': 0.0}, 'h must be a finite step > 0 s, got 0.0'),
     ({'h': math.nan}, 'h must be a finite step > 0 s, got nan'),
     ({'method': 'rk45'},
-     "unknown method 'rk45'; known methods: dop853, dopri5, euler, extrap6, midpoint, rk4, "
-     'rodas4, sdirk2, sdirk3'),
+     "unknown method 'rk45'; known methods: dop853, dopri5, euler, extrap6, extrap8, midpoint, "
+     'rk4, rodas4, sdirk2, sdirk3'),
     ({'t_end': -1.0}, 't_end must be > 0 s, got -1.0'),
 ])
 def test_bad_integrator_arguments_raise_exact_messages(kwargs: dict[str, object],

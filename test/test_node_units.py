@@ -171,8 +171,8 @@ def test_scene_files_declare_known_parameters_of_the_right_type(scene: str) -> N
     ({'g': math.nan}, 'g must be finite, got nan'),
     ({'phi0': math.inf}, 'phi0 must be finite, got inf'),
     ({'integrator': 'rk45'},
-     'integrator must be one of dop853, dopri5, euler, extrap6, midpoint, rk4, rodas4, sdirk2, '
-     "sdirk3, got 'rk45'"),
+     'integrator must be one of dop853, dopri5, euler, extrap6, extrap8, midpoint, rk4, rodas4, '
+     "sdirk2, sdirk3, got 'rk45'"),
     ({'joint_name': ' '}, "joint_name must be a non-empty name, got ' '"),
     ({'real_time_factor': 0.0}, 'real_time_factor must be > 0 unless lockstep is true, got 0.0'),
     ({'real_time_factor': 0.0, 'lockstep': True}, None),

@@ -11,6 +11,7 @@ from .tableaus import (
     DOPRI5,
     EULER,
     EXTRAP6,
+    EXTRAP8,
     MIDPOINT,
     RK4,
     RODAS4,
@@ -42,9 +43,9 @@ class Method:
 
     ``kind`` is ``'explicit'`` (fixed step, guarded), ``'adaptive'`` (embedded pair with error
     control: explicit ``dopri5`` for offline accuracy, ``dop853`` for tight tolerances,
-    linearly implicit ``rodas4`` for long stiff runs and ``extrap6`` for tight tolerances on
-    them) or ``'implicit'`` (L-stable DIRK, for stiff damping). ``tableau`` is the method's
-    data: a Butcher tableau, or the step sequence of an extrapolation method.
+    linearly implicit ``rodas4`` for long stiff runs and ``extrap6``/``extrap8`` for tight
+    tolerances on them) or ``'implicit'`` (L-stable DIRK, for stiff damping). ``tableau`` is
+    the method's data: a Butcher tableau, or the step sequence of an extrapolation method.
     """
 
     name: str
@@ -77,6 +78,7 @@ METHODS: dict[str, Method] = {
     'sdirk3': Method('sdirk3', 'implicit', SDIRK3),
     'rodas4': Method('rodas4', 'adaptive', RODAS4),
     'extrap6': Method('extrap6', 'adaptive', EXTRAP6),
+    'extrap8': Method('extrap8', 'adaptive', EXTRAP8),
 }
 
 FALLBACK_METHOD = METHODS['sdirk3']

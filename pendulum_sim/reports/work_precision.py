@@ -1,7 +1,7 @@
 """Work-precision: how accurate for how much CPU time, for every core method and scipy's peers.
 
 For each case, every method of ``METHODS`` runs over a sweep of its fixed step h (the adaptive
-``dopri5``, ``dop853``, ``rodas4`` and ``extrap6``: of their tolerance), and
+``dopri5``, ``dop853``, ``rodas4``, ``extrap6`` and ``extrap8``: of their tolerance), and
 ``scipy.integrate.solve_ivp`` (RK45, DOP853, Radau, LSODA) runs over a sweep of tolerances on
 the plain vector field (no reversal splitting: what a user calling scipy gets). Errors are
 measured against the independent reference of ``reference.py`` at the final time and as the
@@ -340,7 +340,7 @@ def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
         '(`err_max`, used for orders and levels). Time is CPU time (`time.process_time`), the '
         f'minimum of up to {grid.repeats} repeats after a warm-up. Fixed-step methods: '
         f'h = {grid.dt_out:g}/2^k; the adaptive methods (`dopri5`, `dop853`, `rodas4`, '
-        '`extrap6`) and scipy: rtol sweep, '
+        '`extrap6`, `extrap8`) and scipy: rtol sweep, '
         f'atol = rtol·{ATOL_FACTOR:g}. '
         'The core runs with its defaults (stability guard, reversal splitting and energy check '
         'on). scipy gets the *plain* vector field of eq 20, without reversal splitting, as a '
