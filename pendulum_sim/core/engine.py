@@ -35,6 +35,7 @@ from .explicit import (
 )
 from .guard import FALLBACK, MAX_ANGLE, GuardStats, StabilityGuard, safe_speed_range
 from .methods import FALLBACK_METHOD, Advance, Method
+from .model import damping_derivative
 from .reversal import grade_window, graded_law, graded_mesh, hermite_root
 from .tableaus import BACKWARD_EULER, DOP853, RK4, Tableau
 
@@ -316,7 +317,9 @@ class Engine:
         if self._stiff_steps is None:
             self._stiff_steps = embedded.pair_steps(DOP853, self.n)
         tol = STIFF_TOL * (h * self.w_ref) ** 4
-        d = self.gamma * self.n * abs(v) ** (self.n - 1.0)
+        d = damping_derivative(self.gamma, self.n, v)
+        if not d < math.inf:  # the slope overflows: the guard's fallback takes the step
+            raise OverflowError('damping slope beyond float64')
         first = min(h, 1.0 / d) if d > 0.0 else h
         try:
             p1, v1, w, _ = embedded.cover(self, p, v, h, ain, tol, tol, first, stats, DOP853,

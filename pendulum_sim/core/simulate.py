@@ -116,13 +116,13 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         def tau_of(t: float, phi: float, dphi: float) -> float:
             return tau_const
 
-    ts, ps, vs, wd, wi, taus = [0.0], [stepper.phi], [stepper.dphi], [0.0], [0.0], []
+    recorded = set(recorded_steps(k_full, last, record_every))
+    ps, vs, wd, wi, taus = [stepper.phi], [stepper.dphi], [0.0], [0.0], []
     for k in range(1, k_full + 1):
         tau = tau_of(stepper.t, stepper.phi, stepper.dphi)
         stepper.step(tau)
-        if k % record_every == 0 or (k == k_full and last == 0.0):
+        if k in recorded:
             taus.append(tau)
-            ts.append(t_end if (k == k_full and last == 0.0) else k * h)
             ps.append(stepper.phi)
             vs.append(stepper.dphi)
             wd.append(stepper.dissipated_work)
@@ -131,7 +131,6 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         tau = tau_of(stepper.t, stepper.phi, stepper.dphi)
         stepper.step_by(last, tau)
         taus.append(tau)
-        ts.append(t_end)
         ps.append(stepper.phi)
         vs.append(stepper.dphi)
         wd.append(stepper.dissipated_work)
@@ -140,23 +139,34 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     phi = np.array(ps)
     dphi = np.array(vs)
     return Trajectory(
-        t=np.array(ts), phi=phi, dphi=dphi, energy=np.asarray(energy(params, phi, dphi)),
-        dissipated_work=np.array(wd), input_work=np.array(wi), torque=np.array(taus),
-        stats=stepper.stats, params=params, method=stepper.method, h=h)
+        t=output_times(t_end, h, k_full, last, record_every), phi=phi, dphi=dphi,
+        energy=np.asarray(energy(params, phi, dphi)), dissipated_work=np.array(wd),
+        input_work=np.array(wi), torque=np.array(taus), stats=stepper.stats, params=params,
+        method=stepper.method, h=h)
+
+
+def recorded_steps(k_full: int, last: float, record_every: int) -> list[int]:
+    """Return the full steps of h after which a run keeps a sample.
+
+    Every ``record_every``-th, and the last one where it ends the run (no partial step
+    ``last`` follows; a partial step is always kept).
+    """
+    ks = list(range(record_every, k_full + 1, record_every))
+    if last == 0.0 and k_full and (not ks or ks[-1] != k_full):
+        ks.append(k_full)
+    return ks
 
 
 def output_times(t_end: float, h: float, k_full: int, last: float,
                  record_every: int) -> FloatArray:
-    """Return the sample times of a run: every ``record_every``-th step of h, and ``t_end``."""
-    ks = np.arange(record_every, k_full + 1, record_every, dtype=float)
-    t = ks * h
-    if last == 0.0 and k_full and len(t) and ks[-1] == k_full:
-        t[-1] = t_end
-    elif last == 0.0 and k_full:
-        t = np.append(t, t_end)
+    """Return the sample times of a run: 0, the :func:`recorded_steps` times k h, ``t_end``."""
+    ks = recorded_steps(k_full, last, record_every)
+    t = np.array([0, *ks], dtype=float) * h
     if last > 0.0:
-        t = np.append(t, t_end)
-    return np.concatenate(([0.0], t))
+        return np.append(t, t_end)
+    if ks:
+        t[-1] = t_end  # the last full step ends the run: exactly t_end
+    return t
 
 
 def _dense(stepper: Stepper, t_end: float, k_full: int, last: float, record_every: int,

@@ -53,31 +53,31 @@ from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 from .status import StatusLine, status_text, summary_text
 from .urdf import urdf_from_values
 
+
+def _qos(depth: int, reliable: bool = True, latched: bool = False) -> QoSProfile:
+    """Return a keep-last profile of ``depth``: reliable or best effort, volatile or latched."""
+    return QoSProfile(depth=depth, history=HistoryPolicy.KEEP_LAST,
+                      reliability=ReliabilityPolicy.RELIABLE if reliable
+                      else ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
+                      else DurabilityPolicy.VOLATILE)
+
+
 # Reliable, volatile, depth 10: the default profile, which matches both reliable and best-effort
 # subscriptions (robot_state_publisher, RViz, Foxglove, plain rclpy defaults).
-JOINT_STATE_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
-                             reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.VOLATILE)
+JOINT_STATE_QOS = _qos(10)
 # Commands in real time and free lockstep: a best-effort subscription matches reliable and
 # best-effort publishers alike (forward_command_controller publishes reliable; many
 # teleoperation tools best effort).
-COMMAND_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
-                         reliability=ReliabilityPolicy.BEST_EFFORT,
-                         durability=DurabilityPolicy.VOLATILE)
+COMMAND_QOS = _qos(10, reliable=False)
 # Synchronous mode: every command answers a state, so none may be lost.
-SYNC_COMMAND_QOS = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                              reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.VOLATILE)
+SYNC_COMMAND_QOS = _qos(100)
 # Late joiners (RViz, Foxglove) must still get the URDF: transient local, as
 # robot_state_publisher publishes robot_description (ros/robot_state_publisher, README.md).
-LATCHED_QOS = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED_QOS = _qos(1, latched=True)
 # Services keep many requests: a burst of 100 concurrent ~/reset calls is answered in full
 # (the rmw default depth of 10 drops the rest).
-SERVICE_QOS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
+SERVICE_QOS = _qos(1000)
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
 # Lockstep and real time: work for at most this long per wake, then let the executor serve
 # commands, parameters and services.
