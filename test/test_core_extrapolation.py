@@ -62,6 +62,24 @@ def test_generated_step_is_the_reference_extrapolation_step(n: float, branch: bo
     assert got[3] == pytest.approx(ain - law(v0) - W2 * math.sin(p0), abs=1e-15)
 
 
+@pytest.mark.parametrize('ext', [EXTRAP6, EXTRAP8], ids=['extrap6', 'extrap8'])
+@pytest.mark.parametrize('turns', [16, 160, 1600])
+def test_round_off_of_a_step_does_not_grow_with_the_weights(ext: Extrapolation,
+                                                            turns: int) -> None:
+    # The same step from φ₀ and from φ₀ + 2π k: the law is the same, so the increments differ
+    # by round-off only. Summed apart from the state, the increments carry that of the state
+    # (≈ eps |φ₀|) once; taken as (state − φ₀) they carried it times the extrapolation
+    # weights (|weights| sum to 3392 for extrap8: 30–2000× eps |φ₀| measured).
+    step = compile_extrapolation(ext, 2.0, branch=True)
+    shift = 2.0 * math.pi * turns
+    p0, v0 = 0.5, -0.1
+    base = step(p0, v0, 0.1, 0.0, W2, 1000.0, -1.0)
+    moved = step(p0 + shift, v0, 0.1, 0.0, W2, 1000.0, -1.0)
+    scale = np.finfo(float).eps * (p0 + shift)
+    assert abs((moved[0] - shift) - base[0]) <= 2.0 * scale
+    assert abs(moved[1] - base[1]) <= 10.0 * scale
+
+
 def test_fixed_step_order_is_six() -> None:
     # The bare generated step in a fixed-step loop on the conservative pendulum (γ = 0, where
     # the asymptotic range starts early): error ∝ h⁶. With damping the slopes wander between

@@ -93,24 +93,25 @@ def step_source(ext: Extrapolation, damping: str) -> str:
             '    q = 1.0 / (m11 + hs * hk)',
             '    rp = hs * v0',
             '    rv = hs * a0',
-            '    dv = q * (rv - hk * rp)',
-            '    P = p0 + q * (m11 * rp + hs * rv)',
-            '    V = v0 + dv',
-            '    W = hs * (g0 + jw * dv)',
+            '    DV = q * (rv - hk * rp)',
+            '    DP = q * (m11 * rp + hs * rv)',
+            '    W = hs * (g0 + jw * DV)',
         ]
         for _ in range(nj - 1):
             body += [
+                '    V = v0 + DV',
                 f'    d = {law("V")}',
                 '    rp = hs * V',
-                '    rv = hs * (ain - d - w2 * sin(P))',
+                '    rv = hs * (ain - d - w2 * sin(p0 + DP))',
                 '    dv = q * (rv - hk * rp)',
                 '    W += hs * (V * d + jw * dv)',
-                '    P += q * (m11 * rp + hs * rv)',
-                '    V += dv',
+                '    DP += q * (m11 * rp + hs * rv)',
+                '    DV += dv',
             ]
-        # Extrapolate the increments, not the states: the weights (their magnitudes sum to
-        # ~300 for six rows) then multiply the round-off of the increments only.
-        body.append(f'    p_{j}_0, v_{j}_0, w_{j}_0 = P - p0, V - v0, W')
+        # Extrapolate the increments, summed apart from the state: the weights (their
+        # magnitudes sum to ~300 for six rows, 3392 for eight) then multiply the round-off of
+        # the increments only, not that of the state they are added to.
+        body.append(f'    p_{j}_0, v_{j}_0, w_{j}_0 = DP, DV, W')
         for k in range(1, j + 1):
             c = 1.0 / (nj / seq[j - k] - 1.0)
             for x in 'pvw':
