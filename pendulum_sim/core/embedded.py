@@ -25,6 +25,7 @@ from .errors import IntegratorError
 from .explicit import ErrStepFn, compile_damping, compile_step
 from .extrapolation import compile_extrapolation
 from .guard import GuardStats
+from .jit import compile_step as jit_step
 from .model import FloatArray, damping_derivative
 from .reversal import hermite_root
 from .rosenbrock import compile_rosenbrock
@@ -36,14 +37,22 @@ if TYPE_CHECKING:  # the engine builds on this module; its type only is needed h
     from .engine import Engine
 
 
-def pair_steps(tab: Tableau | Extrapolation, n: float) -> tuple[ErrStepFn, ErrStepFn]:
-    """Return the embedded pair's compiled (plain law, branch law) steps with error estimate."""
+def pair_steps(tab: Tableau | Extrapolation, n: float,
+               jit: bool = False) -> tuple[ErrStepFn, ErrStepFn]:
+    """Return the embedded pair's (plain law, branch law) steps with error estimate.
+
+    Generated Python; with ``jit``, the same steps compiled to machine code (``jit.py``).
+    """
     if isinstance(tab, Extrapolation):
-        return compile_extrapolation(tab, n), compile_extrapolation(tab, n, branch=True)
-    if tab.rosenbrock:
-        return compile_rosenbrock(tab, n), compile_rosenbrock(tab, n, branch=True)
-    return (compile_step(tab, n, with_error=True),
-            compile_step(tab, n, branch=True, with_error=True))
+        steps = compile_extrapolation(tab, n), compile_extrapolation(tab, n, branch=True)
+    elif tab.rosenbrock:
+        steps = compile_rosenbrock(tab, n), compile_rosenbrock(tab, n, branch=True)
+    else:
+        steps = (compile_step(tab, n, with_error=True),
+                 compile_step(tab, n, branch=True, with_error=True))
+    if jit:
+        return jit_step(steps[0]), jit_step(steps[1])
+    return steps
 
 
 MAX_GROWTH = 10.0
@@ -106,7 +115,7 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
     """
     tab = eng.method.tableau if tableau is None else tableau
     trials = 0
-    plain, branch = pair_steps(tab, eng.n) if steps is None else steps
+    plain, branch = pair_steps(tab, eng.n, eng.jit) if steps is None else steps
     w2, g, n = eng.w2, eng.gamma, eng.n
     coulomb, nonsmooth = eng.coulomb, eng.nonsmooth
     sqrt = math.sqrt
@@ -197,7 +206,7 @@ class Cover:
     def __init__(self, eng: Engine, rtol: float, atol: float) -> None:
         self.eng, self.rtol, self.atol = eng, rtol, atol
         self.h_try = 0.0  # the next trial substep, carried from step to step
-        self.steps = pair_steps(eng.method.tableau, eng.n)
+        self.steps = pair_steps(eng.method.tableau, eng.n, eng.jit)
 
     def __call__(self, p: float, v: float, h: float, ain: float,
                  stats: GuardStats) -> tuple[float, float, float]:

@@ -190,11 +190,17 @@ class Engine:
     guard, energy_check : bool
         Keep explicit steps inside their stability region; redo an explicit step implicitly
         when energy rose without input (γ > 0).
+    rtol, atol : float
+        Tolerances of an adaptive method.
+    jit : bool
+        Run an adaptive method's steps compiled by numba (``jit.py``).
     """
 
     def __init__(self, w2: float, gamma: float, n: float, method: Method, guard: bool = True,
-                 energy_check: bool = True, rtol: float = 1e-8, atol: float = 1e-10) -> None:
+                 energy_check: bool = True, rtol: float = 1e-8, atol: float = 1e-10,
+                 jit: bool = False) -> None:
         self.w2, self.gamma, self.n = w2, gamma, n
+        self.jit = jit  # the adaptive method's steps compiled by numba (``jit.py``)
         self.omega0 = math.sqrt(w2)
         self.method = method
         self.kind = method.kind

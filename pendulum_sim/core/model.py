@@ -168,6 +168,18 @@ class PendulumParams:
 
 def damping_derivative(gamma: float, n: float, dphi: float) -> float:
     """Return d = ∂(γ φ'|φ'|^(n−1))/∂φ' = γ n |φ'|^(n−1) (inf for n < 1 at rest)."""
+    try:
+        return slope_formula(gamma, n, dphi)
+    except OverflowError:   # beyond float64: as steep as it gets
+        return math.inf
+
+
+def slope_formula(gamma: float, n: float, dphi: float) -> float:
+    """The arithmetic of :func:`damping_derivative` alone (raises OverflowError beyond float64).
+
+    Kept free of exception handling so that numba can compile it for the compiled steps
+    (``jit.py``), where an overflow gives inf, the value :func:`damping_derivative` returns.
+    """
     if n == 1.0:
         return gamma
     if n == 0.0 or gamma == 0.0:
@@ -175,10 +187,7 @@ def damping_derivative(gamma: float, n: float, dphi: float) -> float:
     a = abs(dphi)
     if a == 0.0:
         return math.inf if n < 1.0 else 0.0
-    try:
-        return float(gamma * n * a ** (n - 1.0))
-    except OverflowError:   # beyond float64: as steep as it gets
-        return math.inf
+    return float(gamma * n * a ** (n - 1.0))
 
 
 def _eigs(d: float, c: float) -> tuple[complex, complex]:

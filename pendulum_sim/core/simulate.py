@@ -67,7 +67,8 @@ def step_count(t_end: float, h: float) -> tuple[int, float]:
 def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h: float,
              method: str = 'rk4', *, torque: TorqueInput = None, guard: bool = True,
              energy_check: bool = True, rtol: float = 1e-8, atol: float = 1e-10,
-             record_every: int = 1, max_steps: int = MAX_STEPS) -> Trajectory:
+             record_every: int = 1, max_steps: int = MAX_STEPS,
+             jit: bool = False) -> Trajectory:
     """Integrate the pendulum from ``(phi0, dphi0)`` over ``[0, t_end]`` with step ``h``.
 
     Parameters
@@ -94,6 +95,8 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         Keep every k-th step (the last step is always kept).
     max_steps : int
         Refuse runs of more steps than this (default ``MAX_STEPS`` = 1e8), with the reason.
+    jit : bool
+        Run an adaptive method's steps compiled by numba (see :class:`Stepper`).
 
     Returns
     -------
@@ -102,7 +105,7 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     record_every = check_count('record_every', record_every)
     max_steps = check_count('max_steps', max_steps)
     stepper = Stepper(params, phi0, dphi0, h, method, guard=guard, energy_check=energy_check,
-                      rtol=rtol, atol=atol)
+                      rtol=rtol, atol=atol, jit=jit)
     h = stepper.h
     t_end = check_run_length(t_end, h, max_steps)
     k_full, last = step_count(t_end, h)

@@ -13,6 +13,7 @@ import math
 from .engine import ENERGY_TOL, Engine, compile_fast_step
 from .errors import ModelError
 from .guard import GuardStats
+from .jit import check_jit
 from .methods import Method, get_method
 from .model import (
     MAX_INPUT_ACCEL,
@@ -40,19 +41,23 @@ class Stepper:
     method : str
         A name of ``METHODS``: ``'rk4'`` (default, the paper's), ``'euler'``, ``'midpoint'``,
         ``'sdirk2'``, ``'sdirk3'``, or the adaptive ``'dopri5'``, ``'dop853'``, ``'rodas4'``
-        (linearly implicit, for long stiff runs) and ``'extrap6'``, error-controlled inside
-        each step of h.
+        (linearly implicit, for long stiff runs), ``'extrap6'`` and ``'extrap8'``,
+        error-controlled inside each step of h.
     guard : bool
         Keep explicit steps inside their stability region (substeps or implicit fallback).
     energy_check : bool
         Redo an explicit step implicitly when energy rose without input (γ > 0).
     rtol, atol : float
         Tolerances of the adaptive method.
+    jit : bool
+        Run the adaptive method's steps compiled to machine code by numba (the ``jit`` extra;
+        ``jit.py``): the same steps and decisions, several times faster at tight tolerances,
+        after a compile of up to about a second per method and exponent.
     """
 
     def __init__(self, params: PendulumParams, phi0: float, dphi0: float, h: float,
                  method: str = 'rk4', *, guard: bool = True, energy_check: bool = True,
-                 rtol: float = 1e-8, atol: float = 1e-10) -> None:
+                 rtol: float = 1e-8, atol: float = 1e-10, jit: bool = False) -> None:
         if not isinstance(params, PendulumParams):
             raise ModelError(f'params must be PendulumParams, got {type(params).__name__}')
         self._method: Method = get_method(method)
@@ -61,6 +66,7 @@ class Stepper:
         self._atol = check_tolerance('atol', atol)
         self._guard_on = bool(guard)
         self._energy_check = bool(energy_check)
+        self._jit = check_jit(jit, self._method.name, self._method.kind == 'adaptive')
         self._initial = validate_state(phi0, dphi0, params)
         self.stats = GuardStats()
         self._configure(params)
@@ -70,7 +76,7 @@ class Stepper:
     def _configure(self, params: PendulumParams) -> None:
         self._params = params
         eng = Engine(params.omega0_sq, params.gamma, params.n, self._method, self._guard_on,
-                     self._energy_check, self._rtol, self._atol)
+                     self._energy_check, self._rtol, self._atol, self._jit)
         self._engine = eng
         self._w2, self._gamma = eng.w2, eng.gamma
         self._inv_inertia = 1.0 / params.inertia

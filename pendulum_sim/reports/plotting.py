@@ -14,6 +14,7 @@ import numpy as np
 
 CORE_STYLE = '-'
 SCIPY_STYLE = '--'
+JIT_STYLE = ':'  # the core's adaptive methods with compiled steps
 
 
 def have_matplotlib() -> bool:
@@ -73,7 +74,9 @@ def work_precision_figures(out: Path, rows: Sequence[dict[str, Any]],
                              and math.isfinite(x['err_max']) and x['err_max'] > 0)
                 if not pts:
                     continue
-                style = SCIPY_STYLE if solver.startswith('scipy') else CORE_STYLE
+                compiled = any(x.get('jit') for x in sel if x['solver'] == solver)
+                style = SCIPY_STYLE if solver.startswith('scipy') else (
+                    JIT_STYLE if compiled else CORE_STYLE)
                 ax.loglog([p[0] for p in pts], [p[1] for p in pts], style, marker='.',
                           label=solver)
             ax.set_title(case)

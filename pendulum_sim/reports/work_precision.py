@@ -6,7 +6,9 @@ For each case, every method of ``METHODS`` runs over a sweep of its fixed step h
 the plain vector field (no reversal splitting: what a user calling scipy gets). Errors are
 measured against the independent reference of ``reference.py`` at the final time and as the
 maximum over a uniform output grid; time is CPU time (``time.process_time``), the minimum of
-repeats after a warm-up, as in the SciML work-precision diagrams.
+repeats after a warm-up, as in the SciML work-precision diagrams. Where numba is installed the
+adaptive methods run a second time with their steps compiled (``jit=True``, solver names ending
+in :data:`JIT_SUFFIX`; the compile is part of the warm-up, not of the timed runs).
 """
 from __future__ import annotations
 
@@ -15,12 +17,14 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from importlib.metadata import version
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from ..core import jit
 from ..core.methods import METHODS
 from ..core.model import PendulumParams
 from ..core.simulate import simulate
@@ -35,6 +39,7 @@ SCIPY_METHODS = ('RK45', 'DOP853', 'Radau', 'LSODA')
 ERROR_LEVELS = tuple(10.0 ** -k for k in range(3, 13))
 TARGET_RATIO = 0.5
 ATOL_FACTOR = 1e-2  # atol = rtol · ATOL_FACTOR for every adaptive solver (core and scipy)
+JIT_SUFFIX = '-jit'  # the compiled-steps variant of an adaptive core method
 
 
 @dataclass(frozen=True)
@@ -63,6 +68,7 @@ class Grid:
     repeat_budget: float  # s: stop repeating a configuration once this much time was spent
     quick: bool
     cases: tuple[str, ...] = field(default=())  # empty: all
+    jit: bool = True  # also the adaptive methods with compiled steps, where numba is installed
 
 
 FULL = Grid(
@@ -81,7 +87,7 @@ QUICK = Grid(
     rtols=(1e-4, 1e-6, 1e-8, 1e-10),
     scipy_rtols=(1e-4, 1e-7, 1e-10),
     repeats=1, repeat_budget=0.0, quick=True,
-    cases=('paper_g1_n1', 'paper_g1_n2'))
+    cases=('paper_g1_n1', 'paper_g1_n2'), jit=False)
 
 
 def all_cases(t_end: float) -> list[Case]:
@@ -116,33 +122,45 @@ def _timed(fn: Callable[[], Any], repeats: int, budget: float) -> tuple[Any, flo
 
 def _core_rows(case: Case, grid: Grid, ref: Reference) -> list[dict[str, Any]]:
     rows = []
-    p = case.params
+    compiled = grid.jit and jit.available()
     for name, method in METHODS.items():
-        if method.kind == 'adaptive':
+        adaptive = method.kind == 'adaptive'
+        if adaptive:
             configs = [('rtol', r, grid.dt_out, 1) for r in grid.rtols]
         else:
             configs = [('h', grid.dt_out / 2**k, grid.dt_out / 2**k, 2**k)
                        for k in grid.steps[name]]
-        # Warm-up: the compiled steps are cached per (method, parameters), so one short run
-        # warms every configuration of the sweep.
-        simulate(p, case.phi0, case.dphi0, grid.dt_out, grid.dt_out, name)
-        for param, value, h, every in configs:
-            tol = value if param == 'rtol' else 1e-8
+        for use_jit in (False, True) if adaptive and compiled else (False,):
+            rows += _method_rows(case, grid, ref, name, configs, use_jit)
+    return rows
 
-            def run(h: float = h, every: int = every, tol: float = tol,
-                    name: str = name) -> Any:
-                return simulate(p, case.phi0, case.dphi0, case.t_end, h, name,
-                                record_every=every, rtol=tol, atol=tol * ATOL_FACTOR)
-            traj, cpu, reps = _timed(run, grid.repeats, grid.repeat_budget)
-            err = ref.error(traj.phi, traj.dphi)
-            s = traj.stats
-            rows.append({
-                'case': case.name, 'gamma': p.gamma, 'n': p.n, 'family': 'core',
-                'solver': name, 'order': method.order, 'param': param, 'value': value,
-                'err_final': float(err[-1]), 'err_max': float(np.max(err)), 'cpu_s': cpu,
-                'repeats': reps, 'work': s.steps + s.substeps, 'substeps': s.substeps,
-                'fallbacks': s.fallbacks, 'reversals': s.reversals,
-                'energy_rejections': s.energy_rejections})
+
+def _method_rows(case: Case, grid: Grid, ref: Reference, name: str,
+                 configs: Sequence[tuple[str, float, float, int]],
+                 use_jit: bool) -> list[dict[str, Any]]:
+    rows = []
+    p = case.params
+    method = METHODS[name]
+    # Warm-up: the generated (and, with jit, compiled) steps are cached per (method,
+    # exponent), so one short run warms every configuration of the sweep.
+    simulate(p, case.phi0, case.dphi0, grid.dt_out, grid.dt_out, name, jit=use_jit)
+    for param, value, h, every in configs:
+        tol = value if param == 'rtol' else 1e-8
+
+        def run(h: float = h, every: int = every, tol: float = tol) -> Any:
+            return simulate(p, case.phi0, case.dphi0, case.t_end, h, name,
+                            record_every=every, rtol=tol, atol=tol * ATOL_FACTOR, jit=use_jit)
+        traj, cpu, reps = _timed(run, grid.repeats, grid.repeat_budget)
+        err = ref.error(traj.phi, traj.dphi)
+        s = traj.stats
+        rows.append({
+            'case': case.name, 'gamma': p.gamma, 'n': p.n, 'family': 'core',
+            'solver': name + JIT_SUFFIX if use_jit else name, 'jit': use_jit,
+            'order': method.order, 'param': param, 'value': value,
+            'err_final': float(err[-1]), 'err_max': float(np.max(err)), 'cpu_s': cpu,
+            'repeats': reps, 'work': s.steps + s.substeps, 'substeps': s.substeps,
+            'fallbacks': s.fallbacks, 'reversals': s.reversals,
+            'energy_rejections': s.energy_rejections})
     return rows
 
 
@@ -171,7 +189,8 @@ def _scipy_rows(case: Case, grid: Grid, ref: Reference) -> list[dict[str, Any]]:
                 err_f, err_m = float(err[-1]), float(np.max(err))
             rows.append({
                 'case': case.name, 'gamma': p.gamma, 'n': p.n, 'family': 'scipy',
-                'solver': f'scipy-{method}', 'order': orders[method], 'param': 'rtol',
+                'solver': f'scipy-{method}', 'jit': False, 'order': orders[method],
+                'param': 'rtol',
                 'value': rtol, 'err_final': err_f, 'err_max': err_m, 'cpu_s': cpu,
                 'repeats': reps, 'work': int(sol.nfev), 'substeps': 0, 'fallbacks': 0,
                 'reversals': 0, 'energy_rejections': 0})
@@ -328,6 +347,18 @@ def _levels(rows: Sequence[dict[str, Any]], cases: Sequence[Case],
     return out
 
 
+def _jit_note(grid: Grid) -> str:
+    if not grid.jit:
+        return 'The compiled steps (`jit=True`) are not part of this grid.'
+    if not jit.available():
+        return ('numba is not installed: the adaptive methods ran with their generated Python '
+                'steps only (`jit=True` needs the `jit` extra).')
+    return (f'The adaptive methods ran twice: with their generated Python steps and with the '
+            f'same steps compiled by numba {version("numba")} (`jit=True`, solver names ending '
+            f'in `{JIT_SUFFIX}`; the same decisions to the last bit, the compile in the '
+            'warm-up).')
+
+
 def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
              orders: Sequence[dict[str, Any]], levels: Sequence[dict[str, Any]],
              have_scipy: bool, figures: Sequence[str]) -> str:
@@ -344,7 +375,8 @@ def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
         f'atol = rtol·{ATOL_FACTOR:g}. '
         'The core runs with its defaults (stability guard, reversal splitting and energy check '
         'on). scipy gets the *plain* vector field of eq 20, without reversal splitting, as a '
-        'user calling `solve_ivp` would; Radau and LSODA get the analytic Jacobian.'
+        'user calling `solve_ivp` would; Radau and LSODA get the analytic Jacobian. '
+        + _jit_note(grid)
         + ('' if have_scipy else '\n\n**scipy is not installed: no peers were run.**')
         + (' Quick grid: short horizon, few points; numbers are for the test suite only.'
            if grid.quick else ''))
