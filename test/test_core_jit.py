@@ -6,10 +6,12 @@ cover around them must take the same decisions (the same substeps, reversals and
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +19,7 @@ import pytest
 from pendulum_sim.core import METHODS, IntegratorError, PendulumParams, Stepper, simulate
 from pendulum_sim.core.embedded import pair_steps
 from pendulum_sim.core.jit import available
+from pendulum_sim.reports.work_precision import JIT_SUFFIX, QUICK, run_work_precision
 
 pytestmark = pytest.mark.skipif(not available(), reason='numba is not installed (jit extra)')
 
@@ -125,3 +128,20 @@ def test_without_numba_jit_is_refused_with_the_remedy() -> None:
     assert r.stderr.strip().splitlines()[-1] == (
         'pendulum_sim.core.errors.IntegratorError: jit=True needs numba, which is not '
         "installed: pip install 'pendulum_sim[jit]' (or numba)")
+
+
+def test_work_precision_runs_the_adaptive_methods_both_ways(tmp_path: Path) -> None:
+    pytest.importorskip('scipy')  # the study's reference
+    grid = dataclasses.replace(QUICK, t_end=1.0, rtols=(1e-6, 1e-9), cases=('paper_g1_n2',),
+                               jit=True)
+    result = run_work_precision(tmp_path, grid, progress=False)
+    rows = result['rows']
+    for name in ADAPTIVE:
+        python = [r for r in rows if r['solver'] == name]
+        compiled = [r for r in rows if r['solver'] == name + JIT_SUFFIX]
+        assert [r['jit'] for r in python + compiled] == [False] * 2 + [True] * 2
+        for a, b in zip(python, compiled, strict=True):  # the same numbers, other times
+            assert (a['err_max'], a['work'], a['value']) == (b['err_max'], b['work'], b['value'])
+    assert len(result['python_levels']) == len(result['levels'])
+    assert (tmp_path / 'work_precision_levels_python.csv').exists()
+    assert 'With the generated Python steps only' in result['summary']

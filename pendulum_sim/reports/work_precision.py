@@ -274,13 +274,24 @@ def run_work_precision(out: Path, grid: Grid, progress: bool = True) -> dict[str
     floors = {r['case']: _floor(r['disagreement']) for r in refs}
     orders = _orders(rows, cases, floors, grid)
     levels = _levels(rows, cases, floors)
+    # The same comparison with the core's generated Python steps only (no compiled variants).
+    python_levels = _levels([r for r in rows if not r['jit']], cases, floors) \
+        if any(r['jit'] for r in rows) else []
     write_csv(out / 'work_precision_orders.csv', orders)
     write_csv(out / 'work_precision_levels.csv', levels)
+    if python_levels:
+        write_csv(out / 'work_precision_levels_python.csv', python_levels)
     figures = plotting.work_precision_figures(out, rows, orders, cases=[c.name for c in cases])
-    text = _summary(grid, cases, refs, orders, levels, have_scipy, figures)
+    text = _summary(grid, cases, refs, orders, levels, python_levels, have_scipy, figures)
     (out / 'work_precision.md').write_text(text, encoding='utf-8')
-    return {'rows': rows, 'refs': refs, 'orders': orders, 'levels': levels, 'summary': text,
-            'figures': figures}
+    return {'rows': rows, 'refs': refs, 'orders': orders, 'levels': levels,
+            'python_levels': python_levels, 'summary': text, 'figures': figures}
+
+
+def target_count(levels: Sequence[dict[str, Any]]) -> tuple[int, int]:
+    """Return (pairs where the target is met, measurable pairs) of a levels table."""
+    counted = [r for r in levels if r['measurable']]
+    return sum(1 for r in counted if r['target_met']), len(counted)
 
 
 def _floor(disagreement: float) -> float:
@@ -361,7 +372,8 @@ def _jit_note(grid: Grid) -> str:
 
 def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
              orders: Sequence[dict[str, Any]], levels: Sequence[dict[str, Any]],
-             have_scipy: bool, figures: Sequence[str]) -> str:
+             python_levels: Sequence[dict[str, Any]], have_scipy: bool,
+             figures: Sequence[str]) -> str:
     s = Summary('Work-precision')
     s.section(
         'Set-up',
@@ -407,7 +419,9 @@ def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
                                 'guard_active_points', 'plain_fixed_step_order']))
     counted = [r for r in levels if r['measurable']]
     below = sum(1 for r in levels if not r['measurable'])
-    met = sum(1 for r in counted if r['target_met'])
+    met = target_count(levels)[0]
+    python = ('With the generated Python steps only (the `-jit` variants left out): met on '
+              '{} of {}. '.format(*target_count(python_levels))) if python_levels else ''
     comparable = sum(1 for r in counted if math.isfinite(r['ratio']))
     missed = sorted({r['case'] for r in counted if not r['target_met']})
     s.section(
@@ -420,15 +434,16 @@ def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
         f'{comparable} of them had both solvers reach the level.** A level is '
         "measurable when it is at least 10× the reference's measured disagreement; "
         f'{below} pairs below that are listed (`measurable` = no) but not counted. '
+        + python
         + ('The target is met everywhere it could be measured.'
            if met == len(counted) else
-           f'Not met on some level of: {", ".join(missed)}. Where it is missed (the tight '
-           'levels at γ = 1000, n = 2 and 3), the creep is stiff but not very stiff: its fast '
-           "rate 2γ|φ'| ≈ 200 s⁻¹ puts the steps an accuracy of 1e-10 needs at h·λ ≈ 1-10, "
-           'where one-step methods of stage order 1 (explicit, Rosenbrock, linearly implicit '
-           "extrapolation) lose order (the Prothero-Robinson effect), while LSODA's BDF, a "
-           "multistep method, keeps it; and the core's methods of order above 4 stop at every "
-           'output (0.1 s) where LSODA interpolates.'),
+           f'Not met on some level of: {", ".join(missed)}.')
+        + ' Where the Python steps miss it (measured: the tight levels at γ = 1000, n = 2 and '
+        "3), the creep is stiff but not very stiff: its fast rate 2γ|φ'| ≈ 200 s⁻¹ puts the "
+        'steps an accuracy of 1e-10 needs at h·λ ≈ 1-10, where one-step methods of stage '
+        'order 1 (explicit, Rosenbrock, linearly implicit extrapolation) lose order (the '
+        "Prothero-Robinson effect), while LSODA's BDF, a multistep method, keeps it; the "
+        'compiled steps take 3-12× less time per step (`bench/bench_jit.py`).',
         markdown_table(levels, ['case', 'level', 'measurable', 'core_best', 'core_cpu_s',
                                 'scipy_best', 'scipy_cpu_s', 'ratio', 'target_met']))
     s.section('Figures', '\n'.join(f'- `{f}`' for f in figures) if figures else
