@@ -1,21 +1,22 @@
 """Optional machine-code steps: the generated steps of the adaptive methods compiled by numba.
 
 The adaptive methods' steps are generated Python (``explicit.py``, ``rosenbrock.py``,
-``extrapolation.py``): the interpreter spends 3–12 µs on one of them, and at tight tolerances
+``extrapolation.py``): the interpreter spends 2–12 µs on one of them, and at tight tolerances
 on stiff runs that is most of the run. With numba installed (the ``jit`` extra,
 ``pip install 'pendulum_sim[jit]'``) and ``jit=True`` (``Stepper``, ``simulate``),
 :func:`compile_step` hands the very same function objects to ``numba.njit``: one source, two
 executions, results equal to the last bit on the tested grid of states, steps and exponents
-(``test_core_jit.py``), 0.4–1.3 µs a call from Python. Everything around the steps (error
-control, the cut at reversals, dense output) stays the one Python implementation.
+(``test_core_jit.py``), 0.3–0.8 µs a call from Python (``bench/bench_jit.py``). Everything
+around the steps (error control, the cut at reversals, dense output) stays the one Python
+implementation.
 
 One difference of semantics: where Python raises OverflowError or ValueError (a power beyond
 float64, the sine of inf), compiled code returns inf or NaN. The cover rejects a trial step
 either way (its error norm is then not finite), so both take the same decisions.
 
-Compiling costs 0.2–1.2 s per step and exponent, once per process (the compiled steps are
-cached per method, exponent and law); it pays for itself on runs of some ten thousand trial
-steps and more (``bench/bench_work_precision.py``).
+Compiling a method's two steps (plain and branch law) for one exponent costs 0.7–2.3 s, once per
+process (the compiled steps are cached per method, exponent and law); at 2–11 µs saved per
+trial step that pays for itself after some 2–5 × 10⁵ trial steps, over one run or many.
 """
 from __future__ import annotations
 
