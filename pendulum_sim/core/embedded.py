@@ -58,6 +58,18 @@ def pair_steps(tab: Tableau | Extrapolation, n: float,
 MAX_GROWTH = 10.0
 """The largest factor by which a substep may grow after an accepted one (Hairer's facmax)."""
 
+MAX_TRIALS = 20_000
+"""Trial substeps an adaptive method may spend on one step of h (in :func:`dense_run`: per
+output interval covered) before the step goes to the fallback. Far above what a tolerance
+needs where the solution's time scale can be resolved (Hairer's DOP853 allows 100 000 per
+call); reached where the cover cannot progress: a strong n < 1 law chattering at rest (10⁶
+trials a step of 1 ms at n = 0.3, γ = 1e6, measured), a γ beyond any time step."""
+
+
+def min_step(h: float) -> float:
+    """Return the smallest substep the cover tries on a step of h (below: it cannot progress)."""
+    return 1e-14 * max(1.0, h)
+
 
 def initial_step(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float,
                  atol: float, order: int) -> float:
@@ -90,11 +102,29 @@ def initial_step(eng: Engine, p: float, v: float, h: float, ain: float, rtol: fl
         return h * 1e-3
     first = min(100.0 * h0, h1, h)
     # An unbounded slope (n < 1 at rest) is the kink itself, not a rate to resolve.
-    return min(first, 1.0 / rho) if 0.0 < rho < math.inf else first
+    first = min(first, 1.0 / rho) if 0.0 < rho < math.inf else first
+    # A rate beyond float64 (γ = 1e300) makes the estimate 0: start at the smallest substep.
+    return max(first, min_step(h)) if first > 0.0 else min_step(h)
 
 
-class TooManySubsteps(Exception):
+class CoverFailed(IntegratorError):
+    """Raised by :func:`cover` when its error-controlled substeps cannot cover the step.
+
+    ``reached`` is (time covered, φ, φ', w) after the last accepted substep: what was done
+    before the cover stalled is accurate, and the fallback takes the rest from there.
+    """
+
+    def __init__(self, message: str, reached: tuple[float, float, float, float]) -> None:
+        super().__init__(message)
+        self.reached = reached
+
+
+class TooManySubsteps(CoverFailed):
     """Raised by :func:`cover` when ``max_trials`` trial substeps did not cover the step."""
+
+
+class StepTooSmall(CoverFailed):
+    """Raised by :func:`cover` when the error control asks for a substep below ``min_step``."""
 
 
 def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
@@ -102,12 +132,14 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
           max_trials: int = 0,
           steps: tuple[ErrStepFn, ErrStepFn] | None = None,
           trace: list[float] | None = None,
-          stops: Sequence[float] = ()) -> tuple[float, float, float, float]:
+          stops: Sequence[float] = (), per: float = 0.0) -> tuple[float, float, float, float]:
     """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial).
 
     ``tableau`` is the embedded pair (default: the engine's method); every trial after the
     first counts as a substep in ``stats``; with ``max_trials`` > 0, :class:`TooManySubsteps`
-    is raised once that many trials did not cover h. ``steps`` are the pair's compiled steps
+    is raised once that many trials did not cover h (with ``per`` > 0: once they exceed
+    ``max_trials`` for every ``per`` of time covered, and one more); :class:`StepTooSmall` where
+    the error control asks for less than :func:`min_step`. ``steps`` are the pair's compiled steps
     (:func:`pair_steps`) where the caller keeps them. ``trace``, if given, receives
     ``t, φ, φ', w`` after every accepted substep (t from the start of h): the mesh of
     :func:`dense_run`. ``stops`` (increasing, inside (0, h)) are times a substep must land on,
@@ -134,8 +166,10 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
         trials += 1
         if trials > 1:
             stats.substeps += 1
-        if max_trials and trials > max_trials:
-            raise TooManySubsteps(f'{max_trials} trial substeps did not cover h = {h:g} s')
+        if 0 < max_trials < trials and trials > max_trials * (1.0 + (done // per if per
+                                                                     else 0.0)):
+            raise TooManySubsteps(f'{trials - 1} trial substeps did not cover h = {h:g} s',
+                                  (done, p, v, w_total))
         last = hh >= target - done
         step_h = target - done if last else hh
         sign = 1.0 if v > 0.0 else -1.0
@@ -187,8 +221,9 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
         else:
             factor = 0.2 if not math.isfinite(err) else max(0.2, 0.9 * err ** -q)
             hh = step_h * factor
-            if hh < 1e-14 * max(1.0, h):
-                raise IntegratorError(f'adaptive step fell below {hh:.3g} s')
+            if hh < min_step(h):
+                raise StepTooSmall(f'adaptive step fell below {hh:.3g} s',
+                                   (done, p, v, w_total))
     return p, v, w_total, hh
 
 
@@ -210,9 +245,17 @@ class Cover:
 
     def __call__(self, p: float, v: float, h: float, ain: float,
                  stats: GuardStats) -> tuple[float, float, float]:
-        """Cover one step of h; a non-finite result is replaced by the fallback's."""
-        p1, v1, w, self.h_try = cover(self.eng, p, v, h, ain, self.rtol, self.atol, self.h_try,
-                                      stats, steps=self.steps)
+        """Cover one step of h; the fallback takes what the cover could not (or not finitely)."""
+        try:
+            p1, v1, w, self.h_try = cover(self.eng, p, v, h, ain, self.rtol, self.atol,
+                                          self.h_try, stats, max_trials=MAX_TRIALS,
+                                          steps=self.steps)
+        except CoverFailed as failed:
+            done, p1, v1, w = failed.reached
+            self.h_try = 0.0  # the next step starts afresh
+            stats.fallbacks += 1
+            p2, v2, w2 = self.eng.last_resort(p1, v1, h - done, ain)
+            return p2, v2, w + w2
         if not (math.isfinite(p1) and math.isfinite(v1)):
             stats.fallbacks += 1
             return self.eng.last_resort(p, v, h, ain)
@@ -262,14 +305,17 @@ def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rt
     states it joined). A stencil never reaches across a kink of the law (a mesh point at rest
     where the damping is not smooth); where fewer than m points lie between kinks it uses those
     (at least the step's two ends). ``t_out`` is increasing from 0; ``a_in`` is constant over
-    the run.
+    the run. Raises :class:`CoverFailed` where the substeps cannot cover the run (more than
+    :data:`MAX_TRIALS` trials per output interval, or a substep below :func:`min_step`).
     """
     if not dense_capable(eng):
         raise IntegratorError(f'{eng.method.name} has no dense output here')
     m = dense_nodes(eng.method.tableau.order)
     trace: list[float] = [0.0, p, v, 0.0]
     stops = () if m else t_out[1:-1].tolist()
-    cover(eng, p, v, float(t_out[-1]), ain, rtol, atol, 0.0, stats, trace=trace, stops=stops)
+    span = float(t_out[-1])
+    cover(eng, p, v, span, ain, rtol, atol, 0.0, stats, max_trials=MAX_TRIALS, trace=trace,
+          stops=stops, per=span / (len(t_out) - 1))
     # Counted as one cover per output interval would count them: the first trial of each
     # stretch after a landing is a step, not a substep.
     stats.substeps -= len(stops)

@@ -330,7 +330,7 @@ class Engine:
         try:
             p1, v1, w, _ = embedded.cover(self, p, v, h, ain, tol, tol, first, stats, DOP853,
                                           STIFF_MAX_TRIALS, self._stiff_steps)
-        except embedded.TooManySubsteps:
+        except embedded.CoverFailed:
             return self.guarded(p, v, h, ain, stats)
         return p1, v1, w
 
@@ -482,6 +482,13 @@ class Engine:
             return p2, v2, wm + w2_
         side = 1.0 if after > 0.0 else -1.0
         p2, v2, w2_ = self._branch_run(pm, vm, graded_mesh(0.0, rest, h, n, self.reach), ain, side)
+        # From rest the pendulum moves with the force and no faster than the force alone would
+        # take it (damping only opposes the motion). A branch run that breaks either bound met
+        # a law too steep at rest for explicit steps (n < 1 with a large γ: the creep's rate is
+        # beyond any step): the fallback takes the rest of the step.
+        if not (v2 * side >= 0.0 and abs(v2) <= (abs(ain) + w2) * rest * (1.0 + 1e-9)):
+            stats.fallbacks += 1
+            p2, v2, w2_ = self.last_resort(pm, vm, rest, ain)
         return p2, v2, wm + w2_
 
     def from_rest(self, p: float, h: float, ain: float,

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .embedded import dense_capable, dense_run
+from .embedded import CoverFailed, dense_capable, dense_run
 from .guard import GuardStats
 from .model import (
     MAX_STEPS,
@@ -114,7 +114,12 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     else:
         tau_const = 0.0 if torque is None else check_torque(torque, params)
         if dense_capable(stepper.engine):
-            return _dense(stepper, t_end, k_full, last, record_every, tau_const)
+            try:
+                return _dense(stepper, t_end, k_full, last, record_every, tau_const)
+            except CoverFailed:
+                # The one cover could not run through: step by step below, where a step the
+                # cover fails on is taken by the fallback (``embedded.Cover``).
+                stepper.stats = GuardStats()
 
         def tau_of(t: float, phi: float, dphi: float) -> float:
             return tau_const
