@@ -155,3 +155,15 @@ def test_sweep_uses_the_same_validation() -> None:
         sweep(9.8, 1.0, 1.0, 0.0, [0.0, 1e200], 1.0, 1e-3)
     with pytest.raises(IntegratorError, match=r'^t_end / h = 1e\+12 steps exceeds max_steps'):
         sweep(9.8, 1.0, 1.0, 0.0, 0.0, 1e9, 1e-3)
+
+
+@pytest.mark.parametrize('method', ['rodas4', 'extrap8'])
+def test_simulate_falls_back_to_steps_where_one_cover_cannot_run_through(method: str) -> None:
+    # The same stop through simulate: its single cover over all outputs stalls at rest (more
+    # than MAX_TRIALS trials an output interval), so the outputs are stepped one by one.
+    n, gamma, v0 = 0.3, 1e6, 1e4
+    r = simulate(PendulumParams.from_omega0_sq(9.8, gamma, n), 2.0, v0, 3e-3, 1e-3, method)
+    stop = 2.0 + v0 ** (2.0 - n) / ((2.0 - n) * gamma)
+    assert r.stats.fallbacks >= 1 and r.stats.steps == 3
+    assert r.phi[1:] == pytest.approx([stop] * 3, abs=6e-6)
+    assert list(r.t) == [0.0, 1e-3, 2e-3, 3e-3]
