@@ -69,16 +69,22 @@ def work_precision_figures(out: Path, rows: Sequence[dict[str, Any]],
         fig, axes = plt.subplots(r, c, figsize=(5 * c, 4 * r), squeeze=False)
         for ax, case in zip(axes.flat, names, strict=False):
             sel = [x for x in rows if x['case'] == case]
+            # One colour per method: a compiled variant shares its method's, dotted.
+            bases = list(dict.fromkeys(x['solver'] for x in sel if not x.get('jit')))
+            colours = plt.get_cmap('tab20').colors
             for solver in dict.fromkeys(x['solver'] for x in sel):
                 pts = sorted((x['cpu_s'], x['err_max']) for x in sel if x['solver'] == solver
                              and math.isfinite(x['err_max']) and x['err_max'] > 0)
                 if not pts:
                     continue
                 compiled = any(x.get('jit') for x in sel if x['solver'] == solver)
+                base = next((b for b in bases if compiled and solver.startswith(b + '-')),
+                            solver)
                 style = SCIPY_STYLE if solver.startswith('scipy') else (
                     JIT_STYLE if compiled else CORE_STYLE)
+                colour = colours[bases.index(base) % len(colours)] if base in bases else None
                 ax.loglog([p[0] for p in pts], [p[1] for p in pts], style, marker='.',
-                          label=solver)
+                          color=colour, label=solver)
             ax.set_title(case)
             ax.set_xlabel('CPU time (s)')
             ax.set_ylabel('max error over trajectory')
