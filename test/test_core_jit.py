@@ -27,15 +27,29 @@ ADAPTIVE = [name for name, m in METHODS.items() if m.kind == 'adaptive']
 W2 = 9.8
 
 
+def _states(seed: int) -> list[tuple[float, float, float, float, float]]:
+    """A grid of (φ, φ', h, a_in, γ) and 2000 random ones (|φ'| from 1e-6 to 10, h to 0.3)."""
+    grid = list(itertools.product([-2.9, 0.3, 2.0], [-7.0, -0.1, 1e-3, 4.0], [1e-4, 0.01, 0.3],
+                                  [0.0, 0.8], [1.0, 1000.0]))
+    rng = np.random.default_rng(seed)
+    k = 2000
+    v = rng.choice([-1.0, 1.0], k) * 10.0 ** rng.uniform(-6.0, 1.0, k)
+    rand = zip(rng.uniform(-3.0, 3.0, k), v, 10.0 ** rng.uniform(-4.0, -0.5, k),
+               rng.uniform(-1.0, 1.0, k), rng.choice([1.0, 1000.0], k), strict=True)
+    return grid + [tuple(map(float, x)) for x in rand]  # type: ignore[misc]
+
+
 @pytest.mark.parametrize('name', ADAPTIVE)
-@pytest.mark.parametrize('n', [2.0, 2.5])
+@pytest.mark.parametrize('n', [0.5, 1.5, 3.0])
 def test_compiled_steps_are_the_generated_steps_to_the_last_bit(name: str, n: float) -> None:
+    # n = 0.5, 1.5 and 3 put a^0.5 or a^2 in the law or its slope, which the compiler rewrites
+    # (sqrt, a·a) and the C library's pow differs from in the last bit for ~1 a in 1000: the
+    # generated source spells them so itself (spelled as pow, 6 of these 15 cases failed).
     tab = METHODS[name].tableau
     python, compiled = pair_steps(tab, n), pair_steps(tab, n, jit=True)
-    grid = itertools.product([-2.9, 0.3, 2.0], [-7.0, -0.1, 1e-3, 4.0], [1e-4, 0.01, 0.3],
-                             [0.0, 0.8], [1.0, 1000.0])
     raised = 0
-    for p, v, h, ain, g in grid:
+    states = _states(int(10 * n))
+    for p, v, h, ain, g in states:
         s = 1.0 if v > 0.0 else -1.0
         for law in (0, 1):
             args = (p, v, h, ain, W2, g, s)
@@ -49,7 +63,7 @@ def test_compiled_steps_are_the_generated_steps_to_the_last_bit(name: str, n: fl
                 assert not all(math.isfinite(x) for x in got), (name, n, law, args)
                 continue
             np.testing.assert_array_equal(got, want, err_msg=f'{name} {n} {law} {args}')
-    assert raised <= 288 // 4  # most of the 288 (state, step, law) points compare numbers
+    assert raised <= len(states) // 2  # most of the (state, law) points compare numbers
 
 
 @pytest.mark.parametrize(('method', 'gamma', 'n', 'dphi0', 'rtol'), [

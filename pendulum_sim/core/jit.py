@@ -10,9 +10,14 @@ executions, results equal to the last bit on the tested grid of states, steps an
 around the steps (error control, the cut at reversals, dense output) stays the one Python
 implementation.
 
-One difference of semantics: where Python raises OverflowError or ValueError (a power beyond
-float64, the sine of inf), compiled code returns inf or NaN. The cover rejects a trial step
-either way (its error norm is then not finite), so both take the same decisions.
+Two things keep the two executions equal. No fast-math: numba leaves IEEE arithmetic as
+written (no fused multiply-add, no reassociation), but LLVM still rewrites a power with the
+constant exponent 0.5, 2 or −1 (to sqrt, x·x, 1/x), which the C library's pow differs from in
+the last bit for about 1 x in 1000; the generated damping law and ``model.slope_formula``
+therefore spell those cases so themselves. And where Python raises OverflowError or
+ValueError (a power beyond float64, the sine of inf), compiled code returns inf or NaN: the
+cover rejects a trial step either way (its error norm is then not finite), so both take the
+same decisions.
 
 Compiling a method's two steps (plain and branch law) for one exponent costs 0.7–2.3 s, once per
 process (the compiled steps are cached per method, exponent and law); at 2–11 µs saved per

@@ -187,7 +187,10 @@ def slope_formula(gamma: float, n: float, dphi: float) -> float:
     a = abs(dphi)
     if a == 0.0:
         return math.inf if n < 1.0 else 0.0
-    return float(gamma * n * a ** (n - 1.0))
+    e = n - 1.0
+    # a^0.5 and a^2 spelled as a compiler rewrites them (LLVM, ``jit.py``): the C library's
+    # pow differs from sqrt and from a·a in the last bit for about 1 a in 1000.
+    return float(gamma * n * (math.sqrt(a) if e == 0.5 else a * a if e == 2.0 else a ** e))
 
 
 def _eigs(d: float, c: float) -> tuple[complex, complex]:
