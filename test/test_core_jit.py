@@ -43,7 +43,7 @@ def _states(seed: int) -> list[tuple[float, float, float, float, float]]:
 @pytest.mark.parametrize('n', [0.5, 1.5, 3.0])
 def test_compiled_steps_are_the_generated_steps_to_the_last_bit(name: str, n: float) -> None:
     # n = 0.5, 1.5 and 3 put a^0.5 or a^2 in the law or its slope, which the compiler rewrites
-    # (sqrt, a·a) and the C library's pow differs from in the last bit for ~1 a in 1000: the
+    # (sqrt, a·a) and the C library's pow differs from in the last bit for 7–8 in 10 000 a: the
     # generated source spells them so itself (spelled as pow, 6 of these 15 cases failed).
     tab = METHODS[name].tableau
     python, compiled = pair_steps(tab, n), pair_steps(tab, n, jit=True)

@@ -61,7 +61,7 @@ def damping_expression(n: float, branch: bool = False, scalar: bool = False) -> 
     """
     whole = n == int(n) and 1.0 <= n <= 8.0
     # |v|^0.5 is spelled sqrt: a compiler rewrites pow(x, 0.5) so (LLVM, ``jit.py``), and the
-    # C library's pow differs from sqrt in the last bit for about 1 x in 1000.
+    # C library's pow differs from sqrt in the last bit for 7–8 in 10 000 random x.
     root = 'sqrt(abs(v))' if n == 0.5 else 'abs(v) ** n'
     if branch:
         if n == 0.0:
