@@ -9,6 +9,7 @@ answer to a final sentinel state arrives every earlier answer (or a duplicate) a
 from __future__ import annotations
 
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -52,15 +53,18 @@ class Controller(NodeProcess):
 class Loop:
     """The probe's side of the loop: publish a state, wait for its answer."""
 
-    def __init__(self, probe: Probe, ns: str, joint: str = 'pendulum_joint') -> None:
+    def __init__(self, probe: Probe, ctl: Controller, joint: str = 'pendulum_joint') -> None:
         self.probe = probe
         self.joint = joint
+        ns = ctl.namespace
         self.pub = probe.node.create_publisher(JointState, f'{ns}/joint_states', RELIABLE)
         self.answers: Received = probe.subscribe(Float64, f'{ns}/effort_command', RELIABLE)
-        sub_topic = f'{ns}/effort_command'
+        # Both directions matched, each on its writer's side: the probe's states reach the
+        # controller's subscription, and the controller's answers reach this probe (its own
+        # log of the match: an answer published before it would be lost).
         probe.spin_until(lambda: self.pub.get_subscription_count() >= 1
-                         and probe.node.count_publishers(sub_topic) >= 1, 30.0,
-                         'the controller to connect')
+                         and re.search(r'effort_command reaches [1-9]', ctl.output())
+                         is not None, 30.0, 'the controller to connect')
 
     def send(self, stamp_ns: int, phi: float, dphi: float,
              names: tuple[str, ...] = ('elbow', 'pendulum_joint')) -> None:
@@ -90,7 +94,7 @@ def expected(phi: float, dphi: float, kp: float, kd: float, target: float, mgl: 
 def test_one_answer_per_state_with_the_law_value() -> None:
     gains = {'kp': 3.0, 'kd': 0.5, 'target': 0.2, 'mgl': 1.5, 'max_effort': 4.0}
     with Controller(params=gains) as ctl, Probe('pd_probe') as probe:
-        loop = Loop(probe, ctl.namespace)
+        loop = Loop(probe, ctl)
         states = [(k * 10_000_000, -2.0 + 0.08 * k, math.cos(k)) for k in range(50)]
         want = [expected(phi, dphi, gains['kp'], gains['kd'], gains['target'], gains['mgl'],
                          gains['max_effort']) for _, phi, dphi in states]
@@ -115,7 +119,7 @@ def test_one_answer_per_state_with_the_law_value() -> None:
 
 def test_a_state_without_the_joint_is_not_answered() -> None:
     with Controller(params={'joint_name': 'knee'}) as ctl, Probe('pd_probe') as probe:
-        loop = Loop(probe, ctl.namespace, joint='knee')
+        loop = Loop(probe, ctl, joint='knee')
         loop.send(0, 0.1, 0.0, names=('elbow', 'pendulum_joint'))
         probe.spin_until(lambda: "has no position and velocity for joint 'knee'"
                          in ctl.output(), 10.0, 'the missing-joint error')
@@ -131,7 +135,7 @@ def test_settling_is_judged_by_stamps_not_wall_time() -> None:
     params = {'target': 0.5, 'settle_hold': 0.5, 'settle_position_tolerance': 0.01,
               'settle_velocity_tolerance': 0.01}
     with Controller(params=params) as ctl, Probe('pd_probe') as probe:
-        loop = Loop(probe, ctl.namespace)
+        loop = Loop(probe, ctl)
         for k in range(5):  # 0 … 0.4 s, at the target and at rest
             loop.answer(k * 100_000_000, 0.5, 0.0)
         # The log line is written before the answer is published.
@@ -155,7 +159,7 @@ def test_settling_is_judged_by_stamps_not_wall_time() -> None:
 
 def test_count_exits_by_itself() -> None:
     with Controller(args=['--count', '3']) as ctl, Probe('pd_probe') as probe:
-        loop = Loop(probe, ctl.namespace)
+        loop = Loop(probe, ctl)
         for k in range(3):
             loop.answer(k, 0.1, 0.0)
         assert ctl.wait(timeout=20.0) == 0
@@ -165,7 +169,7 @@ def test_count_exits_by_itself() -> None:
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_signal_while_answering_exits_zero_without_traceback(sig: int) -> None:
     with Controller() as ctl, Probe('pd_probe') as probe:
-        loop = Loop(probe, ctl.namespace)
+        loop = Loop(probe, ctl)
         for k in range(20):
             loop.answer(k * 10_000_000, 0.1, 0.0)
         assert ctl.proc is not None

@@ -24,6 +24,7 @@ from typing import Any
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
 from rclpy.duration import Duration
+from rclpy.event_handler import PublisherEventCallbacks, QoSPublisherMatchedInfo
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -109,7 +110,9 @@ class PDControllerNode(Node):
         self.skipped = 0
         self.done = False
         self._warned: set[str] = set()
-        self._pub = self.create_publisher(Float64, 'effort_command', RELIABLE_QOS)
+        self._pub = self.create_publisher(
+            Float64, 'effort_command', RELIABLE_QOS,
+            event_callbacks=PublisherEventCallbacks(matched=self._on_matched))
         self._sub = self.create_subscription(JointState, 'joint_states', self._on_state,
                                              RELIABLE_QOS)
         g = self._gains
@@ -117,6 +120,10 @@ class PDControllerNode(Node):
             f'PD + gravity compensation on joint {self._joint!r}: kp = {g.kp:g}, '
             f'kd = {g.kd:g}, target = {g.target:g} rad, mgl = {g.mgl:g} N m, '
             f'max_effort = {g.max_effort:g} N m; one effort_command per joint_states message')
+
+    def _on_matched(self, info: QoSPublisherMatchedInfo) -> None:
+        """Log each change in the subscribers the answers reach: the loop's connection."""
+        self.get_logger().info(f'effort_command reaches {info.current_count} subscriber(s)')
 
     # ------------------------------------------------------------------ parameters
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
