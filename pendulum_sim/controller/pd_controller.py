@@ -26,7 +26,7 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParam
 from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, QoSPublisherMatchedInfo
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -35,7 +35,7 @@ from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from pendulum_sim.dds import make_executor, use_loopback_profile
+from pendulum_sim.dds import make_executor, release, use_loopback_profile
 
 from .errors import ControllerError
 from .pd_law import PDGains, SettleDetector, SettleEvent, SettleLimits, pd_torque, wrap_angle
@@ -235,6 +235,7 @@ def main(args: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, request_stop)
     signal.signal(signal.SIGTERM, request_stop)
     node: PDControllerNode | None = None
+    executor: Executor | None = None
     code = 0
     try:
         executor = make_executor(opts.executor)
@@ -258,6 +259,8 @@ def main(args: list[str] | None = None) -> int:
         if node is not None:
             print(f'{NODE_NAME}: answered {node.answers} states, skipped {node.skipped}',
                   file=sys.stderr, flush=True)
+        release(executor, node)
+        if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
     return code

@@ -56,7 +56,7 @@ if __name__ == '__main__' or Path(sys.argv[0] if sys.argv else '').name == 'pend
     SIGNALS.install()  # the executable: before the imports below take their half second
 
 from pendulum_sim.core import PendulumError  # noqa: E402 - after the signal handlers
-from pendulum_sim.dds import make_executor, use_loopback_profile  # noqa: E402
+from pendulum_sim.dds import make_executor, release, use_loopback_profile  # noqa: E402
 
 from .errors import NodeError, SceneError  # noqa: E402
 from .scenes import (  # noqa: E402
@@ -279,12 +279,13 @@ def _run(executor_kind: str, signals: Signals) -> int:
     """Create the node and spin until a signal or shutdown; return the exit code."""
     import rclpy
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-    from rclpy.executors import ExternalShutdownException
+    from rclpy.executors import Executor, ExternalShutdownException
 
     from .pendulum_node import PendulumNode
     from .status import StatusLine
 
     node: PendulumNode | None = None
+    executor: Executor | None = None
     code = 0
     try:
         executor = make_executor(executor_kind)
@@ -313,6 +314,7 @@ def _run(executor_kind: str, signals: Signals) -> int:
             code = _fail(_rcl_reason(exc))
     finally:
         signals.abort = False  # a signal while closing must not interrupt the close
+        release(executor, node)
         _close(node)
     return code
 
