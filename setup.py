@@ -47,8 +47,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'pendulum_node = pendulum_sim.node.cli:main',
-            'pendulum_pd_controller = pendulum_sim.controller.pd_controller:main',
+            'pendulum_node = pendulum_sim.node.cli:entry',
+            'pendulum_pd_controller = pendulum_sim.controller.pd_controller:entry',
             'pendulum_replay = pendulum_sim.recording.replay:main',
             'pendulum_report = pendulum_sim.reports.cli:main',
             'pendulum_demo = pendulum_sim.demo:main',

@@ -2,8 +2,8 @@
 
 Every process of the package that starts rclpy (``pendulum_node``, ``pendulum_replay``,
 ``pendulum_pd_controller``) calls :func:`use_loopback_profile` before ``rclpy.init``, and the
-long-running ones pick their executor with :func:`make_executor` and let it go of their node
-with :func:`release` before destroying it. Also where the installed
+long-running ones pick their executor with :func:`make_executor`, let it go of their node with
+:func:`release` before destroying it and end through :func:`exit_with`. Also where the installed
 config files (scenes, the DDS profile) are. rclpy is imported only inside
 :func:`make_executor`.
 """
@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import MutableMapping
+from collections.abc import Callable, MutableMapping
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 if TYPE_CHECKING:
     from rclpy.executors import Executor
@@ -101,16 +101,36 @@ def make_executor(kind: str) -> Executor:
     return SingleThreadedExecutor()
 
 
+_RETIRED: list[Executor] = []  # executors released, kept alive until :func:`exit_with`
+
+
 def release(executor: Executor | None, node: Node | None) -> None:
     """Make ``executor`` let go of ``node`` and shut it down, before the node is destroyed.
 
-    The EventsExecutor holds callbacks of the node's publisher and subscription events (rclpy
-    gives each a QoS-incompatibility handler); a node destroyed while the executor still holds
-    them can abort the process at exit ('Destroying callback manager with callbacks remaining',
-    measured about once in 100 shutdowns here; rclpy issue #1644).
+    The executor is kept alive until the process ends (:func:`exit_with`): rclpy's
+    EventsExecutor aborts the process when it is destroyed while callbacks of the node's
+    entities are still registered with it ('Destroying callback manager with callbacks
+    remaining'; rclpy issue #1644), which happened here about once in 100 shutdowns, with and
+    without the node removed first.
     """
     if executor is None:
         return
     if node is not None:
         executor.remove_node(node)
     executor.shutdown()
+    _RETIRED.append(executor)
+
+
+def exit_with(main: Callable[[], int]) -> NoReturn:
+    """Run a process's ``main`` and end the process with its exit code.
+
+    Where an executor was released, the process ends with ``os._exit`` after flushing stdout
+    and stderr, so the executor's destructor never runs (everything else, the node's summary
+    and recording included, was closed by ``main``); otherwise with ``sys.exit``.
+    """
+    code = main()
+    if not _RETIRED:
+        sys.exit(code)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

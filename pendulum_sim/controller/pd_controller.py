@@ -35,7 +35,7 @@ from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from pendulum_sim.dds import make_executor, release, use_loopback_profile
+from pendulum_sim.dds import exit_with, make_executor, release, use_loopback_profile
 
 from .errors import ControllerError
 from .pd_law import PDGains, SettleDetector, SettleEvent, SettleLimits, pd_torque, wrap_angle
@@ -266,5 +266,10 @@ def main(args: list[str] | None = None) -> int:
     return code
 
 
+def entry() -> None:
+    """The console script ``pendulum_pd_controller``: :func:`main`, ended by ``dds.exit_with``."""
+    exit_with(main)
+
+
 if __name__ == '__main__':
-    sys.exit(main())
+    entry()

@@ -56,7 +56,12 @@ if __name__ == '__main__' or Path(sys.argv[0] if sys.argv else '').name == 'pend
     SIGNALS.install()  # the executable: before the imports below take their half second
 
 from pendulum_sim.core import PendulumError  # noqa: E402 - after the signal handlers
-from pendulum_sim.dds import make_executor, release, use_loopback_profile  # noqa: E402
+from pendulum_sim.dds import (  # noqa: E402
+    exit_with,
+    make_executor,
+    release,
+    use_loopback_profile,
+)
 
 from .errors import NodeError, SceneError  # noqa: E402
 from .scenes import (  # noqa: E402
@@ -329,5 +334,10 @@ def _close(node: Any) -> None:
     rclpy.try_shutdown()
 
 
+def entry() -> None:
+    """The console script ``pendulum_node``: :func:`main`, ended by ``dds.exit_with``."""
+    exit_with(main)
+
+
 if __name__ == '__main__':
-    sys.exit(main())
+    entry()
