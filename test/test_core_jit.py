@@ -36,7 +36,7 @@ def _states(seed: int) -> list[tuple[float, float, float, float, float]]:
     v = rng.choice([-1.0, 1.0], k) * 10.0 ** rng.uniform(-6.0, 1.0, k)
     rand = zip(rng.uniform(-3.0, 3.0, k), v, 10.0 ** rng.uniform(-4.0, -0.5, k),
                rng.uniform(-1.0, 1.0, k), rng.choice([1.0, 1000.0], k), strict=True)
-    return grid + [tuple(map(float, x)) for x in rand]  # type: ignore[misc]
+    return grid + [tuple(map(float, x)) for x in rand]
 
 
 @pytest.mark.parametrize('name', ADAPTIVE)

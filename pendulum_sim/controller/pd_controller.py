@@ -19,7 +19,7 @@ import argparse
 import os
 import signal
 import sys
-from typing import Any
+from typing import Any, NoReturn
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
@@ -266,7 +266,7 @@ def main(args: list[str] | None = None) -> int:
     return code
 
 
-def entry() -> None:
+def entry() -> NoReturn:
     """The console script ``pendulum_pd_controller``: :func:`main`, ended by ``dds.exit_with``."""
     exit_with(main)
 

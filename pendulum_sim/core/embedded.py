@@ -166,8 +166,7 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
         trials += 1
         if trials > 1:
             stats.substeps += 1
-        if 0 < max_trials < trials and trials > max_trials * (1.0 + (done // per if per
-                                                                     else 0.0)):
+        if 0 < max_trials < trials and (not per or trials > max_trials * (1 + done // per)):
             raise TooManySubsteps(f'{trials - 1} trial substeps did not cover h = {h:g} s',
                                   (done, p, v, w_total))
         last = hh >= target - done

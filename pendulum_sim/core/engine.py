@@ -486,7 +486,7 @@ class Engine:
         # take it (damping only opposes the motion). A branch run that breaks either bound met
         # a law too steep at rest for explicit steps (n < 1 with a large γ: the creep's rate is
         # beyond any step): the fallback takes the rest of the step.
-        if not (v2 * side >= 0.0 and abs(v2) <= (abs(ain) + w2) * rest * (1.0 + 1e-9)):
+        if not (v2 * side >= 0.0 and abs(v2) <= self.speed_gain(rest, ain) * (1.0 + 1e-9)):
             stats.fallbacks += 1
             p2, v2, w2_ = self.last_resort(pm, vm, rest, ain)
         return p2, v2, wm + w2_
@@ -526,6 +526,10 @@ class Engine:
             v1 = 0.0
         return p1, v1, e0 - specific_energy(v1, math.sin(0.5 * p1), w2)
 
+    def speed_gain(self, h: float, ain: float) -> float:
+        """Return the most |φ'| can grow in h: h (|τ/I| + ω0²), damping only opposes motion."""
+        return h * (abs(ain) + self.w2)
+
     def implicit(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
         """Take the step with the L-stable fallback, in substeps that obey the angle limit.
 
@@ -534,10 +538,9 @@ class Engine:
         """
         tab = FALLBACK_METHOD.tableau
         assert isinstance(tab, Tableau)
-        force = abs(ain) + self.w2
         left, w = h, 0.0
         while left > 0.0:
-            reach = left * (abs(v) + left * force + self.omega0)
+            reach = left * (abs(v) + self.speed_gain(left, ain) + self.omega0)
             hh = left if reach <= MAX_ANGLE else left / math.ceil(reach / MAX_ANGLE)
             p, v, wi = self.dirk_safe(tab, p, v, hh, ain)
             w += wi
@@ -554,7 +557,7 @@ class Engine:
         """
         args = (p, v, h, ain, self.w2, self.gamma, self.n, self.damping)
         p1, v1, w, _ = dirk_step(tab, *args)
-        if v1 * v < 0.0 and abs(v1) > h * (abs(ain) + self.w2):
+        if v1 * v < 0.0 and abs(v1) > self.speed_gain(h, ain):
             pb, vb, wb, _ = dirk_step(BACKWARD_EULER, *args)
             return pb, vb, wb
         return p1, v1, w

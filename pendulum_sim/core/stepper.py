@@ -51,8 +51,9 @@ class Stepper:
         Tolerances of the adaptive method.
     jit : bool
         Run the adaptive method's steps compiled to machine code by numba (the ``jit`` extra;
-        ``jit.py``): the same steps and decisions, 8–15× less time per step, after a compile
-        of 0.7–2.3 s per method and exponent (once per process).
+        ``jit.py``): the same steps and decisions, 7.7–15.4× less time per step
+        (``bench/bench_jit.py``), after a compile of 0.7–2.3 s per method and exponent (once
+        per process).
     """
 
     def __init__(self, params: PendulumParams, phi0: float, dphi0: float, h: float,

@@ -25,7 +25,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 
 class Signals:
@@ -334,7 +334,7 @@ def _close(node: Any) -> None:
     rclpy.try_shutdown()
 
 
-def entry() -> None:
+def entry() -> NoReturn:
     """The console script ``pendulum_node``: :func:`main`, ended by ``dds.exit_with``."""
     exit_with(main)
 

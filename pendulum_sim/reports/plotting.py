@@ -78,11 +78,10 @@ def work_precision_figures(out: Path, rows: Sequence[dict[str, Any]],
                 if not pts:
                     continue
                 compiled = any(x.get('jit') for x in sel if x['solver'] == solver)
-                base = next((b for b in bases if compiled and solver.startswith(b + '-')),
-                            solver)
+                base = solver.rsplit('-', 1)[0] if compiled else solver  # 'rodas4-jit'
                 style = SCIPY_STYLE if solver.startswith('scipy') else (
                     JIT_STYLE if compiled else CORE_STYLE)
-                colour = colours[bases.index(base) % len(colours)] if base in bases else None
+                colour = colours[bases.index(base) % len(colours)]
                 ax.loglog([p[0] for p in pts], [p[1] for p in pts], style, marker='.',
                           color=colour, label=solver)
             ax.set_title(case)

@@ -443,7 +443,7 @@ def _summary(grid: Grid, cases: Sequence[Case], refs: Sequence[dict[str, Any]],
         'steps an accuracy of 1e-10 needs at h·λ ≈ 1-10, where one-step methods of stage '
         'order 1 (explicit, Rosenbrock, linearly implicit extrapolation) lose order (the '
         "Prothero-Robinson effect), while LSODA's BDF, a multistep method, keeps it; the "
-        'compiled steps take 8-15× less time per step (`bench/bench_jit.py`).',
+        'compiled steps take 7.7-15.4× less time per step (`bench/bench_jit.py`).',
         markdown_table(levels, ['case', 'level', 'measurable', 'core_best', 'core_cpu_s',
                                 'scipy_best', 'scipy_cpu_s', 'ratio', 'target_met']))
     s.section('Figures', '\n'.join(f'- `{f}`' for f in figures) if figures else
