@@ -14,14 +14,14 @@ export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
 export FASTRTPS_DEFAULT_PROFILES_FILE ?= $(CURDIR)/config/fastdds_localhost.xml
 export FASTDDS_DEFAULT_PROFILES_FILE ?= $(FASTRTPS_DEFAULT_PROFILES_FILE)
 
-.PHONY: setup run demo test lint typecheck pytest bench clean
+.PHONY: setup run demo test lint typecheck pytest docs docs-reference bench clean
 
 setup: $(VENV)/.installed
 
 $(VENV)/.installed: setup.py setup.cfg package.xml constraints.txt
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -c constraints.txt -e '.[ros,plots,peers,jit,test]'
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[ros,plots,peers,jit,test,docs]'
 	touch $@
 
 run: setup
@@ -30,7 +30,7 @@ run: setup
 demo: setup
 	$(VENV)/bin/pendulum_demo
 
-test: setup lint typecheck pytest
+test: setup lint typecheck pytest docs
 
 lint: setup
 	$(VENV)/bin/ruff check .
@@ -41,12 +41,23 @@ typecheck: setup
 pytest: setup
 	$(VENV)/bin/pytest -q
 
+# The documentation, warnings (broken links and references included) as errors. The reference
+# tables are written from the code first (docs/_ext/reftables.py), so they cannot go stale.
+docs: setup
+	$(VENV)/bin/sphinx-build -q -n -W --keep-going -b html docs docs/_build/html
+
+docs-reference: setup
+	$(PY) docs/_ext/reftables.py docs/reference/_generated
+
+# Each benchmark prints its figures and bench/record.py keeps them, with the machine and the
+# date, in bench/results/<script>.txt (the docs include these files).
 bench: setup
-	$(PY) bench/bench_core.py
-	$(PY) bench/bench_node.py --duration 60
-	$(PY) bench/bench_recording.py --seconds 10 --node
-	$(PY) bench/bench_sync.py --seconds 10
-	$(PY) bench/bench_work_precision.py
+	$(PY) bench/record.py bench/bench_core.py
+	$(PY) bench/record.py bench/bench_jit.py
+	$(PY) bench/record.py bench/bench_node.py --duration 60
+	$(PY) bench/record.py bench/bench_recording.py --seconds 10 --node
+	$(PY) bench/record.py bench/bench_sync.py --seconds 10
+	$(PY) bench/record.py bench/bench_work_precision.py
 
 clean:
-	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache docs/_build

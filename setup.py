@@ -33,6 +33,7 @@ setup(
         'plots': ['matplotlib>=3.7'],
         'peers': ['scipy>=1.10', 'mujoco>=3.2'],
         'jit': ['numba>=0.59'],
+        'docs': ['sphinx>=8', 'myst-parser>=4'],
         'test': [
             'pytest>=8', 'wheel>=0.40', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10',
             'mcap-ros2-support>=0.5',

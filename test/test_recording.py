@@ -10,6 +10,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -546,10 +547,13 @@ RECORDING_SCRIPT = textwrap.dedent("""
     rec.open()
     rec.add_channel('/joint_states', msg_type, qos)
     print('ready', flush=True)
+    report = len(sys.argv) > 3   # print each k once its write returned
     k, after_error, start = 0, 0, time.monotonic()
     while time.monotonic() - start < 20.0:
         now = time.time_ns()
         rec.write('/joint_states', joint_state(k, now), now)
+        if report:
+            print(k, flush=True)
         k += 1
         if rec.error is not None:
             after_error += 1
@@ -562,65 +566,83 @@ RECORDING_SCRIPT = textwrap.dedent("""
 """)
 
 
-def start_recording(path: Path, limit: int = 0) -> subprocess.Popen[str]:
-    """Start a process recording at 1 kHz in a session of its own (it and its writer)."""
+def start_recording(path: Path, limit: int = 0, report: bool = False) -> subprocess.Popen[str]:
+    """Start a process recording at 1 kHz in a session of its own (it and its writer).
+
+    With ``report`` it prints each message's k once ``write()`` returned.
+    """
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [str(Path(__file__).parent), os.environ.get('PYTHONPATH', '')]))
-    proc = subprocess.Popen([sys.executable, '-c', RECORDING_SCRIPT, str(path), str(limit)],
+    proc = subprocess.Popen([sys.executable, '-c', RECORDING_SCRIPT, str(path), str(limit),
+                             *(['report'] if report else [])],
                             stdout=subprocess.PIPE, text=True, env=env, start_new_session=True)
     assert proc.stdout is not None
     assert proc.stdout.readline().strip() == 'ready'
     return proc
 
 
-def kill_while_recording(path: Path, whole_group: bool) -> int:
-    """Let a recording run for a while, SIGKILL it (with its writer or not); return when."""
-    proc = start_recording(path)
-    deadline = time.monotonic() + 10.0
-    while time.monotonic() < deadline and path.stat().st_size < 20_000:
-        time.sleep(0.05)
-    time.sleep(0.5)
-    killed_ns = time.time_ns()
-    if whole_group:
-        os.killpg(proc.pid, signal.SIGKILL)
-    else:
-        proc.send_signal(signal.SIGKILL)
-    proc.communicate(timeout=10)
-    return killed_ns
+def messages_on_disk(path: Path) -> int:
+    """Return how many joint_states the file holds now (a recording being written is truncated)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', TruncatedRecordingWarning)
+        try:
+            rec = load(path)
+        except RecorderError:  # no complete record yet
+            return 0
+    return 0 if rec.joint_states is None else len(rec.joint_states.t)
 
 
-def assert_readable_prefix(rec: Recording, killed_ns: int) -> None:
+def assert_readable_prefix(rec: Recording) -> int:
+    """Assert the file holds messages k = 0, 1, ... in order, none missing; return how many."""
     assert rec.joint_states is not None
     n = len(rec.joint_states.t)
     assert n > 0
-    # Every message up to the last one survived, in order (k = 0, 1, 2, ...).
     np.testing.assert_array_equal(rec.joint_states.position,
                                   [0.5 * k - 1.0 / (k + 1) for k in range(n)])
-    assert killed_ns - rec.joint_states.stamp_ns[-1] <= 1_000_000_000
+    return n
 
 
 @pytest.mark.slow
-def test_sigkill_of_process_and_writer_leaves_a_readable_file_short_of_at_most_a_second(
+def test_sigkill_of_process_and_writer_loses_only_what_was_not_yet_written_out(
         tmp_path: Path) -> None:
+    """Killing both loses at most the open chunk and the pipe: never a message on disk."""
     path = tmp_path / 'killed.mcap'
-    killed_ns = kill_while_recording(path, whole_group=True)
+    proc = start_recording(path)
+    deadline = time.monotonic() + 30.0
+    on_disk = 0
+    while on_disk < 1000 and time.monotonic() < deadline:
+        assert proc.poll() is None
+        on_disk = messages_on_disk(path)
+        time.sleep(0.05)
+    assert on_disk >= 1000, f'{path} held {on_disk} messages after 30 s'
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=10)
     with pytest.warns(TruncatedRecordingWarning, match='is truncated'):
         rec = load(path)
     assert not rec.complete
-    assert_readable_prefix(rec, killed_ns)
+    assert assert_readable_prefix(rec) >= on_disk
 
 
 @pytest.mark.slow
-def test_sigkill_of_the_recording_process_alone_still_finalises_the_file(
+def test_sigkill_of_the_recording_process_alone_loses_no_message_it_wrote(
         tmp_path: Path) -> None:
+    """The writer process drains the pipe and finalises the file: every write() survives."""
     path = tmp_path / 'killed.mcap'
-    killed_ns = kill_while_recording(path, whole_group=False)
+    proc = start_recording(path, report=True)
+    assert proc.stdout is not None
+    last = -1
+    while last < 2000:
+        line = proc.stdout.readline()
+        assert line, 'the recording process ended before it was killed'
+        last = int(line)
+    proc.send_signal(signal.SIGKILL)   # k = 0..last were written before this
+    proc.communicate(timeout=10)
     deadline = time.monotonic() + 10.0   # the writer process finishes the file on its own
     while time.monotonic() < deadline and path.read_bytes()[-8:] != MAGIC:
         time.sleep(0.05)
     rec = load(path)
     assert rec.complete and rec.problems == ()
-    assert_readable_prefix(rec, killed_ns)
+    assert assert_readable_prefix(rec) >= last + 1
 
 
 @pytest.mark.slow

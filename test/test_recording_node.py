@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,7 @@ from test_recording_support import assert_same, read_independently, ros_node, sp
 from pendulum_sim import __version__
 from pendulum_sim.core import PendulumParams, simulate
 from pendulum_sim.core.model import energy
-from pendulum_sim.recording import load
+from pendulum_sim.recording import RecorderError, load
 from pendulum_sim.recording.loader import Recording, TruncatedRecordingWarning
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -55,6 +56,17 @@ def wait_for_size(path: Path, size: int, proc: subprocess.Popen[str],
             return
         time.sleep(0.05)
     raise AssertionError(f'{path} did not reach {size} bytes')
+
+
+def joint_states_on_disk(path: Path) -> int:
+    """Return how many joint_states the file holds now (a recording being written is truncated)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', TruncatedRecordingWarning)
+        try:
+            rec = load(path)
+        except RecorderError:  # no complete record yet
+            return 0
+    return 0 if rec.joint_states is None else len(rec.joint_states.t)
 
 
 def scene_params(rec: Recording) -> PendulumParams:
@@ -144,19 +156,24 @@ def test_a_recorded_run_is_the_core_trajectory_and_sigterm_finalises(tmp_path: P
     assert set(np.unique(js.effort[~free])) >= {0.5, 5.0}
 
 
-def test_sigkill_mid_run_leaves_a_readable_file_that_lost_at_most_a_second(
+def test_sigkill_mid_run_keeps_every_message_already_on_disk(
         tmp_path: Path) -> None:
     path = tmp_path / 'killed.mcap'
     proc = start_node(path, '-p', 'publish_rate:=1000.0')
     wait_for_size(path, 20_000, proc)
-    time.sleep(1.0)
-    killed_ns = time.time_ns()
+    deadline = time.monotonic() + 30.0
+    on_disk = 0
+    while on_disk < 1000 and time.monotonic() < deadline:   # chunks the writer closed
+        assert proc.poll() is None, proc.communicate()
+        on_disk = joint_states_on_disk(path)
+        time.sleep(0.05)
+    assert on_disk >= 1000, f'{path} held {on_disk} joint_states after 30 s'
     os.killpg(proc.pid, signal.SIGKILL)   # the node and its recording's writer process
     proc.communicate(timeout=10)
     with pytest.warns(TruncatedRecordingWarning, match='is truncated'):
         rec = load(path)
     js = rec.joint_states
-    assert js is not None and len(js.t) > 500
+    assert js is not None and len(js.t) >= on_disk   # the kill lost only the open chunk
     # What is there is sound: in order, on the h grid, and the core's trajectory.
     h_ns = round(float(rec.scene['h']) * 1e9)
     offsets = js.stamp_ns - epoch_ns(rec)
@@ -166,8 +183,6 @@ def test_sigkill_mid_run_leaves_a_readable_file_that_lost_at_most_a_second(
                    t_end=int(steps[-1]) * h_ns * 1e-9, h=h_ns * 1e-9,
                    method=rec.scene['integrator'])
     np.testing.assert_allclose(js.position, run.phi[steps], rtol=0, atol=1e-12)
-    # Stamps are wall-anchored simulated time, which keeps up with the wall clock.
-    assert killed_ns - js.stamp_ns[-1] <= 1_000_000_000
 
 
 def test_a_full_disk_stops_the_recording_not_the_simulation(tmp_path: Path) -> None:

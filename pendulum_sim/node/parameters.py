@@ -37,6 +37,7 @@ class Spec:
     low: float | None = None
     high: float | None = None
     constraints: str = ''
+    unit: str = ''  # SI unit of a number ('1' if it has none); '' for a flag or a name
 
     def descriptor(self) -> ParameterDescriptor:
         """Return the ParameterDescriptor declaring this parameter."""
@@ -58,27 +59,30 @@ class Spec:
 
 SPECS: tuple[Spec, ...] = (
     # The body: fixed, since changing it mid-run would break the energy balance.
-    Spec('m', 0.2, 'Mass in kg (> 0).', read_only=True),
-    Spec('l', 1.0, 'Distance from the pivot to the centre of mass in m (> 0).', read_only=True),
-    Spec('inertia', 0.2, 'Moment of inertia about the pivot in kg m^2 (> 0).', read_only=True),
-    Spec('g', 9.8, 'Gravitational acceleration in m/s^2 (>= 0).', read_only=True),
+    Spec('m', 0.2, 'Mass in kg (> 0).', read_only=True, unit='kg'),
+    Spec('l', 1.0, 'Distance from the pivot to the centre of mass in m (> 0).', read_only=True,
+         unit='m'),
+    Spec('inertia', 0.2, 'Moment of inertia about the pivot in kg m^2 (> 0).', read_only=True,
+         unit='kg m^2'),
+    Spec('g', 9.8, 'Gravitational acceleration in m/s^2 (>= 0).', read_only=True, unit='m/s^2'),
     # Damping: live.
     Spec('gamma', 1.0, 'Damping coefficient in s^(n-2). Live: applies from the next step, the '
-         'state is kept.', low=0.0, high=1e6),
+         'state is kept.', low=0.0, high=1e6, unit='s^(n-2)'),
     Spec('n', 1.0, 'Damping exponent: 0 dry (Coulomb), 1 viscous, 2 quadratic drag. Live: '
-         'applies from the next step, the state is kept.', low=0.0, high=10.0),
-    Spec('phi0', 0.0, 'Initial angle in rad. Live: used by the next ~/reset.'),
-    Spec('dphi0', 0.0, 'Initial angular velocity in rad/s. Live: used by the next ~/reset.'),
+         'applies from the next step, the state is kept.', low=0.0, high=10.0, unit='1'),
+    Spec('phi0', 0.0, 'Initial angle in rad. Live: used by the next ~/reset.', unit='rad'),
+    Spec('dphi0', 0.0, 'Initial angular velocity in rad/s. Live: used by the next ~/reset.',
+         unit='rad/s'),
     # Integration and timing.
-    Spec('h', 1e-3, 'Fixed integration step in s.', read_only=True, low=1e-6, high=0.1),
+    Spec('h', 1e-3, 'Fixed integration step in s.', read_only=True, low=1e-6, high=0.1, unit='s'),
     Spec('integrator', 'rk4', 'Integration method of the core.', read_only=True,
          constraints='one of: ' + ', '.join(sorted(METHODS))),
     Spec('guard', True, 'Keep explicit steps inside their stability region (substeps or an '
          'implicit fallback).', read_only=True),
     Spec('publish_rate', 100.0, 'Wake and publish rate in Hz (wall clock).', read_only=True,
-         low=0.1, high=10000.0),
+         low=0.1, high=10000.0, unit='Hz'),
     Spec('real_time_factor', 1.0, 'Simulated seconds per wall second. In lockstep mode 0 means '
-         'as fast as possible. Live.', low=0.0, high=10000.0),
+         'as fast as possible. Live.', low=0.0, high=10000.0, unit='1'),
     Spec('lockstep', False, 'Lockstep mode: publish /clock, step as fast as possible (or at '
          'real_time_factor) and stamp from simulated time. ' + SWITCH, read_only=True),
     Spec('synchronous', False, 'Synchronous lockstep (needs lockstep): each control period '
@@ -86,7 +90,8 @@ SPECS: tuple[Spec, ...] = (
          "controller's command answering that state, apply it for the next period. " + SWITCH,
          read_only=True),
     Spec('sync_timeout', 1.0, 'Synchronous mode: wall-clock seconds to wait for the command '
-         'answering a state before sync_timeout_action. Live.', low=0.001, high=3600.0),
+         'answering a state before sync_timeout_action. Live.', low=0.001, high=3600.0,
+         unit='s (wall clock)'),
     Spec('sync_timeout_action', 'hold', "Synchronous mode, when no command came within "
          "sync_timeout: 'hold' keeps the last command for the next period (counted), 'stop' "
          'pauses the simulation (resume with ~/pause or ~/step). Live.',
@@ -97,43 +102,46 @@ SPECS: tuple[Spec, ...] = (
          'simulator owns the clock). ' + SWITCH, read_only=True),
     Spec('start_time', -1.0, 'Epoch in s (since 1970) that simulated time 0 is stamped as; < 0 '
          'means the wall clock when the simulation starts (0 in lockstep).', read_only=True,
-         low=-1.0, high=1e10),
+         low=-1.0, high=1e10, unit='s'),
     Spec('joint_name', 'pendulum_joint', 'Joint name in joint_states and the URDF.',
          read_only=True),
     # Effort input.
     Spec('max_effort', 10.0, 'Commanded torques are saturated at +-max_effort N m. Live.',
-         low=0.0, high=1e6),
+         low=0.0, high=1e6, unit='N m'),
     Spec('command_timeout', 0.5, 'Simulated seconds after the last command at which it returns '
          'to its safe value: no torque (effort), no speed (velocity), the same target '
          '(position). Rounded to steps of h, at least one step; 0 holds the last command for '
-         'ever. Live.', low=0.0, high=3600.0),
+         'ever. Live.', low=0.0, high=3600.0, unit='s'),
     Spec('command_delay', 0.0, 'Transport delay of commands in simulated seconds, rounded to '
-         'steps of h. Live.', low=0.0, high=1.0),
+         'steps of h. Live.', low=0.0, high=1.0, unit='s'),
     Spec('command_interface', 'effort', "What commands set: 'effort' (N m), 'velocity' (rad/s) "
          "or 'position' (rad), the latter two tracked by a joint servo whose torque is "
          'saturated at max_effort.', read_only=True,
          constraints='one of: ' + ', '.join(INTERFACES)),
     Spec('max_velocity', 100.0, 'Velocity limit in rad/s: velocity commands are limited to it '
-         'and no torque drives the joint faster. Live.', low=0.0, high=1e6),
+         'and no torque drives the joint faster. Live.', low=0.0, high=1e6, unit='rad/s'),
     Spec('position_min', -math.inf, 'Lower position limit of position commands, rad (-.inf = '
-         'none). Live.'),
+         'none). Live.', unit='rad'),
     Spec('position_max', math.inf, 'Upper position limit of position commands, rad (.inf = '
-         'none). Live.'),
+         'none). Live.', unit='rad'),
     Spec('servo.position_p', 20.0, 'Position servo stiffness, N m/rad. Live.', low=0.0,
-         high=1e6),
-    Spec('servo.position_d', 2.0, 'Position servo damping, N m s/rad. Live.', low=0.0, high=1e6),
-    Spec('servo.velocity_p', 2.0, 'Velocity servo gain, N m s/rad. Live.', low=0.0, high=1e6),
+         high=1e6, unit='N m/rad'),
+    Spec('servo.position_d', 2.0, 'Position servo damping, N m s/rad. Live.', low=0.0, high=1e6,
+         unit='N m s/rad'),
+    Spec('servo.velocity_p', 2.0, 'Velocity servo gain, N m s/rad. Live.', low=0.0, high=1e6,
+         unit='N m s/rad'),
     # Sensor realism.
     Spec('sensor.position_noise', 0.0, 'Standard deviation of Gaussian noise on the published '
-         'angle, rad. Live.', low=0.0, high=10.0),
+         'angle, rad. Live.', low=0.0, high=10.0, unit='rad'),
     Spec('sensor.velocity_noise', 0.0, 'Standard deviation of Gaussian noise on the published '
-         'velocity, rad/s. Live.', low=0.0, high=100.0),
+         'velocity, rad/s. Live.', low=0.0, high=100.0, unit='rad/s'),
     Spec('sensor.resolution', 0.0, 'Encoder resolution in rad per count (0 = exact). Live.',
-         low=0.0, high=1.0),
+         low=0.0, high=1.0, unit='rad'),
     Spec('sensor.delay', 0.0, 'Delay of the joint_states measurement in simulated seconds, '
          'rounded to steps of h: the state of round(delay/h) steps ago, stamped when it was '
-         'measured. Live.', low=0.0, high=1.0),
-    Spec('sensor.seed', 0, 'Seed of the sensor noise.', read_only=True, low=0, high=2**31 - 1),
+         'measured. Live.', low=0.0, high=1.0, unit='s'),
+    Spec('sensor.seed', 0, 'Seed of the sensor noise.', read_only=True, low=0, high=2**31 - 1,
+         unit='1'),
     # Feature switches.
     Spec('publish_energy', True, 'Publish the energy (J, true state) on energy. ' + SWITCH,
          read_only=True),
