@@ -14,7 +14,7 @@ export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
 export FASTRTPS_DEFAULT_PROFILES_FILE ?= $(CURDIR)/config/fastdds_localhost.xml
 export FASTDDS_DEFAULT_PROFILES_FILE ?= $(FASTRTPS_DEFAULT_PROFILES_FILE)
 
-.PHONY: setup run demo test lint typecheck pytest docs docs-reference bench clean
+.PHONY: setup run demo test lint typecheck pytest docs docs-reference docs-figure bench clean
 
 setup: $(VENV)/.installed
 
@@ -48,6 +48,11 @@ docs: setup
 
 docs-reference: setup
 	$(PY) docs/_ext/reftables.py docs/reference/_generated
+
+# The README's picture: the paper's Fig 3 (angle for n = 1..5) drawn by pendulum_report.
+docs-figure: setup
+	$(VENV)/bin/pendulum_report paper --out build/paper --force --no-progress
+	cp build/paper/fig3_phi.png docs/_static/pendulum.png
 
 # Each benchmark prints its figures and bench/record.py keeps them, with the machine and the
 # date, in bench/results/<script>.txt (the docs include these files).

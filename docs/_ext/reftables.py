@@ -87,6 +87,17 @@ def parameters_markdown() -> str:
     return table(['name', 'default', 'type', 'unit', 'range', 'live', 'meaning'], rows)
 
 
+def controller_markdown() -> str:
+    """Return the table of the example controller's parameters (all live)."""
+    from pendulum_sim.controller import pd_controller as pd
+
+    rows = [[code(name), code(default_text(default)), 'double', f'[{low:g}, {high:g}]',
+             cell(text)] for name, default, text, (low, high) in pd._FLOATS]
+    rows.append([code('joint_name'), code(default_text(pd._DEFAULT_JOINT)), 'string', 'any',
+                 'The joint to control: its index in JointState.name is used.'])
+    return table(['name', 'default', 'type', 'range', 'meaning'], rows)
+
+
 # ---------------------------------------------------------------- diagnostics keys
 def diagnostics_markdown() -> str:
     """Return the table of every ``/diagnostics`` key: type, unit, when present, meaning."""
@@ -315,6 +326,7 @@ TABLES: dict[str, Callable[[], str]] = {
     'scenes.md': scenes_markdown,
     'cli.md': cli_markdown,
     'benchmarks.md': benchmarks_markdown,
+    'controller.md': controller_markdown,
 }
 
 
