@@ -206,10 +206,10 @@ def option_rows(parser: argparse.ArgumentParser) -> list[list[str]]:
         flags = ', '.join(action.option_strings) or (action.metavar or action.dest)
         if action.option_strings and action.nargs != 0:
             flags += f' {action.metavar or action.dest.upper()}'
-        default = DASH if action.default in (None, argparse.SUPPRESS, False) and \
-            action.nargs != 0 else code(action.default)
-        if action.nargs == 0:
-            default = DASH
+        if action.nargs == 0 or action.default is None or action.default is argparse.SUPPRESS:
+            default = DASH   # a flag, or no default
+        else:
+            default = code(action.default)
         choices = ', '.join(map(str, action.choices)) if action.choices else DASH
         help_text = (action.help or '') % {'default': action.default, 'prog': parser.prog} \
             if action.help and '%(' in action.help else (action.help or '')
