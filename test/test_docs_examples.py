@@ -73,3 +73,12 @@ def test_python_blocks_run(path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
         except Exception as exc:
             pytest.fail(f'{rel}:{line}: the block starting here raised '
                         f'{type(exc).__name__}: {exc}')
+
+
+def test_readme_links_point_at_files() -> None:
+    """Every relative link and picture of the README names a file or folder in the tree."""
+    text = (ROOT / 'README.md').read_text(encoding='utf-8')
+    targets = re.findall(r'\]\(([^)#\s]+)\)', text)
+    assert len(targets) >= 10
+    missing = [t for t in targets if '://' not in t and not (ROOT / t).exists()]
+    assert missing == []
