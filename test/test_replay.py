@@ -52,7 +52,15 @@ def receive(path: Path, *args: str, topics: tuple[str, ...] = tuple(TOPICS),
     if clock:
         received['/clock'] = []
     with ros_node('replay_listener') as (node, executor):
-        for topic in received:
+        proc = subprocess.Popen(
+            replay_command(str(path), '--topics', *topics, '--wait-for-subscribers', '20',
+                           *args), stderr=subprocess.PIPE, text=True, env=os.environ)
+        # The replay waits for a subscriber on each topic before its clock starts: subscribing
+        # only once its publishers exist makes this moment a lower bound of that start.
+        spin_until(executor, lambda: all(node.count_publishers(t) > 0 for t in received),
+                   timeout=30)
+        received['subscribed'] = [(time.monotonic(), None)]
+        for topic in [t for t in received if t != 'subscribed']:
             msg_type = Clock if topic == '/clock' else TOPICS[topic][0]
             reliability = (QoSReliabilityPolicy.BEST_EFFORT if topic == '/effort_command'
                            else QoSReliabilityPolicy.RELIABLE)
@@ -60,9 +68,6 @@ def receive(path: Path, *args: str, topics: tuple[str, ...] = tuple(TOPICS),
                 msg_type, topic,
                 lambda msg, topic=topic: received[topic].append((time.monotonic(), msg)),
                 QoSProfile(depth=5000, reliability=reliability))
-        proc = subprocess.Popen(
-            replay_command(str(path), '--topics', *topics, '--wait-for-subscribers', '20',
-                           *args), stderr=subprocess.PIPE, text=True, env=os.environ)
         spin_until(executor, lambda: proc.poll() is not None, timeout=60)
         spin_until(executor, lambda: False, timeout=0.3)   # the last messages in flight
         _, err = proc.communicate(timeout=10)
@@ -88,13 +93,18 @@ def test_replay_reproduces_sequence_and_timing(recording: tuple[Path, list[Any]]
             assert len(got) >= 0.9 * len(expected)
         else:
             assert got == expected, (topic, len(got), len(expected))
-    # Timing, as a causal bound (no wall-clock rate is asserted): a message is never sent
-    # before its recorded offset divided by the rate, so none arrives sooner after the first
-    # (2 ms allow for the two processes' clock reads).
+    # Timing, as a causal bound (no wall-clock rate is asserted): the replay sends message k at
+    # its start + (recorded offset of k) / rate, and it starts only after this listener
+    # subscribed (both processes read the machine's one monotonic clock), so no message
+    # arrives before subscribed + offset / rate, however loaded the machine is.
+    launched = received['subscribed'][0][0]
     arrivals = np.array([t for t, _ in received['/joint_states']])
-    recorded = np.array([ns for t, _, ns in messages if t == '/joint_states']) * 1e-9
-    early = (recorded - recorded[0]) / rate - (arrivals - arrivals[0])
-    assert np.all(early <= 2e-3), float(early.max())
+    first_ns = min(ns for _, _, ns in messages)
+    recorded = np.array([ns for t, _, ns in messages if t == '/joint_states'])
+    earliest = launched + (recorded - first_ns) * 1e-9 / rate
+    assert np.all(arrivals >= earliest), float((earliest - arrivals).max())
+    # A replay that ignored the rate would end sooner than the recording's span allows.
+    assert arrivals[-1] - launched >= (recorded[-1] - first_ns) * 1e-9 / rate
     assert err.rstrip('\n').endswith(f'{len(messages)}/{len(messages)} messages')
 
 
