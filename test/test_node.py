@@ -350,19 +350,24 @@ def test_minimal_scene_graph() -> None:
         for proc in (minimal, full):
             probe.spin_until(lambda p=proc: f'{p.namespace}/joint_states' in names(
                 'publisher', p.namespace), 20.0, 'the node in the graph')
-        probe.spin_until(lambda: f'{full.namespace}/pendulum_node/pause' in names(
-            'service', full.namespace), 20.0, 'the services of the default scene')
-        m = minimal.namespace
+        m, f = minimal.namespace, full.namespace
         # rclpy always creates /rosout and /parameter_events publishers, the six parameter
         # services and the type description service; everything else must be the scene's.
         always_services = {f'{m}/pendulum_node/{s}' for s in (
             'describe_parameters', 'get_parameter_types', 'get_parameters',
             'list_parameters', 'set_parameters', 'set_parameters_atomically',
             'get_type_description')}
+        # Discovery reports a node's endpoints one by one: wait until each graph holds at least
+        # what both nodes always create, then compare the whole sets.
+        probe.spin_until(lambda: names('service', m) >= always_services
+                         and names('publisher', m) >= {'/rosout', '/parameter_events'}
+                         and f'{f}/pendulum_node/pause' in names('service', f)
+                         and f'{f}/effort_command' in names('subscriber', f)
+                         and f'{f}/pendulum_node/step_periods' in names('subscriber', f),
+                         20.0, 'the graphs of both scenes')
         assert names('publisher', m) == {f'{m}/joint_states', '/rosout', '/parameter_events'}
         assert names('subscriber', m) == set()
         assert names('service', m) == always_services
-        f = full.namespace
         assert names('publisher', f) >= {f'{f}/joint_states', f'{f}/energy',
                                          f'{f}/robot_description', '/diagnostics'}
         assert names('subscriber', f) == {f'{f}/effort_command',
