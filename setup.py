@@ -56,5 +56,6 @@ setup(
             'pendulum_report = pendulum_sim.reports.cli:main',
             'pendulum_demo = pendulum_sim.demo:main',
         ],
+        'pytest11': ['pendulum_sim = pendulum_sim.testing.pytest_plugin'],
     },
 )
