@@ -14,7 +14,7 @@ from pendulum_sim.testing import closed_loop
 
 pytestmark = pytest.mark.ros   # the recording left behind is serialized with rclpy
 
-USER_TESTS = '''
+USER_TESTS = """
 from pendulum_sim.controller.pd_law import PDGains, pd_torque
 
 GAINS = PDGains(kd=0.2)
@@ -32,7 +32,7 @@ def test_settles_fast(closed_loop):
 def test_settles_at_all(closed_loop):
     run = closed_loop(my_law, periods=1000)
     assert run.metrics(0.5).settling_time < 100.0
-'''
+"""
 
 
 def test_a_failing_controller_test_prints_the_metrics_and_leaves_figure_and_mcap(
