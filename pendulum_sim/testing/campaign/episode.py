@@ -1,0 +1,90 @@
+"""One episode: its scenario, the closed loop, the metrics, the requirements, a table row.
+
+:func:`run_episode` is what a Dask worker runs. It takes the campaign file's text (so a worker
+on another machine needs only pendulum_sim) and the episode id, and returns the episode's row;
+a failing episode's run is also written to ``failures/episode-NNNNNN.mcap`` under the output
+folder. A controller that raises, answers NaN or cannot run fails its episode with the reason;
+the campaign goes on.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import os
+import socket
+import time
+from pathlib import Path
+from typing import Any
+
+from ..errors import TestingError
+from ..loop import ClosedLoopRun, closed_loop
+from ..metrics import METRIC_NAMES, StepMetrics
+from .scenarios import scenario
+from .spec import CampaignSpec, load_controller, parse_spec
+
+# Columns that say where and when an episode ran: not part of its result.
+RUN_COLUMNS = ('worker_host', 'worker_pid', 'wall_time_s')
+
+
+@functools.lru_cache(maxsize=8)
+def cached_spec(text: str) -> CampaignSpec:
+    """Return the parsed campaign (parsed once per process)."""
+    return parse_spec(text)
+
+
+def failure_path(out: Path, episode: int) -> Path:
+    """Return where the recording of failing episode ``episode`` is kept."""
+    return out / 'failures' / f'episode-{episode:06d}.mcap'
+
+
+def verdict(spec: CampaignSpec, metrics: StepMetrics) -> str:
+    """Return why the metrics fail the requirements ('' when they meet them all)."""
+    values = metrics.as_dict()
+    reasons = [r.check(values[r.metric]) for r in spec.requirements]
+    return '; '.join(r for r in reasons if r)
+
+
+def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any],
+           run: ClosedLoopRun | None, reason: str, started: float) -> dict[str, Any]:
+    """Return the table row of an episode (a run of None failed before it had samples)."""
+    metrics: dict[str, float] = {name: math.nan for name in METRIC_NAMES}
+    if run is not None and not reason:
+        try:
+            m = run.metrics(spec.target)
+        except TestingError as exc:
+            reason = str(exc)
+        else:
+            metrics = m.as_dict()
+            reason = (f'the simulation stopped: {run.failed}' if run.failed else
+                      verdict(spec, m))
+    return {'episode': episode, **values, **metrics, 'passed': not reason, 'reason': reason,
+            'worker_host': socket.gethostname(), 'worker_pid': os.getpid(),
+            'wall_time_s': time.perf_counter() - started}
+
+
+def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
+    """Run episode ``episode`` of the campaign ``text``; return its row.
+
+    When ``out`` is given, a failing episode's run is written to
+    :func:`failure_path` (with the target, so ``pendulum_report closed-loop`` reads it).
+    """
+    started = time.perf_counter()
+    spec = cached_spec(text)
+    values = scenario(spec, episode)
+    controller: Any = (list(spec.controller) if isinstance(spec.controller, tuple)
+                       else load_controller(spec.controller))
+    run: ClosedLoopRun | None = None
+    reason = ''
+    try:
+        run = closed_loop(controller, scene=spec.scene, periods=spec.periods,
+                          overrides=values).with_target(spec.target)
+    except TestingError as exc:
+        reason = str(exc).splitlines()[0]
+    row = row_of(spec, episode, values, run, reason, started)
+    if out is not None and not row['passed'] and run is not None and run.t.size:
+        from ..record import write_run
+
+        path = failure_path(Path(out), episode)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_run(run, path)
+    return row

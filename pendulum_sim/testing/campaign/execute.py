@@ -1,0 +1,129 @@
+"""Run a campaign's pending episodes on Dask and store each row as it arrives.
+
+By default a local Dask cluster (``LocalCluster``, one single-threaded worker process per core,
+or ``workers``); with ``scheduler`` an existing ``dask.distributed`` cluster
+(``Client('tcp://host:8786')``). Episodes are submitted with ``Client.map`` and collected with
+``as_completed``: each row is written to the store the moment it arrives, so an interruption
+loses only the episodes still running. An episode depends on the campaign and its id only, so
+the table is the same whichever worker ran what, in whatever order; a worker that dies
+mid-episode has the episode rerun elsewhere by the scheduler.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Any
+
+from ..errors import CampaignError
+from .episode import run_episode
+from .spec import CampaignSpec
+from .store import EpisodeStore
+
+
+class ProgressBar:
+    """One line on stderr: episodes done, pass rate, ETA (redrawn in place)."""
+
+    def __init__(self, total: int, done: int, passed: int, stream: IO[str] | None = None,
+                 enabled: bool = True) -> None:
+        self.total = total
+        self.done = done
+        self.passed = passed
+        self.start_done = done
+        self.start = time.perf_counter()
+        self.stream = stream if stream is not None else sys.stderr
+        self.enabled = enabled
+        self._last = 0.0
+
+    def line(self) -> str:
+        """Return the progress line."""
+        width = 30
+        filled = round(width * self.done / self.total)
+        rate = 100.0 * self.passed / self.done if self.done else 0.0
+        new = self.done - self.start_done
+        elapsed = time.perf_counter() - self.start
+        eta = f'{elapsed / new * (self.total - self.done):.0f} s' if new else '?'
+        return (f'[{"#" * filled}{"." * (width - filled)}] {self.done}/{self.total} episodes, '
+                f'pass rate {rate:.1f} %, ETA {eta}')
+
+    def update(self, passed: bool) -> None:
+        """Count one more finished episode and redraw (at most 10 times a second)."""
+        self.done += 1
+        self.passed += int(passed)
+        now = time.perf_counter()
+        if self.enabled and (now - self._last > 0.1 or self.done == self.total):
+            self._last = now
+            print('\r' + self.line(), end='', file=self.stream, flush=True)
+
+    def close(self) -> None:
+        """End the line."""
+        if self.enabled:
+            print('\r' + self.line(), file=self.stream, flush=True)
+
+
+def make_client(scheduler: str | None, workers: int | None) -> Any:
+    """Return a Dask client: to ``scheduler``, or to a new local cluster of ``workers``."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise CampaignError("campaigns need Dask: pip install 'dask[distributed]'") from None
+    if scheduler is not None:
+        try:
+            return Client(scheduler, timeout='20s')
+        except (OSError, TimeoutError) as exc:
+            raise CampaignError(f'cannot reach the Dask scheduler {scheduler}: {exc}') from None
+    n = workers or os.cpu_count() or 1
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=40)
+    return Client(cluster)
+
+
+def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
+                progress: bool = True,
+                on_row: Callable[[dict[str, Any]], None] | None = None) -> int:
+    """Run the episodes without a stored row on ``client``; return how many ran."""
+    from distributed import as_completed
+
+    done = store.done()
+    pending = [i for i in range(spec.episodes) if i not in done]
+    passed = sum(1 for i in done if store.read(i)['passed'])
+    bar = ProgressBar(spec.episodes, len(done), passed, enabled=progress)
+    if not pending:
+        bar.close()
+        return 0
+    out = str(store.out.resolve())
+    tag = hashlib.sha1((spec.text + out).encode()).hexdigest()[:12]
+    futures = client.map(run_episode, [spec.text] * len(pending), pending,
+                         [out] * len(pending), key=[f'episode-{i}-{tag}' for i in pending],
+                         pure=False)
+    try:
+        for future in as_completed(futures):
+            row = future.result()
+            store.write(row)
+            bar.update(bool(row['passed']))
+            if on_row is not None:
+                on_row(row)
+    finally:
+        bar.close()
+    return len(pending)
+
+
+def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None,
+                 workers: int | None = None, resume: bool = False,
+                 progress: bool = True) -> list[dict[str, Any]]:
+    """Run (or continue) the campaign into ``out``; return every row, by episode id."""
+    store = EpisodeStore(out)
+    store.create(spec.text, resume)
+    if len(store.done()) < spec.episodes:
+        client = make_client(scheduler, workers)
+        try:
+            run_pending(spec, store, client, progress)
+        finally:
+            cluster = client.cluster if scheduler is None else None
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    return store.rows()
