@@ -190,7 +190,7 @@ def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reas
 @pytest.mark.slow
 def test_a_campaign_writes_its_table_summary_figures_and_failing_recordings(
         tmp_path: Path) -> None:
-    text = FRAGILE.replace('  - \'overshoot < 20\'', '  - \'overshoot < 9\'')
+    text = FRAGILE.replace("  - 'overshoot < 20'", "  - 'overshoot < 9'")
     path = campaign(tmp_path, episodes=16, text=text)
     out = tmp_path / 'out'
     proc = cli(str(path), '--out', str(out), '--workers', '2')
