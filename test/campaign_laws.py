@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import math
 
-from pendulum_sim.testing.examples import pd
+import numpy as np
+
+from pendulum_sim.testing.examples import pd, pd_batch
 
 
 def fragile(t: float, position: float, velocity: float) -> float:
@@ -13,3 +15,8 @@ def fragile(t: float, position: float, velocity: float) -> float:
     if position < 0.40:
         return math.nan
     return pd(t, position, velocity)
+
+
+def pd_batch_one(t: float, position: float, velocity: float) -> float:
+    """Return the numpy example law for one state (the batched law, run one by one)."""
+    return float(pd_batch(t, np.array([position]), np.array([velocity]))[0])

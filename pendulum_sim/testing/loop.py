@@ -186,6 +186,15 @@ def run_in_process(law: Law, values: Mapping[str, Value], periods: int) -> Close
                          failed=joint.failed)
 
 
+def answer_reason(value: object, t: float) -> ControllerFailed:
+    """Return the failure of a controller that answered ``value`` (not a finite number)."""
+    if isinstance(value, float):
+        return ControllerFailed(f'the controller returned {value} at t = {t:.9g} s; a command '
+                                'must be finite')
+    return ControllerFailed(f'the controller returned {value!r} at t = {t:.9g} s; a command '
+                            'is a number')
+
+
 def _answer(law: Law, t: float, position: float, velocity: float) -> float:
     """Return the controller's finite answer to one state; ControllerFailed if it has none."""
     try:
@@ -196,9 +205,7 @@ def _answer(law: Law, t: float, position: float, velocity: float) -> float:
     try:
         value = float(raw)
     except (TypeError, ValueError):
-        raise ControllerFailed(f'the controller returned {raw!r} at t = {t:.9g} s; a command '
-                               'is a number') from None
+        raise answer_reason(raw, t) from None
     if not math.isfinite(value):
-        raise ControllerFailed(f'the controller returned {value} at t = {t:.9g} s; a command '
-                               'must be finite')
+        raise answer_reason(value, t)
     return value

@@ -19,6 +19,7 @@ from typing import Any
 from ..errors import TestingError
 from ..loop import ClosedLoopRun, closed_loop
 from ..metrics import METRIC_NAMES, StepMetrics
+from ..vector import is_vectorised
 from .scenarios import scenario
 from .spec import CampaignSpec, load_controller, parse_spec
 
@@ -62,14 +63,28 @@ def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any],
             'wall_time_s': time.perf_counter() - started}
 
 
+def _keep_failure(out: str | None, row: dict[str, Any], run: ClosedLoopRun | None) -> None:
+    """Write a failing episode's run to :func:`failure_path` (with the target)."""
+    if out is not None and not row['passed'] and run is not None and run.t.size:
+        from ..record import write_run
+
+        path = failure_path(Path(out), int(row['episode']))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_run(run, path)
+
+
 def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
     """Run episode ``episode`` of the campaign ``text``; return its row.
 
     When ``out`` is given, a failing episode's run is written to
-    :func:`failure_path` (with the target, so ``pendulum_report closed-loop`` reads it).
+    :func:`failure_path` (with the target, so ``pendulum_report closed-loop`` reads it). A
+    vectorised law runs as a batch of one (the batched path decides for it, as in the
+    campaign).
     """
-    started = time.perf_counter()
     spec = cached_spec(text)
+    if not spec.is_command_line and is_vectorised(load_controller(str(spec.controller))):
+        return run_episodes(text, [episode], out)[0]
+    started = time.perf_counter()
     values = scenario(spec, episode)
     controller: Any = (list(spec.controller) if isinstance(spec.controller, tuple)
                        else load_controller(spec.controller))
@@ -81,10 +96,38 @@ def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
     except TestingError as exc:
         reason = str(exc).splitlines()[0]
     row = row_of(spec, episode, values, run, reason, started)
-    if out is not None and not row['passed'] and run is not None and run.t.size:
-        from ..record import write_run
-
-        path = failure_path(Path(out), episode)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_run(run, path)
+    _keep_failure(out, row, run)
     return row
+
+
+def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[str, Any]]:
+    """Run the episodes of a campaign whose law is vectorised, as one batch; return the rows.
+
+    ``wall_time_s`` of each row is the batch's time divided by its size.
+    """
+    from ..batch import run_batch
+    from ..scene import scene_values
+
+    started = time.perf_counter()
+    spec = cached_spec(text)
+    law = load_controller(str(spec.controller))
+    values = [scenario(spec, i) for i in episodes]
+    params: list[Any] = []
+    for v in values:
+        try:
+            params.append(scene_values(spec.scene, v))
+        except TestingError as exc:
+            params.append(exc)
+    ok = [i for i, p in enumerate(params) if not isinstance(p, TestingError)]
+    results: list[Any] = list(params)
+    for i, res in zip(ok, run_batch(law, [params[i] for i in ok], spec.periods), strict=True):
+        results[i] = res
+    rows = []
+    for i, value, res in zip(episodes, values, results, strict=True):
+        run = res.with_target(spec.target) if isinstance(res, ClosedLoopRun) else None
+        reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
+        row = row_of(spec, i, value, run, reason, started)
+        row['wall_time_s'] = (time.perf_counter() - started) / len(episodes)
+        _keep_failure(out, row, run)
+        rows.append(row)
+    return rows

@@ -19,9 +19,12 @@ from pathlib import Path
 from typing import IO, Any
 
 from ..errors import CampaignError
-from .episode import run_episode
-from .spec import CampaignSpec
+from ..vector import is_vectorised
+from .episode import run_episode, run_episodes
+from .spec import CampaignSpec, load_controller
 from .store import EpisodeStore
+
+MAX_BATCH = 10_000
 
 
 class ProgressBar:
@@ -96,19 +99,44 @@ def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
         return 0
     out = str(store.out.resolve())
     tag = hashlib.sha1((spec.text + out).encode()).hexdigest()[:12]
-    futures = client.map(run_episode, [spec.text] * len(pending), pending,
-                         [out] * len(pending), key=[f'episode-{i}-{tag}' for i in pending],
-                         pure=False)
+    if batched(spec):
+        size = batch_size(len(pending), _workers(client))
+        chunks = [pending[a:a + size] for a in range(0, len(pending), size)]
+        futures = client.map(run_episodes, [spec.text] * len(chunks), chunks,
+                             [out] * len(chunks),
+                             key=[f'episodes-{c[0]}-{c[-1]}-{tag}' for c in chunks], pure=False)
+    else:
+        futures = client.map(run_episode, [spec.text] * len(pending), pending,
+                             [out] * len(pending), key=[f'episode-{i}-{tag}' for i in pending],
+                             pure=False)
     try:
         for future in as_completed(futures):
-            row = future.result()
-            store.write(row)
-            bar.update(bool(row['passed']))
-            if on_row is not None:
-                on_row(row)
+            result = future.result()
+            for row in result if isinstance(result, list) else [result]:
+                store.write(row)
+                bar.update(bool(row['passed']))
+                if on_row is not None:
+                    on_row(row)
     finally:
         bar.close()
     return len(pending)
+
+
+def batched(spec: CampaignSpec) -> bool:
+    """Return True when the campaign's law is declared vectorised (episodes run in batches)."""
+    return not spec.is_command_line and is_vectorised(load_controller(str(spec.controller)))
+
+
+def batch_size(pending: int, workers: int) -> int:
+    """Return the episodes per batch: about four batches per worker, at most MAX_BATCH."""
+    return max(1, min(MAX_BATCH, -(-pending // (4 * max(workers, 1)))))
+
+
+def _workers(client: Any) -> int:
+    try:
+        return len(client.scheduler_info()['workers'])
+    except Exception:   # an unreachable scheduler shows up at the first result
+        return 1
 
 
 def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None,
