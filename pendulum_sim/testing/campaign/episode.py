@@ -131,3 +131,11 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
         _keep_failure(out, row, run)
         rows.append(row)
     return rows
+
+
+def run_chunk(text: str, episodes: list[int], out: str | None) -> list[dict[str, Any]]:
+    """Run several episodes in one task (a batch for a vectorised law); return their rows."""
+    spec = cached_spec(text)
+    if not spec.is_command_line and is_vectorised(load_controller(str(spec.controller))):
+        return run_episodes(text, episodes, out)
+    return [run_episode(text, i, out) for i in episodes]

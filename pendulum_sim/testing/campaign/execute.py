@@ -2,11 +2,11 @@
 
 By default a local Dask cluster (``LocalCluster``, one single-threaded worker process per core,
 or ``workers``); with ``scheduler`` an existing ``dask.distributed`` cluster
-(``Client('tcp://host:8786')``). Episodes are submitted with ``Client.map`` and collected with
-``as_completed``: each row is written to the store the moment it arrives, so an interruption
-loses only the episodes still running. An episode depends on the campaign and its id only, so
-the table is the same whichever worker ran what, in whatever order; a worker that dies
-mid-episode has the episode rerun elsewhere by the scheduler.
+(``Client('tcp://host:8786')``). Episodes are submitted in chunks (:func:`chunk_size`) with
+``Client.map`` and collected with ``as_completed``: each chunk's rows are written to the store
+the moment it arrives, so an interruption loses only the episodes still running. An episode
+depends on the campaign and its id only, so the table is the same whichever worker ran what,
+in whatever order; a worker that dies mid-chunk has the chunk rerun elsewhere by the scheduler.
 """
 from __future__ import annotations
 
@@ -20,11 +20,12 @@ from typing import IO, Any
 
 from ..errors import CampaignError
 from ..vector import is_vectorised
-from .episode import run_episode, run_episodes
+from .episode import run_chunk
 from .spec import CampaignSpec, load_controller
 from .store import EpisodeStore
 
 MAX_BATCH = 10_000
+MAX_CHUNK = 25
 
 
 class ProgressBar:
@@ -99,20 +100,13 @@ def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
         return 0
     out = str(store.out.resolve())
     tag = hashlib.sha1((spec.text + out).encode()).hexdigest()[:12]
-    if batched(spec):
-        size = batch_size(len(pending), _workers(client))
-        chunks = [pending[a:a + size] for a in range(0, len(pending), size)]
-        futures = client.map(run_episodes, [spec.text] * len(chunks), chunks,
-                             [out] * len(chunks),
-                             key=[f'episodes-{c[0]}-{c[-1]}-{tag}' for c in chunks], pure=False)
-    else:
-        futures = client.map(run_episode, [spec.text] * len(pending), pending,
-                             [out] * len(pending), key=[f'episode-{i}-{tag}' for i in pending],
-                             pure=False)
+    size = chunk_size(len(pending), _workers(client), batched(spec))
+    chunks = [pending[a:a + size] for a in range(0, len(pending), size)]
+    futures = client.map(run_chunk, [spec.text] * len(chunks), chunks, [out] * len(chunks),
+                         key=[f'episodes-{c[0]}-{c[-1]}-{tag}' for c in chunks], pure=False)
     try:
         for future in as_completed(futures):
-            result = future.result()
-            for row in result if isinstance(result, list) else [result]:
+            for row in future.result():
                 store.write(row)
                 bar.update(bool(row['passed']))
                 if on_row is not None:
@@ -127,9 +121,17 @@ def batched(spec: CampaignSpec) -> bool:
     return not spec.is_command_line and is_vectorised(load_controller(str(spec.controller)))
 
 
-def batch_size(pending: int, workers: int) -> int:
-    """Return the episodes per batch: about four batches per worker, at most MAX_BATCH."""
-    return max(1, min(MAX_BATCH, -(-pending // (4 * max(workers, 1)))))
+def chunk_size(pending: int, workers: int, batch: bool) -> int:
+    """Return the episodes per task: about four tasks per worker (eight for scalar episodes,
+    which are slower one by one), at most MAX_BATCH in a batch and MAX_CHUNK one by one.
+
+    A task runs its episodes together and its rows are stored when it ends: big enough that
+    Dask's cost per task is small against it, small enough that the workers stay busy to the
+    end and an interruption loses little.
+    """
+    per_worker = 4 if batch else 8
+    most = MAX_BATCH if batch else MAX_CHUNK
+    return max(1, min(most, -(-pending // (per_worker * max(workers, 1)))))
 
 
 def _workers(client: Any) -> int:
