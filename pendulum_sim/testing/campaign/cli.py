@@ -6,7 +6,8 @@
     pendulum_campaign --rerun DIR EPISODE
 
 Exit status: 0 when every episode passed, 1 when some failed (or a rerun differs), 2 for a bad
-campaign file or command line (one line on stderr says why).
+campaign file or command line (one line on stderr says why), 130 after Ctrl-C (the finished
+episodes are kept; ``--resume`` continues).
 """
 from __future__ import annotations
 
@@ -118,6 +119,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CampaignError as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f'\n{PROG}: interrupted; the finished episodes are kept, --resume continues',
+              file=sys.stderr)
+        return 130
     failed = sum(1 for r in rows if not r['passed'])
     print(f'{len(rows)} episodes, {len(rows) - failed} passed; wrote {out / "summary.md"}',
           file=sys.stderr)
