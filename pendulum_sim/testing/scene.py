@@ -4,7 +4,8 @@ One function builds the parameter set both paths use, so the in-process joint an
 ``pendulum_node`` process are configured from the same values: the node's defaults, then the
 scene file, then ``overrides`` (names as the node declares them), then the settings every
 closed loop needs (synchronous lockstep, started paused, so that exactly ``periods`` control
-periods are stepped). The node's own validation decides whether the set is usable.
+periods are stepped) and a ``sync_timeout`` of at least :data:`SYNC_TIMEOUT` unless the
+overrides set one. The node's own validation decides whether the set is usable.
 """
 from __future__ import annotations
 
@@ -19,6 +20,9 @@ Value = bool | int | float | str
 # What a closed loop needs from the node, whatever the scene says.
 FORCED: dict[str, Value] = {'lockstep': True, 'synchronous': True, 'start_paused': True,
                             'services': True, 'status_line': False}
+# Wall-clock seconds the node waits for each answer unless told otherwise: on a loaded machine
+# a slow answer is waited for, not run past (a missed answer fails the run).
+SYNC_TIMEOUT = 30.0
 
 
 def scene_values(scene: str, overrides: Mapping[str, Any] | None = None) -> dict[str, Value]:
@@ -52,6 +56,8 @@ def scene_values(scene: str, overrides: Mapping[str, Any] | None = None) -> dict
         raise TestingError(f'{forced_changed[0]} is fixed for a closed loop (it is '
                            f'{FORCED[forced_changed[0]]}), got {values[forced_changed[0]]}')
     values.update(FORCED)
+    if 'sync_timeout' not in (overrides or {}):
+        values['sync_timeout'] = max(float(values['sync_timeout']), SYNC_TIMEOUT)
     reason = check(values)
     if reason is not None:
         raise TestingError(reason)
