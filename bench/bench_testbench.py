@@ -9,9 +9,11 @@
 (c) ROS episodes (``pendulum_pd_controller`` against ``pendulum_node`` over DDS): the wall
     time of runs of two lengths; the intercept is the per-episode cost beyond the loop (three
     process starts, discovery, the recording), the slope the cost per control period;
-(d) Dask overhead: the same in-process campaign episodes run by a plain loop in one process
-    and by ``pendulum_campaign``'s executor on a local Dask cluster of one worker, both
-    single-threaded: (dask − loop) / loop, with and without the cluster's start-up.
+(d) Dask overhead: the same in-process campaign episodes (each run, a failing one recorded,
+    each row stored) by a plain loop in a process of its own and by ``pendulum_campaign``'s
+    executor on a local Dask cluster of one single-threaded worker, in turn for ``--rounds``
+    rounds:
+    (dask − loop) / loop per round and the median; the cluster's start-up apart.
 
     ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py
 
@@ -21,6 +23,8 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -95,7 +99,13 @@ def ros_costs(short: int, long: int) -> tuple[float, float]:
     return times[short] - slope * short, slope
 
 
-def dask_overhead(episodes: int, periods: int) -> tuple[float, float, float, float]:
+def dask_overhead(episodes: int, periods: int, rounds: int) -> tuple[list[float], list[float],
+                                                                    float]:
+    """Return the plain loop's and Dask's times per round, and the cluster's start-up time.
+
+    Both do a campaign's work (each episode run, a failing one recorded, each row stored), in
+    turn, round after round, on one core each: on a shared machine the load moves.
+    """
     from distributed import Client, LocalCluster
 
     from pendulum_sim.testing.campaign.execute import run_pending
@@ -103,26 +113,45 @@ def dask_overhead(episodes: int, periods: int) -> tuple[float, float, float, flo
     from pendulum_sim.testing.campaign.store import EpisodeStore
 
     text = CAMPAIGN.format(episodes=episodes, periods=periods)
-    run_episode(text, 0, None)                              # warm-up
-    start = time.perf_counter()
-    for i in range(episodes):
-        run_episode(text, i, None)
-    loop = time.perf_counter() - start
     spec = parse_spec(text)
+    run_episode(text, 0, None)                              # warm-up
+    loops: list[float] = []
+    dasks: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=40)
         client = Client(cluster)
         client.run(run_episode, text, 0, None)              # the worker's warm-up
-        ready = time.perf_counter()
-        store = EpisodeStore(Path(tmp) / 'out')
-        store.create(text, False)
-        run_pending(spec, store, client, progress=False)
-        done = time.perf_counter()
+        startup = time.perf_counter() - start
+        for r in range(rounds):
+            # In a process of its own: this one runs the Dask scheduler's threads.
+            proc = subprocess.run([sys.executable, __file__, '--plain-loop', str(episodes),
+                                   str(periods), str(Path(tmp) / f'loop{r}')],
+                                  capture_output=True, text=True, check=True)
+            loops.append(float(proc.stdout.split()[-1]))
+            store = EpisodeStore(Path(tmp) / f'dask{r}')
+            store.create(text, False)
+            start = time.perf_counter()
+            run_pending(spec, store, client, progress=False)
+            dasks.append(time.perf_counter() - start)
         client.close()
         cluster.close()
-    return loop, done - ready, done - start, ready - start
+    return loops, dasks, startup
+
+
+def plain_loop(episodes: int, periods: int, out: str) -> float:
+    """Run a campaign's episodes one after the other here; return the time it took."""
+    from pendulum_sim.testing.campaign.store import EpisodeStore
+
+    text = CAMPAIGN.format(episodes=episodes, periods=periods)
+    run_episode(text, 0, None)                              # warm-up, as the worker's
+    store = EpisodeStore(Path(out))
+    store.create(text, False)
+    start = time.perf_counter()
+    for i in range(episodes):
+        store.write(run_episode(text, i, out))
+    return time.perf_counter() - start
 
 
 def main() -> int:
@@ -130,11 +159,17 @@ def main() -> int:
     parser.add_argument('--scalar-episodes', type=int, default=20)
     parser.add_argument('--batch-n', type=int, default=10_000)
     parser.add_argument('--batch-periods', type=int, default=50)
-    parser.add_argument('--ros-periods', type=int, nargs=2, default=(20, 520))
+    parser.add_argument('--ros-periods', type=int, nargs=2, default=(20, 4020))
     parser.add_argument('--campaign-episodes', type=int, default=1000)
     parser.add_argument('--campaign-periods', type=int, default=300)
+    parser.add_argument('--rounds', type=int, default=3)
     parser.add_argument('--skip-ros', action='store_true')
+    parser.add_argument('--plain-loop', nargs=3, metavar=('EPISODES', 'PERIODS', 'OUT'),
+                        help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.plain_loop:
+        print(plain_loop(int(args.plain_loop[0]), int(args.plain_loop[1]), args.plain_loop[2]))
+        return 0
     print('# controller test bench', flush=True)
     scalar = scalar_rate(args.scalar_episodes)
     print(f'(a) in-process, scalar : {scalar:9.2f} episodes/s (10 s episodes, h = 1 ms, '
@@ -148,13 +183,16 @@ def main() -> int:
         print(f'(c) ROS episode: {fixed:.3f} s per episode beyond the loop (process starts, '
               f'discovery, recording); {1e3 * per:.3f} ms per control period '
               f'({1 / per:.0f} periods/s)', flush=True)
-    loop, dask_run, dask_all, startup = dask_overhead(args.campaign_episodes,
-                                                      args.campaign_periods)
-    print(f'(d) {args.campaign_episodes} episodes of {args.campaign_periods} periods: plain '
-          f'loop {loop:.2f} s; Dask, one worker: {dask_run:.2f} s '
-          f'(overhead {100 * (dask_run - loop) / loop:+.1f} %), {dask_all:.2f} s with the '
-          f'cluster start-up of {startup:.2f} s ({100 * (dask_all - loop) / loop:+.1f} %)',
-          flush=True)
+    loops, dasks, startup = dask_overhead(args.campaign_episodes, args.campaign_periods,
+                                          args.rounds)
+    ratios = [d / lp - 1.0 for lp, d in zip(loops, dasks, strict=True)]
+    print(f'(d) {args.campaign_episodes} episodes of {args.campaign_periods} periods, one core '
+          f'each, {args.rounds} rounds: plain loop '
+          + ', '.join(f'{x:.2f}' for x in loops) + ' s; Dask (one worker) '
+          + ', '.join(f'{x:.2f}' for x in dasks) + ' s; overhead median '
+          f'{100 * statistics.median(ratios):+.1f} % (rounds '
+          + ', '.join(f'{100 * x:+.1f}' for x in ratios) + ' %); cluster start-up '
+          f'{startup:.2f} s', flush=True)
     return 0
 
 
