@@ -286,8 +286,12 @@ def test_a_campaign_killed_half_way_and_resumed_has_every_episode_once(tmp_path:
 
 # ------------------------------------------------------------------ a real Dask cluster
 @pytest.fixture
-def dask_cluster(tmp_path: Path) -> Iterator[str]:
-    """Start ``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1."""
+def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]]]:
+    """Start ``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1.
+
+    Yield the scheduler's address and the two worker processes (no nanny: the process is the
+    worker, so a signal to it is a worker dying).
+    """
     scheduler_file = tmp_path / 'scheduler.json'
     dask = str(BIN / 'dask')
     procs = [subprocess.Popen([dask, 'scheduler', '--host', '127.0.0.1', '--port', '0',
@@ -301,14 +305,14 @@ def dask_cluster(tmp_path: Path) -> Iterator[str]:
         for _ in range(2):
             procs.append(subprocess.Popen(
                 [dask, 'worker', '--scheduler-file', str(scheduler_file), '--nthreads', '1',
-                 '--host', '127.0.0.1', '--no-dashboard'],
+                 '--host', '127.0.0.1', '--no-dashboard', '--no-nanny'],
                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         address = json.loads(scheduler_file.read_text())['address']
         from distributed import Client
 
         with Client(address, timeout='30s') as client:
             client.wait_for_workers(2, timeout=60)
-        yield address
+        yield address, procs[1:]
     finally:
         for p in reversed(procs):
             p.terminate()
@@ -336,9 +340,10 @@ requirements: ['overshoot < 30']
 @pytest.mark.slow
 @pytest.mark.ros
 def test_a_campaign_on_a_dask_cluster_gets_exactly_the_local_table(
-        tmp_path: Path, dask_cluster: str) -> None:
+        tmp_path: Path, dask_cluster: tuple[str, list[subprocess.Popen[bytes]]]) -> None:
+    address, _ = dask_cluster
     path = campaign(tmp_path, episodes=50, periods=150)
-    remote = cli(str(path), '--out', str(tmp_path / 'remote'), '--scheduler', dask_cluster)
+    remote = cli(str(path), '--out', str(tmp_path / 'remote'), '--scheduler', address)
     local = cli(str(path), '--out', str(tmp_path / 'local'), '--workers', '2')
     assert remote.returncode == local.returncode == 1, remote.stderr + local.stderr
     a, b = table(tmp_path / 'remote'), table(tmp_path / 'local')
@@ -348,7 +353,7 @@ def test_a_campaign_on_a_dask_cluster_gets_exactly_the_local_table(
     # the in-process PD law's episode bit for bit.
     ros = tmp_path / 'ros.yaml'
     ros.write_text(ROS_CAMPAIGN)
-    proc = cli(str(ros), '--out', str(tmp_path / 'ros'), '--scheduler', dask_cluster)
+    proc = cli(str(ros), '--out', str(tmp_path / 'ros'), '--scheduler', address)
     assert proc.returncode == 0, proc.stderr
     rows = table(tmp_path / 'ros')
     assert [r['episode'] for r in rows] == [0, 1] and all(r['passed'] for r in rows)
@@ -369,3 +374,30 @@ def test_rerun_and_resume_refuse_a_folder_without_a_campaign(tmp_path: Path) -> 
     assert proc.returncode == 2
     assert proc.stderr == (f"pendulum_campaign: error: --resume: '{tmp_path / 'none'}' holds "
                            'no campaign (campaign.yaml is missing)\n')
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_campaign_has_its_episodes_rerun_on_another(
+        tmp_path: Path, dask_cluster: tuple[str, list[subprocess.Popen[bytes]]]) -> None:
+    address, workers = dask_cluster
+    long = campaign(tmp_path, episodes=30, periods=800)
+    out = tmp_path / 'killed'
+    proc = subprocess.Popen([str(BIN / 'pendulum_campaign'), str(long), '--out', str(out),
+                             '--scheduler', address, '--no-progress'],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    end = time.monotonic() + 120
+    while len(list((out / 'episodes').glob('*.json'))) < 4:
+        assert proc.poll() is None and time.monotonic() < end, 'the campaign did not start'
+        time.sleep(0.02)
+    workers[0].kill()
+    workers[0].wait()
+    assert proc.poll() is None     # killed while the campaign ran ...
+    assert len(list((out / 'episodes').glob('*.json'))) < 30    # ... with episodes to go
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode in (0, 1), err
+    rows = table(out)
+    assert [r['episode'] for r in rows] == list(range(30))
+    text = long.read_text()
+    for r in rows:
+        assert same_rows([r], [{k: v for k, v in run_episode(text, r['episode'], None).items()
+                                if k not in RUN_COLUMNS}])
