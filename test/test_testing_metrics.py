@@ -175,7 +175,8 @@ def test_bad_input_is_refused_with_the_reason(args: tuple[object, ...],
 
 def test_importing_the_test_bench_imports_no_ros_no_plotting_no_dask() -> None:
     code = ('import sys, pendulum_sim.testing as t; t.step_metrics; t.closed_loop; '
-            't.vectorised; t.ClosedLoopRun; '
+            't.vectorised; t.ClosedLoopRun; import pendulum_sim.testing.pytest_plugin; '
+            'import pendulum_sim.testing.campaign.cli, pendulum_sim.testing.campaign.execute; '
             'bad = [m for m in ("rclpy", "matplotlib", "dask", "distributed") '
             'if m in sys.modules]; print(bad)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
