@@ -39,7 +39,10 @@ setup(
             'mcap-ros2-support>=0.5',
             'mujoco>=3.2', 'urdf_parser_py>=0.0.4', 'types-PyYAML>=6',
             'colcon-core>=0.17', 'colcon-ros>=0.5', 'colcon-python-setup-py>=0.2',
+            # The test bench's peers and campaigns: python-control checks step_metrics.
+            'control>=0.10', 'dask[distributed]>=2024.1', 'pyarrow>=14',
         ],
+        'campaign': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'matplotlib>=3.7'],
     },
     zip_safe=True,
     maintainer='pendulum_sim developers',
@@ -53,6 +56,8 @@ setup(
             'pendulum_replay = pendulum_sim.recording.replay:main',
             'pendulum_report = pendulum_sim.reports.cli:main',
             'pendulum_demo = pendulum_sim.demo:main',
+            'pendulum_campaign = pendulum_sim.testing.campaign.cli:main',
         ],
+        'pytest11': ['pendulum_sim = pendulum_sim.testing.pytest_plugin'],
     },
 )

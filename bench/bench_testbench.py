@@ -1,0 +1,200 @@
+"""Benchmark the controller test bench; print the figures side by side in one run.
+
+(a) in-process episodes: 10 s episodes (h = 1 ms, 100 Hz control, scene controller_test) of
+    the example PD law, one after the other: episodes per second;
+(b) batched episodes of the same law written with numpy (``pd_batch``), N at a time in
+    lockstep, each with its own damping and start: episodes per second, measured over
+    ``--batch-periods`` control periods after a warm-up and scaled to 10 s episodes
+    (the cost is the same every period), beside (a) as a ratio;
+(c) ROS episodes (``pendulum_pd_controller`` against ``pendulum_node`` over DDS): the wall
+    time of runs of two lengths; the intercept is the per-episode cost beyond the loop (three
+    process starts, discovery, the recording), the slope the cost per control period;
+(d) Dask overhead: the same in-process campaign episodes (each run, a failing one recorded,
+    each row stored) by a plain loop in a process of its own and by ``pendulum_campaign``'s
+    executor on a local Dask cluster of one single-threaded worker, in turn for ``--rounds``
+    rounds:
+    (dask − loop) / loop per round and the median; the cluster's start-up apart.
+
+    ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py
+
+Targets (issue 16): (b) >= 10x (a) at N = 10^4; (d) <= 10 %. Figures to read, not assertions.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+
+from pendulum_sim.testing import closed_loop
+from pendulum_sim.testing.batch import run_batch
+from pendulum_sim.testing.campaign.episode import run_episode
+from pendulum_sim.testing.examples import pd, pd_batch
+from pendulum_sim.testing.loop import run_in_process
+from pendulum_sim.testing.scene import scene_values
+
+EPISODE_PERIODS = 1000   # 10 s at 100 Hz
+CAMPAIGN = """
+controller: pendulum_sim.testing.examples:pd
+episodes: {episodes}
+seed: 1
+periods: {periods}
+target: 0.5
+parameters:
+  gamma: {{distribution: loguniform, low: 0.02, high: 1.0}}
+  phi0: {{distribution: uniform, low: 0.6, high: 1.4}}
+requirements: ['settling_time < 3.0']
+"""
+
+
+def scenarios(count: int) -> list[dict[str, object]]:
+    rng = np.random.default_rng(0)
+    base = scene_values('controller_test', {})
+    out = []
+    for _ in range(count):
+        v = dict(base)
+        v['gamma'] = float(rng.uniform(0.02, 1.0))
+        v['phi0'] = float(rng.uniform(0.6, 1.4))
+        out.append(v)
+    return out  # type: ignore[return-value]
+
+
+def scalar_rate(episodes: int) -> float:
+    cases = scenarios(episodes)
+    run_in_process(pd, cases[0], 10)                       # warm-up
+    start = time.perf_counter()
+    for v in cases:
+        run_in_process(pd, v, EPISODE_PERIODS)             # type: ignore[arg-type]
+    return episodes / (time.perf_counter() - start)
+
+
+def batched_rate(n: int, periods: int) -> float:
+    cases = scenarios(n)
+    run_batch(pd_batch, cases[:64], 5)                     # warm-up: guard tables, compiles
+    start = time.perf_counter()
+    run_batch(pd_batch, cases, periods)                    # type: ignore[arg-type]
+    per_period = (time.perf_counter() - start) / periods
+    return n / (per_period * EPISODE_PERIODS)
+
+
+def ros_costs(short: int, long: int) -> tuple[float, float]:
+    cmd = [str(Path(sys.executable).parent / 'pendulum_pd_controller')]
+    times = {}
+    for periods in (short, long):
+        best = float('inf')
+        for _ in range(2):
+            start = time.perf_counter()
+            closed_loop(cmd, periods=periods)
+            best = min(best, time.perf_counter() - start)
+        times[periods] = best
+    slope = (times[long] - times[short]) / (long - short)
+    return times[short] - slope * short, slope
+
+
+def dask_overhead(episodes: int, periods: int, rounds: int) -> tuple[list[float], list[float],
+                                                                    float]:
+    """Return the plain loop's and Dask's times per round, and the cluster's start-up time.
+
+    Both do a campaign's work (each episode run, a failing one recorded, each row stored), in
+    turn, round after round, on one core each: on a shared machine the load moves.
+    """
+    from distributed import Client, LocalCluster
+
+    from pendulum_sim.testing.campaign.execute import run_pending
+    from pendulum_sim.testing.campaign.spec import parse_spec
+    from pendulum_sim.testing.campaign.store import EpisodeStore
+
+    text = CAMPAIGN.format(episodes=episodes, periods=periods)
+    spec = parse_spec(text)
+    run_episode(text, 0, None)                              # warm-up
+    loops: list[float] = []
+    dasks: list[float] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=40)
+        client = Client(cluster)
+        client.run(run_episode, text, 0, None)              # the worker's warm-up
+        startup = time.perf_counter() - start
+        for r in range(rounds):
+            # In a process of its own: this one runs the Dask scheduler's threads.
+            proc = subprocess.run([sys.executable, __file__, '--plain-loop', str(episodes),
+                                   str(periods), str(Path(tmp) / f'loop{r}')],
+                                  capture_output=True, text=True, check=True)
+            loops.append(float(proc.stdout.split()[-1]))
+            store = EpisodeStore(Path(tmp) / f'dask{r}')
+            store.create(text, False)
+            start = time.perf_counter()
+            run_pending(spec, store, client, progress=False)
+            dasks.append(time.perf_counter() - start)
+        client.close()
+        cluster.close()
+    return loops, dasks, startup
+
+
+def plain_loop(episodes: int, periods: int, out: str) -> float:
+    """Run a campaign's episodes one after the other here; return the time it took."""
+    from pendulum_sim.testing.campaign.store import EpisodeStore
+
+    text = CAMPAIGN.format(episodes=episodes, periods=periods)
+    run_episode(text, 0, None)                              # warm-up, as the worker's
+    store = EpisodeStore(Path(out))
+    store.create(text, False)
+    start = time.perf_counter()
+    for i in range(episodes):
+        store.write(run_episode(text, i, out))
+    return time.perf_counter() - start
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--scalar-episodes', type=int, default=20)
+    parser.add_argument('--batch-n', type=int, default=10_000)
+    parser.add_argument('--batch-periods', type=int, default=50)
+    parser.add_argument('--ros-periods', type=int, nargs=2, default=(20, 4020))
+    parser.add_argument('--campaign-episodes', type=int, default=1000)
+    parser.add_argument('--campaign-periods', type=int, default=300)
+    parser.add_argument('--rounds', type=int, default=3)
+    parser.add_argument('--skip-ros', action='store_true')
+    parser.add_argument('--plain-loop', nargs=3, metavar=('EPISODES', 'PERIODS', 'OUT'),
+                        help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.plain_loop:
+        print(plain_loop(int(args.plain_loop[0]), int(args.plain_loop[1]), args.plain_loop[2]))
+        return 0
+    print('# controller test bench', flush=True)
+    scalar = scalar_rate(args.scalar_episodes)
+    print(f'(a) in-process, scalar : {scalar:9.2f} episodes/s (10 s episodes, h = 1 ms, '
+          '100 Hz)', flush=True)
+    for n in sorted({1000, args.batch_n}):
+        rate = batched_rate(n, args.batch_periods)
+        print(f'(b) batched, N = {n:6d}: {rate:9.2f} episodes/s  = {rate / scalar:5.2f} x (a)'
+              f'  (over {args.batch_periods} periods, scaled to 10 s)', flush=True)
+    if not args.skip_ros:
+        fixed, per = ros_costs(*args.ros_periods)
+        print(f'(c) ROS episode: {fixed:.3f} s per episode beyond the loop (process starts, '
+              f'discovery, recording); {1e3 * per:.3f} ms per control period '
+              f'({1 / per:.0f} periods/s)', flush=True)
+    loops, dasks, startup = dask_overhead(args.campaign_episodes, args.campaign_periods,
+                                          args.rounds)
+    ratios = [d / lp - 1.0 for lp, d in zip(loops, dasks, strict=True)]
+    print(f'(d) {args.campaign_episodes} episodes of {args.campaign_periods} periods, one core '
+          f'each, {args.rounds} rounds: plain loop '
+          + ', '.join(f'{x:.2f}' for x in loops) + ' s; Dask (one worker) '
+          + ', '.join(f'{x:.2f}' for x in dasks) + ' s; overhead median '
+          f'{100 * statistics.median(ratios):+.1f} % (rounds '
+          + ', '.join(f'{100 * x:+.1f}' for x in ratios) + ' %); cluster start-up '
+          f'{startup:.2f} s', flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,30 @@
+"""The controller test bench: closed-loop runs, their verdict and picture, campaigns.
+
+Importing this package imports neither rclpy nor matplotlib nor Dask: the in-process path
+(a Python callable against the ROS-free simulated joint) needs none of them, and the names below
+are imported on first use. The command-line path starts ``pendulum_node`` and the controller in
+processes of their own.
+"""
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from pendulum_sim.testing.errors import CampaignError, ControllerFailed, TestingError
+    from pendulum_sim.testing.loop import ClosedLoopRun, closed_loop
+    from pendulum_sim.testing.metrics import StepMetrics, step_metrics
+    from pendulum_sim.testing.vector import vectorised
+
+__all__ = ['CampaignError', 'ClosedLoopRun', 'ControllerFailed', 'StepMetrics', 'TestingError',
+           'closed_loop', 'step_metrics', 'vectorised']
+
+_WHERE = {'CampaignError': 'errors', 'ControllerFailed': 'errors', 'TestingError': 'errors',
+          'ClosedLoopRun': 'loop', 'closed_loop': 'loop', 'StepMetrics': 'metrics',
+          'step_metrics': 'metrics', 'vectorised': 'vector'}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    return getattr(importlib.import_module(f'{__name__}.{_WHERE[name]}'), name)

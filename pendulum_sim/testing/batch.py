@@ -1,0 +1,165 @@
+"""Batched in-process episodes: N closed loops of a numpy law stepped in lockstep.
+
+A law declared :func:`~pendulum_sim.testing.vectorised` answers all episodes' states at once,
+``(t, position[], velocity[]) -> command[]``. Each control period the answers are saturated at
+each episode's ``max_effort`` as :meth:`SimulatedJoint.command` does, and the N pendulums, each
+with its own ω0², γ, n, inertia, advance one period together through the core's vectorized
+driver :func:`pendulum_sim.core.sweep.sweep` (the Stepper's numerics on arrays: the same
+decisions, the same results to round-off).
+
+The batch takes the common path of the joint only: effort commands, an ideal sensor, no
+command or sensor delay, a command timeout longer than a period, an explicit method the sweep
+has. An episode outside it, or one the batch cannot follow exactly (its speed could reach
+``max_velocity`` within a period, where the joint would cut the torque; a non-finite state;
+a law that raises), is run again by the scalar joint, which decides for it. The scalar path
+stays the one implementation of every rule; the batch is a faster driver of the same one,
+and ``test/test_testing_batch.py`` holds them to each other.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from .errors import TestingError
+from .loop import ClosedLoopRun, answer_reason, run_in_process
+from .scene import Value, epoch_ns
+
+BatchLaw = Callable[[float, Any, Any], Any]
+
+
+def batchable(values: Mapping[str, Value]) -> str:
+    """Return why the episode with parameters ``values`` cannot be batched ('' if it can)."""
+    from pendulum_sim.core.sweep import SWEEP_METHODS
+    from pendulum_sim.node.parameters import joint_config
+
+    c = joint_config(values, epoch_ns(values))
+    checks = [
+        (c.command_interface == 'effort', f'command_interface is {c.command_interface}'),
+        (c.command_delay_steps == 0, 'command_delay is not 0'),
+        (c.sensor_delay_steps == 0, 'sensor.delay is not 0'),
+        (c.position_noise == 0.0 and c.velocity_noise == 0.0 and c.resolution == 0.0,
+         'the sensor is not ideal'),
+        (c.timeout_steps == 0 or c.timeout_steps > c.period_steps,
+         'command_timeout is shorter than a period'),
+        (c.method in SWEEP_METHODS, f'integrator {c.method} is not one of '
+         f'{", ".join(SWEEP_METHODS)}'),
+    ]
+    return next((why for ok, why in checks if not ok), '')
+
+
+def _scalar(law: BatchLaw) -> Callable[[float, float, float], float]:
+    """Return the batched law as a scalar one (one-element arrays in, the element out)."""
+    def one(t: float, position: float, velocity: float) -> float:
+        out = np.asarray(law(t, np.array([position]), np.array([velocity])), dtype=float)
+        return float(out.reshape(-1)[0])
+    return one
+
+
+def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]],
+              periods: int) -> list[ClosedLoopRun | TestingError]:
+    """Run one episode per parameter set in ``episodes``; return each run or its failure."""
+    from pendulum_sim.core.errors import PendulumError
+    from pendulum_sim.core.sweep import sweep
+    from pendulum_sim.node.parameters import joint_config
+
+    results: list[ClosedLoopRun | TestingError | None] = [None] * len(episodes)
+    configs = [joint_config(v, epoch_ns(v)) for v in episodes]
+    batch = [i for i, v in enumerate(episodes) if not batchable(v)]
+    if batch:
+        first = configs[batch[0]]
+        same = (first.h, first.period_steps, first.method, first.guard, first.epoch_ns)
+        batch = [i for i in batch if (configs[i].h, configs[i].period_steps, configs[i].method,
+                                      configs[i].guard, configs[i].epoch_ns) == same]
+    redo = sorted(set(range(len(episodes))) - set(batch))
+    if batch:
+        redo += _lockstep(law, [configs[i] for i in batch], [episodes[i] for i in batch],
+                          batch, periods, results, sweep, PendulumError)
+    for i in sorted(redo):
+        try:
+            results[i] = run_in_process(_scalar(law), episodes[i], periods)
+        except TestingError as exc:
+            results[i] = exc
+    return [r if r is not None else TestingError('not run') for r in results]
+
+
+def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value]],
+              ids: list[int], periods: int,
+              results: list[Any], sweep: Any, pendulum_error: type[Exception]) -> list[int]:
+    """Step the episodes ``ids`` together; store their runs; return the ids to redo."""
+    first = configs[0]
+    h, k = first.h, first.period_steps
+    n_ep = len(ids)
+    om2 = np.array([c.params.omega0_sq for c in configs])
+    gam = np.array([c.params.gamma for c in configs])
+    nn = np.array([c.params.n for c in configs])
+    inv_i = np.array([1.0 / c.params.inertia for c in configs])
+    limit = np.array([c.max_effort for c in configs])
+    vmax = np.array([c.max_velocity for c in configs])
+    # The most speed a period can add: gravity and the largest torque (damping only slows).
+    reach = k * h * (om2 + limit * inv_i)
+    phi = np.array([c.phi0 for c in configs])
+    vel = np.array([c.dphi0 for c in configs])
+    tau = np.zeros(n_ep)
+    out = np.full((5, n_ep, periods), np.nan)
+    active = np.ones(n_ep, dtype=bool)
+    redo: list[int] = []
+    for step in range(periods):
+        t = (first.epoch_ns + step * k * round(h * 1e9)) / 1e9 if _whole_ns(h) else math.nan
+        if math.isnan(t):
+            return ids
+        live = np.flatnonzero(active)
+        if live.size == 0:
+            break
+        risky = live[np.abs(vel[live]) + reach[live] >= vmax[live]]
+        if risky.size:
+            active[risky] = False
+            redo.extend(ids[j] for j in risky.tolist())
+            live = np.flatnonzero(active)
+            if live.size == 0:
+                break
+        try:
+            cmd = np.asarray(law(t, phi[live].copy(), vel[live].copy()), dtype=float)
+        except Exception:
+            redo.extend(ids[j] for j in live.tolist())   # the scalar joint says who raised
+            active[live] = False
+            break
+        if cmd.shape != live.shape:
+            raise TestingError(f'a vectorised law must answer one command per state: got '
+                               f'shape {cmd.shape} for {live.size} states')
+        bad = ~np.isfinite(cmd)
+        for j, value in zip(live[bad].tolist(), cmd[bad].tolist(), strict=True):
+            results[ids[j]] = answer_reason(value, t)
+            active[j] = False
+        live, cmd = live[~bad], cmd[~bad]
+        out[0, live, step] = t
+        out[1, live, step] = phi[live]
+        out[2, live, step] = vel[live]
+        out[3, live, step] = tau[live]
+        out[4, live, step] = cmd
+        tau[live] = np.minimum(np.maximum(cmd, -limit[live]), limit[live])
+        try:
+            res = sweep(om2[live], gam[live], nn[live], phi[live], vel[live], k * h, h,
+                        method=first.method, torque=tau[live] * inv_i[live],
+                        guard=first.guard)
+        except pendulum_error:
+            redo.extend(ids[j] for j in live.tolist())
+            active[live] = False
+            break
+        phi[live], vel[live] = res.phi, res.dphi
+        broken = live[~(np.isfinite(res.phi) & np.isfinite(res.dphi))]
+        if broken.size:
+            active[broken] = False
+            redo.extend(ids[j] for j in broken.tolist())
+    for j in np.flatnonzero(active).tolist():
+        t_j, p_j, v_j, e_j, c_j = (np.ascontiguousarray(out[r, j]) for r in range(5))
+        results[ids[j]] = ClosedLoopRun(t_j, p_j, v_j, e_j, c_j, parameters=dict(values[j]),
+                                        failed=None)
+    return redo
+
+
+def _whole_ns(h: float) -> bool:
+    """Return True when h is a whole number of nanoseconds (the joint's exact stamp grid)."""
+    return abs(h * 1e9 - round(h * 1e9)) < 1e-6

@@ -1,0 +1,133 @@
+"""``pendulum_campaign``: run a robustness campaign, continue one, or rerun one episode.
+
+::
+
+    pendulum_campaign CAMPAIGN.yaml --out DIR [--scheduler ADDRESS] [--workers N] [--resume]
+    pendulum_campaign --rerun DIR EPISODE
+
+Exit status: 0 when every episode passed, 1 when some failed (or a rerun differs), 2 for a bad
+campaign file or command line (one line on stderr says why), 130 after Ctrl-C (the finished
+episodes are kept; ``--resume`` continues).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from ..errors import CampaignError
+
+PROG = 'pendulum_campaign'
+
+
+def _workers(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}') from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}')
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``pendulum_campaign``."""
+    parser = argparse.ArgumentParser(
+        prog=PROG, description='Run a controller over many scenarios (on Dask) and write the '
+        'episode table, summary.md, figures and the recording of every failing episode.')
+    parser.add_argument('campaign', nargs='?', metavar='CAMPAIGN.yaml',
+                        help='the campaign file')
+    parser.add_argument('--out', metavar='DIR', help='output folder (new, or with --resume)')
+    parser.add_argument('--scheduler', metavar='ADDRESS',
+                        help='run on this Dask scheduler, e.g. tcp://host:8786 (default: a '
+                        'local cluster)')
+    parser.add_argument('--workers', type=_workers, metavar='N',
+                        help='local cluster: worker processes (default: the core count)')
+    parser.add_argument('--resume', action='store_true',
+                        help='continue the interrupted campaign in --out')
+    parser.add_argument('--rerun', nargs=2, metavar=('DIR', 'EPISODE'),
+                        help='run one episode of the campaign in DIR again and compare')
+    parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    return parser
+
+
+def same(a: Any, b: Any) -> bool:
+    """Return True for equal values (NaN equals NaN)."""
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(a == b) and type(a) is type(b)
+
+
+def rerun(folder: Path, episode_text: str) -> int:
+    """Rerun one episode and compare it with the stored row; return the exit status."""
+    from .episode import RUN_COLUMNS, run_episode
+    from .spec import parse_spec
+    from .store import CAMPAIGN_FILE, EpisodeStore
+
+    saved = folder / CAMPAIGN_FILE
+    if not saved.is_file():
+        raise CampaignError(f"--rerun: '{folder}' holds no campaign ({CAMPAIGN_FILE} is "
+                            'missing)')
+    text = saved.read_text(encoding='utf-8')
+    spec = parse_spec(text, CAMPAIGN_FILE)
+    try:
+        episode = int(episode_text)
+    except ValueError:
+        raise CampaignError(f'--rerun: EPISODE must be an integer, got {episode_text!r}') \
+            from None
+    if not 0 <= episode < spec.episodes:
+        raise CampaignError(f'--rerun: EPISODE must be in [0, {spec.episodes - 1}], got '
+                            f'{episode}')
+    stored = EpisodeStore(folder).read(episode)
+    again = run_episode(text, episode, None)
+    differ = [c for c in again if c not in RUN_COLUMNS and not same(again[c], stored.get(c))]
+    verdict = 'passed' if again['passed'] else f'failed: {again["reason"]}'
+    if differ:
+        print(f'episode {episode} differs from the stored result in ' + ', '.join(
+            f'{c} ({stored.get(c)!r} then, {again[c]!r} now)' for c in differ))
+        return 1
+    print(f'episode {episode} reproduced bit for bit ({verdict})')
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; return the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.rerun is not None:
+            if args.campaign is not None:
+                raise CampaignError('--rerun takes DIR and EPISODE, not a campaign file')
+            return rerun(Path(args.rerun[0]), args.rerun[1])
+        if args.campaign is None or args.out is None:
+            raise CampaignError('give CAMPAIGN.yaml and --out DIR (or --rerun DIR EPISODE)')
+        if args.scheduler is not None and args.workers is not None:
+            raise CampaignError('--workers sizes the local cluster; it cannot go with '
+                                '--scheduler')
+        from .execute import run_campaign
+        from .spec import read_spec
+        from .summary import write_results
+
+        spec = read_spec(args.campaign)
+        out = Path(args.out)
+        rows = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers,
+                            resume=args.resume, progress=not args.no_progress)
+        write_results(spec, rows, out)
+    except CampaignError as exc:
+        print(f'{PROG}: error: {exc}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f'\n{PROG}: interrupted; the finished episodes are kept, --resume continues',
+              file=sys.stderr)
+        return 130
+    failed = sum(1 for r in rows if not r['passed'])
+    print(f'{len(rows)} episodes, {len(rows) - failed} passed; wrote {out / "summary.md"}',
+          file=sys.stderr)
+    return 1 if failed else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,141 @@
+"""One episode: its scenario, the closed loop, the metrics, the requirements, a table row.
+
+:func:`run_episode` is what a Dask worker runs. It takes the campaign file's text (so a worker
+on another machine needs only pendulum_sim) and the episode id, and returns the episode's row;
+a failing episode's run is also written to ``failures/episode-NNNNNN.mcap`` under the output
+folder. A controller that raises, answers NaN or cannot run fails its episode with the reason;
+the campaign goes on.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import os
+import socket
+import time
+from pathlib import Path
+from typing import Any
+
+from ..errors import TestingError
+from ..loop import ClosedLoopRun, closed_loop
+from ..metrics import METRIC_NAMES, StepMetrics
+from ..vector import is_vectorised
+from .scenarios import scenario
+from .spec import CampaignSpec, load_controller, parse_spec
+
+# Columns that say where and when an episode ran: not part of its result.
+RUN_COLUMNS = ('worker_host', 'worker_pid', 'wall_time_s')
+
+
+@functools.lru_cache(maxsize=8)
+def cached_spec(text: str) -> CampaignSpec:
+    """Return the parsed campaign (parsed once per process)."""
+    return parse_spec(text)
+
+
+def failure_path(out: Path, episode: int) -> Path:
+    """Return where the recording of failing episode ``episode`` is kept."""
+    return out / 'failures' / f'episode-{episode:06d}.mcap'
+
+
+def verdict(spec: CampaignSpec, metrics: StepMetrics) -> str:
+    """Return why the metrics fail the requirements ('' when they meet them all)."""
+    values = metrics.as_dict()
+    reasons = [r.check(values[r.metric]) for r in spec.requirements]
+    return '; '.join(r for r in reasons if r)
+
+
+def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any],
+           run: ClosedLoopRun | None, reason: str, started: float) -> dict[str, Any]:
+    """Return the table row of an episode (a run of None failed before it had samples)."""
+    metrics: dict[str, float] = {name: math.nan for name in METRIC_NAMES}
+    if run is not None and not reason:
+        try:
+            m = run.metrics(spec.target)
+        except TestingError as exc:
+            reason = str(exc)
+        else:
+            metrics = m.as_dict()
+            reason = (f'the simulation stopped: {run.failed}' if run.failed else
+                      verdict(spec, m))
+    return {'episode': episode, **values, **metrics, 'passed': not reason, 'reason': reason,
+            'worker_host': socket.gethostname(), 'worker_pid': os.getpid(),
+            'wall_time_s': time.perf_counter() - started}
+
+
+def _keep_failure(out: str | None, row: dict[str, Any], run: ClosedLoopRun | None) -> None:
+    """Write a failing episode's run to :func:`failure_path` (with the target)."""
+    if out is not None and not row['passed'] and run is not None and run.t.size:
+        from ..record import write_run
+
+        path = failure_path(Path(out), int(row['episode']))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_run(run, path)
+
+
+def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
+    """Run episode ``episode`` of the campaign ``text``; return its row.
+
+    When ``out`` is given, a failing episode's run is written to
+    :func:`failure_path` (with the target, so ``pendulum_report closed-loop`` reads it). A
+    vectorised law runs as a batch of one (the batched path decides for it, as in the
+    campaign).
+    """
+    spec = cached_spec(text)
+    if not spec.is_command_line and is_vectorised(load_controller(str(spec.controller))):
+        return run_episodes(text, [episode], out)[0]
+    started = time.perf_counter()
+    values = scenario(spec, episode)
+    controller: Any = (list(spec.controller) if isinstance(spec.controller, tuple)
+                       else load_controller(spec.controller))
+    run: ClosedLoopRun | None = None
+    reason = ''
+    try:
+        run = closed_loop(controller, scene=spec.scene, periods=spec.periods,
+                          overrides=values).with_target(spec.target)
+    except TestingError as exc:
+        reason = str(exc).splitlines()[0]
+    row = row_of(spec, episode, values, run, reason, started)
+    _keep_failure(out, row, run)
+    return row
+
+
+def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[str, Any]]:
+    """Run the episodes of a campaign whose law is vectorised, as one batch; return the rows.
+
+    ``wall_time_s`` of each row is the batch's time divided by its size.
+    """
+    from ..batch import run_batch
+    from ..scene import scene_values
+
+    started = time.perf_counter()
+    spec = cached_spec(text)
+    law = load_controller(str(spec.controller))
+    values = [scenario(spec, i) for i in episodes]
+    params: list[Any] = []
+    for v in values:
+        try:
+            params.append(scene_values(spec.scene, v))
+        except TestingError as exc:
+            params.append(exc)
+    ok = [i for i, p in enumerate(params) if not isinstance(p, TestingError)]
+    results: list[Any] = list(params)
+    for i, res in zip(ok, run_batch(law, [params[i] for i in ok], spec.periods), strict=True):
+        results[i] = res
+    rows = []
+    for i, value, res in zip(episodes, values, results, strict=True):
+        run = res.with_target(spec.target) if isinstance(res, ClosedLoopRun) else None
+        reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
+        row = row_of(spec, i, value, run, reason, started)
+        row['wall_time_s'] = (time.perf_counter() - started) / len(episodes)
+        _keep_failure(out, row, run)
+        rows.append(row)
+    return rows
+
+
+def run_chunk(text: str, episodes: list[int], out: str | None) -> list[dict[str, Any]]:
+    """Run several episodes in one task (a batch for a vectorised law); return their rows."""
+    spec = cached_spec(text)
+    if not spec.is_command_line and is_vectorised(load_controller(str(spec.controller))):
+        return run_episodes(text, episodes, out)
+    return [run_episode(text, i, out) for i in episodes]

@@ -1,0 +1,267 @@
+"""The campaign file: YAML keys, their checks, and the parsed :class:`CampaignSpec`.
+
+Keys: ``controller`` (``module:function`` or a command line as a list), ``scene``,
+``episodes``, ``seed``, ``periods``, ``target``, ``parameters`` (node parameter names mapped to
+a value, a list taken in episode order, or a distribution ``{distribution: uniform, low,
+high}``, ``{distribution: normal, mean, std}``, ``{distribution: loguniform, low, high}``) and
+``requirements`` (strings such as ``'settling_time < 3.0'``). Every problem is a
+:class:`~pendulum_sim.testing.errors.CampaignError` with a one-line reason.
+"""
+from __future__ import annotations
+
+import importlib
+import math
+import operator
+import re
+import shutil
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..errors import CampaignError
+from ..metrics import METRIC_NAMES
+from ..scene import FORCED
+
+KEYS = ('controller', 'scene', 'episodes', 'seed', 'periods', 'target', 'parameters',
+        'requirements')
+REQUIRED = ('controller', 'episodes', 'periods', 'target')
+DISTRIBUTIONS: dict[str, tuple[str, ...]] = {'uniform': ('low', 'high'),
+                                             'normal': ('mean', 'std'),
+                                             'loguniform': ('low', 'high')}
+OPERATORS: dict[str, Callable[[float, float], bool]] = {
+    '<=': operator.le, '>=': operator.ge, '==': operator.eq, '!=': operator.ne,
+    '<': operator.lt, '>': operator.gt}
+MAX_EPISODES = 10_000_000
+_REQUIREMENT = re.compile(r'^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|==|!=|<|>)\s*(\S+)\s*$')
+
+Value = bool | int | float | str
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """``metric op bound``: what every episode must meet."""
+
+    metric: str
+    op: str
+    bound: float
+
+    def check(self, value: float) -> str:
+        """Return why ``value`` fails the requirement, or '' when it meets it."""
+        if math.isnan(value):
+            return f'{self.metric} is nan (not {self.op} {self.bound:g})'
+        if OPERATORS[self.op](value, self.bound):
+            return ''
+        return f'{self.metric} = {value:.6g} (not {self.op} {self.bound:g})'
+
+    def __str__(self) -> str:
+        return f'{self.metric} {self.op} {self.bound:g}'
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """A seeded distribution of one parameter."""
+
+    kind: str
+    a: float
+    b: float
+
+
+Space = Value | tuple[Value, ...] | Distribution
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    """A checked campaign file."""
+
+    controller: str | tuple[str, ...]
+    scene: str
+    episodes: int
+    seed: int
+    periods: int
+    target: float
+    parameters: tuple[tuple[str, Space], ...]
+    requirements: tuple[Requirement, ...]
+    text: str
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """Return the scenario parameters, in file order (the table's columns)."""
+        return tuple(name for name, _ in self.parameters)
+
+    @property
+    def is_command_line(self) -> bool:
+        """Return True when the controller is a command line (ROS episodes)."""
+        return isinstance(self.controller, tuple)
+
+
+def _number(where: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise CampaignError(f'{where} must be a number, got {value!r}')
+    if not math.isfinite(value):
+        raise CampaignError(f'{where} must be finite, got {value!r}')
+    return float(value)
+
+
+def _integer(where: str, value: Any, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise CampaignError(f'{where} must be an integer in [{low}, {high}], got {value!r}')
+    return value
+
+
+def load_controller(name: str) -> Callable[..., Any]:
+    """Return the callable ``module:function`` names; CampaignError if it cannot be imported."""
+    module, _, attr = name.partition(':')
+    if not module or not attr:
+        raise CampaignError(f"controller must be 'module:function' or a command line (a "
+                            f'list), got {name!r}')
+    try:
+        obj: Any = importlib.import_module(module)
+        for part in attr.split('.'):
+            obj = getattr(obj, part)
+    except Exception as exc:
+        raise CampaignError(f'controller {name!r} cannot be imported: '
+                            f'{type(exc).__name__}: {exc}') from None
+    if not callable(obj):
+        raise CampaignError(f'controller {name!r} is not callable')
+    return obj  # type: ignore[no-any-return]
+
+
+def _controller(value: Any) -> str | tuple[str, ...]:
+    if isinstance(value, str):
+        load_controller(value)
+        return value
+    if isinstance(value, list) and value and all(isinstance(a, str) for a in value):
+        if shutil.which(value[0]) is None and not Path(value[0]).is_file():
+            raise CampaignError(f'controller command {value[0]!r} cannot be started: no such '
+                                'executable')
+        return tuple(value)
+    raise CampaignError(f"controller must be 'module:function' or a command line (a list of "
+                        f'strings), got {value!r}')
+
+
+def _space(name: str, value: Any) -> Space:
+    where = f'parameters.{name}'
+    if isinstance(value, dict):
+        kind = value.get('distribution')
+        if kind not in DISTRIBUTIONS:
+            raise CampaignError(f"{where}: distribution must be one of "
+                                f"{', '.join(DISTRIBUTIONS)}, got {kind!r}")
+        keys = DISTRIBUTIONS[kind]
+        extra = sorted(set(value) - {'distribution', *keys})
+        missing = [k for k in keys if k not in value]
+        if extra or missing:
+            raise CampaignError(f'{where}: a {kind} distribution takes {", ".join(keys)}, got '
+                                f'{", ".join(k for k in value if k != "distribution")}')
+        a, b = (_number(f'{where}.{k}', value[k]) for k in keys)
+        if kind == 'normal' and b < 0:
+            raise CampaignError(f'{where}: normal needs std >= 0, got std = {b:g}')
+        if kind != 'normal' and not a < b:
+            raise CampaignError(f'{where}: {kind} needs low < high, got low = {a:g}, '
+                                f'high = {b:g}')
+        if kind == 'loguniform' and a <= 0:
+            raise CampaignError(f'{where}: loguniform needs low > 0, got low = {a:g}')
+        return Distribution(kind, a, b)
+    if isinstance(value, list):
+        if not value:
+            raise CampaignError(f'{where}: a list of values must not be empty')
+        return tuple(_fixed(where, v) for v in value)
+    return _fixed(where, value)
+
+
+def _fixed(where: str, value: Any) -> Value:
+    if isinstance(value, (bool, int, float, str)):
+        if isinstance(value, float) and math.isnan(value):
+            raise CampaignError(f'{where} must not be nan')
+        return value
+    raise CampaignError(f'{where} must be a value, a list or a distribution, got {value!r}')
+
+
+def _requirement(text: Any) -> Requirement:
+    if not isinstance(text, str):
+        raise CampaignError(f"a requirement must be a string like 'settling_time < 3.0', got "
+                            f'{text!r}')
+    found = _REQUIREMENT.match(text)
+    if found is None:
+        raise CampaignError(f"requirement {text!r} must read 'metric op number' with op one "
+                            f'of <, <=, >, >=, ==, !=')
+    metric, op, bound = found.groups()
+    if metric not in METRIC_NAMES:
+        raise CampaignError(f'requirement {text!r} names an unknown metric {metric!r}; '
+                            f'metrics: {", ".join(METRIC_NAMES)}')
+    try:
+        value = float(bound)
+    except ValueError:
+        raise CampaignError(f'requirement {text!r}: {bound!r} is not a number') from None
+    return Requirement(metric, op, value)
+
+
+def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
+    """Return the checked campaign of the YAML ``text``; CampaignError says what is wrong."""
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        at = f' at line {mark.line + 1}' if mark is not None else ''
+        raise CampaignError(f'{label} is not valid YAML{at}') from None
+    if not isinstance(data, dict):
+        raise CampaignError(f'{label} must be a mapping of {", ".join(KEYS)}')
+    unknown = sorted(set(data) - set(KEYS))
+    if unknown:
+        raise CampaignError(f'{label}: unknown key {unknown[0]!r}; keys: {", ".join(KEYS)}')
+    missing = [k for k in REQUIRED if k not in data]
+    if missing:
+        raise CampaignError(f'{label}: missing key {missing[0]!r}')
+    from pendulum_sim.node.errors import SceneError
+    from pendulum_sim.node.scenes import find_scene, unknown_parameter
+
+    scene = data.get('scene', 'controller_test')
+    if not isinstance(scene, str):
+        raise CampaignError(f'scene must be a scene name or file, got {scene!r}')
+    try:
+        find_scene(scene)
+    except SceneError as exc:
+        raise CampaignError(str(exc)) from None
+    params = data.get('parameters') or {}
+    if not isinstance(params, dict):
+        raise CampaignError(f'parameters must map node parameter names to values, got '
+                            f'{params!r}')
+    spaces: list[tuple[str, Space]] = []
+    for name, value in params.items():
+        reason = unknown_parameter(str(name), 'parameters')
+        if reason is not None:
+            raise CampaignError(reason)
+        if name in FORCED:
+            raise CampaignError(f'parameters.{name} is fixed for a closed loop')
+        spaces.append((str(name), _space(str(name), value)))
+    reqs = data.get('requirements') or []
+    if not isinstance(reqs, list):
+        raise CampaignError(f'requirements must be a list of strings, got {reqs!r}')
+    return CampaignSpec(
+        controller=_controller(data['controller']), scene=scene,
+        episodes=_integer('episodes', data['episodes'], 1, MAX_EPISODES),
+        seed=_integer('seed', data.get('seed', 0), 0, 2**63 - 1),
+        periods=_integer('periods', data['periods'], 1, 10_000_000),
+        target=_number('target', data['target']), parameters=tuple(spaces),
+        requirements=tuple(_requirement(r) for r in reqs), text=text)
+
+
+def read_spec(path: str | Path) -> CampaignSpec:
+    """Read and check the campaign file ``path``."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding='utf-8')
+    except FileNotFoundError:
+        raise CampaignError(f"campaign file '{p}' does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CampaignError(f"cannot read campaign file '{p}': {exc}") from None
+    return parse_spec(text, p.name)
+
+
+def as_mapping(spec: CampaignSpec) -> Mapping[str, Any]:
+    """Return the campaign as plain values (for summaries)."""
+    return {'controller': spec.controller, 'scene': spec.scene, 'episodes': spec.episodes,
+            'seed': spec.seed, 'periods': spec.periods, 'target': spec.target,
+            'requirements': [str(r) for r in spec.requirements]}

@@ -1,0 +1,211 @@
+"""``closed_loop``: a controller against the simulated joint, in-process or over DDS.
+
+The in-process path runs a Python callable ``(t, position, velocity) -> command`` against
+:class:`~pendulum_sim.node.joint.SimulatedJoint` exactly as ``pendulum_node`` runs it in
+synchronous lockstep (``synchronous: true``): at the start of each control period the joint is
+measured (the state the node publishes, stamped ``epoch + k h``), the controller answers that
+state, the answer is applied as the node applies it (``SimulatedJoint.command``) and the joint
+advances to the next period boundary. No rclpy, no DDS. The command-line path
+(:mod:`pendulum_sim.testing.ros`) runs the same exchange across processes; for the same law
+both give the same trajectory bit for bit (``test/test_testing_loop.py``).
+
+A run of ``periods`` control periods holds the ``periods`` states at the start of each period
+(``t``, ``position``, ``velocity``; ``effort`` is the torque applied in the step before each
+state, as ``joint_states`` carries it) and ``command``, the controller's answer to each.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import ControllerFailed, TestingError
+from .metrics import StepMetrics, step_metrics
+from .scene import Value, epoch_ns, finite_limit, scene_values
+
+FloatArray = NDArray[np.float64]
+Law = Callable[[float, float, float], float]
+MAX_PERIODS = 10_000_000
+
+
+@dataclass(frozen=True)
+class ClosedLoopRun:
+    """The samples of one closed-loop run and what it was run with.
+
+    Attributes
+    ----------
+    t, position, velocity, effort, command : numpy arrays
+        One entry per control period: the state's stamp (s), the measured angle (rad) and rate
+        (rad/s), the torque applied in the step before it (N m), and the controller's answer.
+    parameters : dict
+        The node parameters of the run (scene, overrides and the closed-loop settings).
+    failed : str or None
+        Why the simulation stopped early (the joint's reason), or None.
+    target : float or None
+        The reference, when the caller gave one (the figure and ``metrics()`` use it).
+    """
+
+    t: FloatArray
+    position: FloatArray
+    velocity: FloatArray
+    effort: FloatArray
+    command: FloatArray
+    parameters: dict[str, Value] = field(default_factory=dict)
+    failed: str | None = None
+    target: float | None = None
+
+    @property
+    def max_effort(self) -> float:
+        """Return the joint's torque limit of the run (N m, inf when unknown)."""
+        value = self.parameters.get('max_effort', math.inf)
+        return float(value)
+
+    def _target(self, target: float | None) -> float:
+        chosen = self.target if target is None else target
+        if chosen is None:
+            raise TestingError('no target: give metrics(target) or plot(path, target=...)')
+        return float(chosen)
+
+    def metrics(self, target: float | None = None, *,
+                initial: float | None = None) -> StepMetrics:
+        """Return the step metrics of the angle towards ``target`` (rad).
+
+        The step is measured from ``initial``, by default the first measured angle (the run
+        starts at rest at ``phi0``, not at 0 as a textbook step response).
+        """
+        if self.t.size < 2:
+            raise TestingError(f'a run of {self.t.size} sample(s) has no step metrics')
+        return step_metrics(self.t, self.position, self._target(target),
+                            initial=float(self.position[0]) if initial is None else initial,
+                            effort=self.effort, effort_limit=finite_limit(self.parameters))
+
+    def plot(self, path: str | Path, *, target: float | None = None) -> Path:
+        """Draw the run's figure (angle, velocity, effort; settling band and time) to ``path``."""
+        from .figure import closed_loop_figure
+
+        return closed_loop_figure(self, self._target(target), Path(path))
+
+    def with_target(self, target: float) -> ClosedLoopRun:
+        """Return the same run with its reference set."""
+        return ClosedLoopRun(self.t, self.position, self.velocity, self.effort, self.command,
+                             dict(self.parameters), self.failed, float(target))
+
+
+def _check_periods(periods: int) -> int:
+    if isinstance(periods, bool) or not isinstance(periods, int) or not (
+            1 <= periods <= MAX_PERIODS):
+        raise TestingError(f'periods must be an integer in [1, {MAX_PERIODS}], got '
+                           f'{periods!r}')
+    return periods
+
+
+def closed_loop(controller: Law | Sequence[str], *, scene: str = 'controller_test',
+                periods: int, overrides: Mapping[str, Any] | None = None,
+                record: str | Path | None = None, timeout: float = 120.0) -> ClosedLoopRun:
+    """Run ``controller`` against the joint of ``scene`` for ``periods`` control periods.
+
+    Parameters
+    ----------
+    controller : callable or list of str
+        ``(t, position, velocity) -> command`` run in this process, or a command line (e.g.
+        ``['pendulum_pd_controller']``) run in its own process against ``pendulum_node`` in
+        synchronous lockstep over DDS, in a namespace of its own.
+    scene : str
+        A scene name or parameter file (the node's ``--scene``).
+    periods : int
+        Control periods (``1/publish_rate`` of simulated time each) to run.
+    overrides : mapping, optional
+        Node parameters (the scene's names) that replace the scene's values.
+    record : path, optional
+        Write the run to this MCAP file (replaced if it exists).
+    timeout : float
+        Command-line path: wall-clock seconds the whole run may take.
+
+    Raises
+    ------
+    TestingError
+        For a bad scene, override or ``periods``.
+    ControllerFailed
+        When the controller raises, answers with a non-finite command, cannot be started or
+        leaves a state unanswered.
+    """
+    periods = _check_periods(periods)
+    values = scene_values(scene, overrides)
+    if isinstance(controller, (list, tuple)):
+        if not controller or not all(isinstance(a, str) for a in controller):
+            raise TestingError(f'a controller command line must be a non-empty list of '
+                               f'strings, got {controller!r}')
+        from .ros import run_command_line
+
+        return run_command_line(list(controller), values, periods,
+                                None if record is None else Path(record), timeout)
+    if not callable(controller):
+        raise TestingError(f'controller must be a callable (t, position, velocity) -> '
+                           f'command or a command line (list of str), got {controller!r}')
+    run = run_in_process(controller, values, periods)
+    if record is not None:
+        from .record import write_run
+
+        write_run(run, Path(record))
+    return run
+
+
+def run_in_process(law: Law, values: Mapping[str, Value], periods: int) -> ClosedLoopRun:
+    """Run ``law`` against a :class:`SimulatedJoint` built from ``values`` (no ROS)."""
+    from pendulum_sim.node.errors import JointError
+    from pendulum_sim.node.joint import SimulatedJoint
+    from pendulum_sim.node.parameters import joint_config
+
+    try:
+        joint = SimulatedJoint(joint_config(values, epoch_ns(values)))
+    except JointError as exc:
+        raise TestingError(str(exc)) from None
+    k = joint.config.period_steps
+    out = np.full((5, periods), np.nan)
+    n = 0
+    for _ in range(periods):
+        if joint.failed is not None:
+            break
+        sample = joint.sample()
+        if sample is None:   # the sensor delay is filling: no state, the command holds
+            joint.advance(k - joint.steps % k)
+            continue
+        t = sample.stamp_ns / 1e9
+        value = _answer(law, t, sample.position, sample.velocity)
+        out[:, n] = (t, sample.position, sample.velocity, sample.effort, value)
+        n += 1
+        joint.command(value)
+        joint.advance(k - joint.steps % k)
+    times, position, velocity, effort, command = (np.ascontiguousarray(row[:n]) for row in out)
+    return ClosedLoopRun(times, position, velocity, effort, command, parameters=dict(values),
+                         failed=joint.failed)
+
+
+def answer_reason(value: object, t: float) -> ControllerFailed:
+    """Return the failure of a controller that answered ``value`` (not a finite number)."""
+    if isinstance(value, float):
+        return ControllerFailed(f'the controller returned {value} at t = {t:.9g} s; a command '
+                                'must be finite')
+    return ControllerFailed(f'the controller returned {value!r} at t = {t:.9g} s; a command '
+                            'is a number')
+
+
+def _answer(law: Law, t: float, position: float, velocity: float) -> float:
+    """Return the controller's finite answer to one state; ControllerFailed if it has none."""
+    try:
+        raw = law(t, position, velocity)
+    except Exception as exc:
+        raise ControllerFailed(f'the controller raised {type(exc).__name__}: {exc} at '
+                               f't = {t:.9g} s') from exc
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        raise answer_reason(raw, t) from None
+    if not math.isfinite(value):
+        raise answer_reason(value, t)
+    return value

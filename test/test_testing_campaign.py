@@ -1,0 +1,403 @@
+"""Campaigns: the file's checks, seeded scenarios, episodes that fail alone, rerun, resume.
+
+The cluster tests start a real ``dask scheduler`` and ``dask worker`` processes (the venv's
+``dask`` command line) on 127.0.0.1, and run ``pendulum_campaign`` as a user does.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pendulum_sim.testing.campaign.cli import main
+from pendulum_sim.testing.campaign.episode import RUN_COLUMNS, run_episode
+from pendulum_sim.testing.campaign.scenarios import scenario
+from pendulum_sim.testing.campaign.spec import parse_spec
+from pendulum_sim.testing.metrics import METRIC_NAMES
+
+HERE = Path(__file__).resolve().parent
+BIN = Path(sys.executable).parent
+PD_CONTROLLER = str(BIN / 'pendulum_pd_controller')
+
+FRAGILE = """
+controller: campaign_laws:fragile
+scene: controller_test
+episodes: {episodes}
+seed: 3
+periods: {periods}
+target: 0.5
+parameters:
+  phi0: {{distribution: uniform, low: 0.8, high: 2.2}}
+  gamma: [0.05, 0.2, 1.0]
+  sensor.position_noise: {{distribution: loguniform, low: 1.0e-6, high: 1.0e-3}}
+  m: {{distribution: normal, mean: 0.2, std: 0.005}}
+  inertia: 0.25
+requirements:
+  - 'settling_time < 2.5'
+  - 'overshoot < 20'
+"""
+
+
+@pytest.fixture(autouse=True)
+def laws_importable(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Let this process and every worker it starts import test/campaign_laws.py."""
+    monkeypatch.syspath_prepend(str(HERE))
+    monkeypatch.setenv('PYTHONPATH', os.pathsep.join(
+        [str(HERE), *filter(None, [os.environ.get('PYTHONPATH')])]))
+
+
+def campaign(tmp: Path, episodes: int = 12, periods: int = 300, text: str = FRAGILE) -> Path:
+    path = tmp / 'campaign.yaml'
+    path.write_text(text.format(episodes=episodes, periods=periods))
+    return path
+
+
+def cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([str(BIN / 'pendulum_campaign'), *args], capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def table(folder: Path) -> list[dict[str, Any]]:
+    """Return the Parquet table's rows without the columns that say where and when."""
+    import pyarrow.parquet as pq
+
+    rows = pq.read_table(folder / 'episodes.parquet').to_pylist()
+    return [{k: v for k, v in row.items() if k not in RUN_COLUMNS} for row in rows]
+
+
+def same_rows(a: list[dict[str, Any]], b: list[dict[str, Any]]) -> bool:
+    """Return True for equal rows, NaN equal to NaN, floats compared bit for bit."""
+    return [json.dumps(r, sort_keys=True) for r in a] == [json.dumps(r, sort_keys=True)
+                                                          for r in b]
+
+
+# ------------------------------------------------------------------ the campaign file
+BASE = {'controller': 'pendulum_sim.testing.examples:pd', 'episodes': 4, 'periods': 50,
+        'target': 0.5}
+
+
+@pytest.mark.parametrize(('change', 'msg'), [
+    ({'parameters': {'gama': 1.0}},
+     "unknown parameter 'gama' in parameters (did you mean 'gamma'?)"),
+    ({'parameters': {'m': {'distribution': 'uniform', 'low': 0.3, 'high': 0.2}}},
+     'parameters.m: uniform needs low < high, got low = 0.3, high = 0.2'),
+    ({'parameters': {'gamma': {'distribution': 'loguniform', 'low': 0.0, 'high': 1.0}}},
+     'parameters.gamma: loguniform needs low > 0, got low = 0'),
+    ({'parameters': {'m': {'distribution': 'normal', 'mean': 0.2, 'std': -1.0}}},
+     'parameters.m: normal needs std >= 0, got std = -1'),
+    ({'parameters': {'m': {'distribution': 'gauss', 'mean': 0.2}}},
+     "parameters.m: distribution must be one of uniform, normal, loguniform, got 'gauss'"),
+    ({'parameters': {'m': {'distribution': 'normal', 'mean': 0.2}}},
+     'parameters.m: a normal distribution takes mean, std, got mean'),
+    ({'requirements': ['settle_time < 3.0']},
+     "requirement 'settle_time < 3.0' names an unknown metric 'settle_time'; metrics: "
+     + ', '.join(METRIC_NAMES)),
+    ({'requirements': ['settling_time about 3']},
+     "requirement 'settling_time about 3' must read 'metric op number' with op one of <, <=, "
+     '>, >=, ==, !='),
+    ({'controller': 'no_such_module:law'},
+     "controller 'no_such_module:law' cannot be imported: ModuleNotFoundError: No module "
+     "named 'no_such_module'"),
+    ({'controller': 'pendulum_sim.testing.examples:nope'},
+     "controller 'pendulum_sim.testing.examples:nope' cannot be imported: AttributeError: "
+     "module 'pendulum_sim.testing.examples' has no attribute 'nope'"),
+    ({'controller': ['no-such-controller', '--fast']},
+     "controller command 'no-such-controller' cannot be started: no such executable"),
+    ({'episodes': 0}, 'episodes must be an integer in [1, 10000000], got 0'),
+    ({'scene': 'nope'}, "unknown scene 'nope'; known scenes: "),
+    ({'parameters': {'synchronous': False}}, 'parameters.synchronous is fixed for a closed '
+     'loop'),
+    ({'episode': 3}, "campaign.yaml: unknown key 'episode'; keys: controller, scene, episodes, "
+     'seed, periods, target, parameters, requirements'),
+])
+def test_a_bad_campaign_file_exits_2_with_one_line_saying_why(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], change: dict[str, Any],
+        msg: str) -> None:
+    import yaml
+
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(yaml.safe_dump({**BASE, **change}))
+    assert main([str(path), '--out', str(tmp_path / 'out'), '--no-progress']) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1
+    assert err.startswith(f'pendulum_campaign: error: {msg}')
+    assert not (tmp_path / 'out').exists()
+
+
+def test_a_missing_key_and_a_missing_file_exit_2(tmp_path: Path) -> None:
+    path = tmp_path / 'c.yaml'
+    path.write_text('controller: pendulum_sim.testing.examples:pd\nepisodes: 3\nperiods: 5\n')
+    proc = cli(str(path), '--out', str(tmp_path / 'out'))
+    assert proc.returncode == 2
+    assert proc.stderr == "pendulum_campaign: error: c.yaml: missing key 'target'\n"
+    proc = cli(str(tmp_path / 'none.yaml'), '--out', str(tmp_path / 'out'))
+    assert proc.returncode == 2
+    assert proc.stderr == (f"pendulum_campaign: error: campaign file '{tmp_path / 'none.yaml'}'"
+                           ' does not exist\n')
+
+
+# ------------------------------------------------------------------ scenarios and episodes
+def test_each_episode_draws_from_its_own_seed_whatever_ran_before() -> None:
+    spec = parse_spec(FRAGILE.format(episodes=4000, periods=10))
+    forward = [scenario(spec, i) for i in range(4000)]
+    backward = [scenario(spec, i) for i in reversed(range(4000))][::-1]
+    assert forward == backward
+    phi0 = np.array([s['phi0'] for s in forward])
+    noise = np.array([s['sensor.position_noise'] for s in forward])
+    m = np.array([s['m'] for s in forward])
+    assert phi0.min() >= 0.8 and phi0.max() < 2.2
+    assert noise.min() >= 1e-6 and noise.max() < 1e-3
+    # log-uniform: log10 is uniform on [-6, -3], mean -4.5, sd 3/sqrt(12); normal: mean, sd.
+    n = phi0.size
+    assert abs(np.log10(noise).mean() + 4.5) < 4 * (3 / math.sqrt(12)) / math.sqrt(n)
+    assert abs(m.mean() - 0.2) < 4 * 0.005 / math.sqrt(n)
+    assert abs(m.std() / 0.005 - 1.0) < 4 / math.sqrt(2 * n)
+    assert [s['gamma'] for s in forward[:5]] == [0.05, 0.2, 1.0, 0.05, 0.2]
+    # Another seed, other draws.
+    other = parse_spec(FRAGILE.format(episodes=4, periods=10).replace('seed: 3', 'seed: 4'))
+    assert scenario(other, 0)['phi0'] != forward[0]['phi0']
+
+
+def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reason() -> None:
+    text = FRAGILE.format(episodes=40, periods=300)
+    rows = [run_episode(text, i, None) for i in range(40)]
+    reasons = {r['reason'].split(' at t = ')[0].split(' rad/s')[0] for r in rows
+               if not r['passed']}
+    raised = [r for r in rows if r['reason'].startswith('the controller raised RuntimeError: '
+                                                        'velocity ')]
+    nan = [r for r in rows if r['reason'].startswith('the controller returned nan at t = ')]
+    assert raised and nan, reasons
+    passed = [r for r in rows if r['passed']]
+    assert passed and all(r['reason'] == '' and r['settling_time'] < 2.5 for r in passed)
+    for r in raised + nan:
+        assert all(math.isnan(r[m]) for m in METRIC_NAMES)
+    # Fast swings (large phi0) raise: the reason follows the physics, not the episode id.
+    assert min(r['phi0'] for r in raised) > max(r['phi0'] for r in passed)
+
+
+# ------------------------------------------------------------------ local runs, rerun, resume
+@pytest.mark.slow
+def test_a_campaign_writes_its_table_summary_figures_and_failing_recordings(
+        tmp_path: Path) -> None:
+    text = FRAGILE.replace("  - 'overshoot < 20'", "  - 'overshoot < 9'")
+    path = campaign(tmp_path, episodes=10, periods=250, text=text)
+    out = tmp_path / 'out'
+    proc = cli(str(path), '--out', str(out), '--workers', '2')
+    assert proc.returncode == 1, proc.stderr         # some episodes fail their requirements
+    assert re.search(r'10/10 episodes, pass rate \d+\.\d %, ETA 0 s', proc.stderr)
+    rows = table(out)
+    assert [r['episode'] for r in rows] == list(range(10))
+    import pyarrow.parquet as pq
+
+    assert pq.read_table(out / 'episodes.parquet').column_names == [
+        'episode', 'phi0', 'gamma', 'sensor.position_noise', 'm', 'inertia', *METRIC_NAMES,
+        'passed', 'reason', *RUN_COLUMNS]
+    assert (out / 'episodes.csv').read_text().splitlines()[0].startswith(
+        'episode,phi0,gamma,sensor.position_noise,m,inertia,rise_time,')
+    spec = parse_spec(path.read_text())
+    for r in rows:
+        assert same_rows([r], [{k: v for k, v in run_episode(spec.text, r['episode'],
+                                                             None).items()
+                                if k not in RUN_COLUMNS}])
+    slow = [r for r in rows if not r['passed'] and r['reason'].startswith('overshoot = ')]
+    assert slow
+    summary = (out / 'summary.md').read_text()
+    n_pass = sum(r['passed'] for r in rows)
+    assert summary.startswith(f'# Campaign: 10 episodes, {n_pass} passed '
+                              f'({100 * n_pass / 10:.1f} %)')
+    assert (out / 'figures' / 'metric_distributions.png').stat().st_size > 0
+    assert (out / 'figures' / 'pass_rate.png').stat().st_size > 0
+    # The recording of a failing episode opens in pendulum_report closed-loop.
+    mcap = out / 'failures' / f'episode-{slow[0]["episode"]:06d}.mcap'
+    report = subprocess.run([str(BIN / 'pendulum_report'), 'closed-loop', str(mcap), '--out',
+                             str(tmp_path / 'report')], capture_output=True, text=True)
+    assert report.returncode == 0, report.stderr
+    assert f'| overshoot | {slow[0]["overshoot"]:.6g} |' in (
+        tmp_path / 'report' / 'summary.md').read_text()
+    # --rerun reproduces an episode bit for bit, and says so when the stored one differs.
+    again = cli('--rerun', str(out), str(slow[0]['episode']))
+    assert again.returncode == 0
+    assert again.stdout == (f'episode {slow[0]["episode"]} reproduced bit for bit (failed: '
+                            f'{slow[0]["reason"]})\n')
+    stored = out / 'episodes' / f'{slow[0]["episode"]:06d}.json'
+    row = json.loads(stored.read_text())
+    row['overshoot'] = 1.0
+    stored.write_text(json.dumps(row))
+    again = cli('--rerun', str(out), str(slow[0]['episode']))
+    assert again.returncode == 1
+    assert again.stdout.startswith(f'episode {slow[0]["episode"]} differs from the stored '
+                                   'result in overshoot (1.0 then, ')
+    # A finished folder is not overwritten.
+    proc = cli(str(path), '--out', str(out))
+    assert proc.returncode == 2
+    assert proc.stderr == (f"pendulum_campaign: error: --out '{out}' is not empty; use "
+                           '--resume to continue the campaign in it\n')
+
+
+def _alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+@pytest.mark.slow
+def test_a_campaign_killed_half_way_and_resumed_has_every_episode_once(tmp_path: Path) -> None:
+    path = campaign(tmp_path, episodes=40, periods=800)
+    out = tmp_path / 'out'
+    proc = subprocess.Popen([str(BIN / 'pendulum_campaign'), str(path), '--out', str(out),
+                             '--workers', '1', '--no-progress'], start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    episodes = out / 'episodes'
+    end = time.monotonic() + 120
+    while len(list(episodes.glob('*.json'))) < 10:
+        assert proc.poll() is None and time.monotonic() < end, 'the campaign did not start'
+        time.sleep(0.02)
+    os.killpg(proc.pid, signal.SIGKILL)   # the campaign, its cluster and its workers at once
+    proc.wait()
+    end = time.monotonic() + 30
+    while _alive(proc.pid):
+        assert time.monotonic() < end
+        time.sleep(0.05)
+    before = sorted(int(p.stem) for p in episodes.glob('*.json'))
+    assert 10 <= len(before) < 40
+    resumed = cli(str(path), '--out', str(out), '--resume', '--workers', '2')
+    assert resumed.returncode in (0, 1), resumed.stderr
+    rows = table(out)
+    assert [r['episode'] for r in rows] == list(range(40))
+    text = path.read_text()
+    for r in rows:   # nothing lost, nothing repeated, nothing torn: each row is the episode's
+        expected = {k: v for k, v in run_episode(text, r['episode'], None).items()
+                    if k not in RUN_COLUMNS}
+        assert same_rows([r], [expected])
+
+
+# ------------------------------------------------------------------ a real Dask cluster
+@pytest.fixture
+def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]]]:
+    """Start ``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1.
+
+    Yield the scheduler's address and the two worker processes (no nanny: the process is the
+    worker, so a signal to it is a worker dying).
+    """
+    scheduler_file = tmp_path / 'scheduler.json'
+    dask = str(BIN / 'dask')
+    procs = [subprocess.Popen([dask, 'scheduler', '--host', '127.0.0.1', '--port', '0',
+                               '--no-dashboard', '--scheduler-file', str(scheduler_file)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        end = time.monotonic() + 60
+        while not scheduler_file.is_file() or not scheduler_file.read_text().strip():
+            assert procs[0].poll() is None and time.monotonic() < end, 'no scheduler'
+            time.sleep(0.05)
+        for _ in range(2):
+            procs.append(subprocess.Popen(
+                [dask, 'worker', '--scheduler-file', str(scheduler_file), '--nthreads', '1',
+                 '--host', '127.0.0.1', '--no-dashboard', '--no-nanny'],
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        address = json.loads(scheduler_file.read_text())['address']
+        from distributed import Client
+
+        with Client(address, timeout='30s') as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address, procs[1:]
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in reversed(procs):
+            try:
+                p.wait(20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+ROS_CAMPAIGN = f"""
+controller: ['{PD_CONTROLLER}']
+episodes: 2
+seed: 11
+periods: 80
+target: 0.5
+parameters:
+  phi0: {{distribution: uniform, low: 0.7, high: 1.3}}
+  gamma: [0.1, 0.5]
+requirements: ['overshoot < 30']
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.ros
+def test_a_campaign_on_a_dask_cluster_gets_exactly_the_local_table(
+        tmp_path: Path, dask_cluster: tuple[str, list[subprocess.Popen[bytes]]]) -> None:
+    address, _ = dask_cluster
+    path = campaign(tmp_path, episodes=50, periods=150)
+    remote = cli(str(path), '--out', str(tmp_path / 'remote'), '--scheduler', address)
+    local = cli(str(path), '--out', str(tmp_path / 'local'), '--workers', '2')
+    assert remote.returncode == local.returncode == 1, remote.stderr + local.stderr
+    a, b = table(tmp_path / 'remote'), table(tmp_path / 'local')
+    assert len(a) == 50 and same_rows(a, b)
+    assert {r['passed'] for r in a} == {True, False}
+    # ROS episodes (the example controller as a command line) on the same cluster: each is
+    # the in-process PD law's episode bit for bit.
+    ros = tmp_path / 'ros.yaml'
+    ros.write_text(ROS_CAMPAIGN)
+    proc = cli(str(ros), '--out', str(tmp_path / 'ros'), '--scheduler', address)
+    assert proc.returncode == 0, proc.stderr
+    rows = table(tmp_path / 'ros')
+    assert [r['episode'] for r in rows] == [0, 1] and all(r['passed'] for r in rows)
+    in_process = ROS_CAMPAIGN.replace(f"['{PD_CONTROLLER}']", 'pendulum_sim.testing.examples:pd')
+    for r in rows:
+        twin = {k: v for k, v in run_episode(in_process, r['episode'], None).items()
+                if k not in RUN_COLUMNS}
+        assert same_rows([r], [twin])
+
+
+def test_rerun_and_resume_refuse_a_folder_without_a_campaign(tmp_path: Path) -> None:
+    proc = cli('--rerun', str(tmp_path), '3')
+    assert proc.returncode == 2
+    assert proc.stderr == (f"pendulum_campaign: error: --rerun: '{tmp_path}' holds no campaign "
+                           '(campaign.yaml is missing)\n')
+    path = campaign(tmp_path, episodes=3)
+    proc = cli(str(path), '--out', str(tmp_path / 'none'), '--resume')
+    assert proc.returncode == 2
+    assert proc.stderr == (f"pendulum_campaign: error: --resume: '{tmp_path / 'none'}' holds "
+                           'no campaign (campaign.yaml is missing)\n')
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_campaign_has_its_episodes_rerun_on_another(
+        tmp_path: Path, dask_cluster: tuple[str, list[subprocess.Popen[bytes]]]) -> None:
+    address, workers = dask_cluster
+    long = campaign(tmp_path, episodes=30, periods=800)
+    out = tmp_path / 'killed'
+    proc = subprocess.Popen([str(BIN / 'pendulum_campaign'), str(long), '--out', str(out),
+                             '--scheduler', address, '--no-progress'],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    end = time.monotonic() + 120
+    while len(list((out / 'episodes').glob('*.json'))) < 4:
+        assert proc.poll() is None and time.monotonic() < end, 'the campaign did not start'
+        time.sleep(0.02)
+    workers[0].kill()
+    workers[0].wait()
+    assert proc.poll() is None     # killed while the campaign ran ...
+    assert len(list((out / 'episodes').glob('*.json'))) < 30    # ... with episodes to go
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode in (0, 1), err
+    rows = table(out)
+    assert [r['episode'] for r in rows] == list(range(30))
+    text = long.read_text()
+    for r in rows:
+        assert same_rows([r], [{k: v for k, v in run_episode(text, r['episode'], None).items()
+                                if k not in RUN_COLUMNS}])
