@@ -10,7 +10,6 @@ import subprocess
 import sys
 import textwrap
 import time
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +28,7 @@ from rclpy.serialization import deserialize_message
 from test_recording_support import (
     SCENE,
     TOPICS,
+    joint_states_on_disk,
     read_independently,
     record,
     ros_node,
@@ -581,17 +581,6 @@ def start_recording(path: Path, limit: int = 0, report: bool = False) -> subproc
     return proc
 
 
-def messages_on_disk(path: Path) -> int:
-    """Return how many joint_states the file holds now (a recording being written is truncated)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter('ignore', TruncatedRecordingWarning)
-        try:
-            rec = load(path)
-        except RecorderError:  # no complete record yet
-            return 0
-    return 0 if rec.joint_states is None else len(rec.joint_states.t)
-
-
 def assert_readable_prefix(rec: Recording) -> int:
     """Assert the file holds messages k = 0, 1, ... in order, none missing; return how many."""
     assert rec.joint_states is not None
@@ -612,7 +601,7 @@ def test_sigkill_of_process_and_writer_loses_only_what_was_not_yet_written_out(
     on_disk = 0
     while on_disk < 1000 and time.monotonic() < deadline:
         assert proc.poll() is None
-        on_disk = messages_on_disk(path)
+        on_disk = joint_states_on_disk(path)
         time.sleep(0.05)
     assert on_disk >= 1000, f'{path} held {on_disk} messages after 30 s'
     os.killpg(proc.pid, signal.SIGKILL)

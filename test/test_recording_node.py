@@ -7,7 +7,6 @@ import signal
 import subprocess
 import sys
 import time
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -19,12 +18,18 @@ from rcl_interfaces.srv import SetParameters
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
-from test_recording_support import assert_same, read_independently, ros_node, spin_until
+from test_recording_support import (
+    assert_same,
+    joint_states_on_disk,
+    read_independently,
+    ros_node,
+    spin_until,
+)
 
 from pendulum_sim import __version__
 from pendulum_sim.core import PendulumParams, simulate
 from pendulum_sim.core.model import energy
-from pendulum_sim.recording import RecorderError, load
+from pendulum_sim.recording import load
 from pendulum_sim.recording.loader import Recording, TruncatedRecordingWarning
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,17 +61,6 @@ def wait_for_size(path: Path, size: int, proc: subprocess.Popen[str],
             return
         time.sleep(0.05)
     raise AssertionError(f'{path} did not reach {size} bytes')
-
-
-def joint_states_on_disk(path: Path) -> int:
-    """Return how many joint_states the file holds now (a recording being written is truncated)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter('ignore', TruncatedRecordingWarning)
-        try:
-            rec = load(path)
-        except RecorderError:  # no complete record yet
-            return 0
-    return 0 if rec.joint_states is None else len(rec.joint_states.t)
 
 
 def scene_params(rec: Recording) -> PendulumParams:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import contextlib
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -20,7 +21,8 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from pendulum_sim.recording import McapRecorder
+from pendulum_sim.recording import McapRecorder, RecorderError, load
+from pendulum_sim.recording.loader import TruncatedRecordingWarning
 
 TOPICS = {
     '/joint_states': (JointState, QoSProfile(depth=10)),
@@ -159,3 +161,14 @@ def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool],
     while not done() and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
     return done()
+
+
+def joint_states_on_disk(path: Path) -> int:
+    """Return how many joint_states the file holds now (a recording being written is truncated)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore', TruncatedRecordingWarning)
+        try:
+            rec = load(path)
+        except RecorderError:  # no complete record yet
+            return 0
+    return 0 if rec.joint_states is None else len(rec.joint_states.t)

@@ -9,18 +9,10 @@ import argparse
 import sys
 from collections.abc import Sequence
 
+from pendulum_sim.arguments import positive_int
+
 from .errors import ReportError
 from .report import WHATS, run_report
-
-
-def _repeats(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}')
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,7 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help='a small grid that runs in seconds (for tests)')
     parser.add_argument('--force', action='store_true',
                         help='write into an existing non-empty --out')
-    parser.add_argument('--repeats', type=_repeats, default=None, metavar='N',
+    parser.add_argument('--repeats', type=positive_int, default=None, metavar='N',
                         help='timed repeats per work-precision configuration (default 3, '
                              'quick 1); the minimum is kept')
     parser.add_argument('--no-progress', action='store_true',

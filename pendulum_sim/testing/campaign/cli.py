@@ -18,19 +18,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from pendulum_sim.arguments import positive_int
+
 from ..errors import CampaignError
 
 PROG = 'pendulum_campaign'
-
-
-def _workers(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'must be an integer >= 1, got {text!r}')
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -44,7 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--scheduler', metavar='ADDRESS',
                         help='run on this Dask scheduler, e.g. tcp://host:8786 (default: a '
                         'local cluster)')
-    parser.add_argument('--workers', type=_workers, metavar='N',
+    parser.add_argument('--workers', type=positive_int, metavar='N',
                         help='local cluster: worker processes (default: the core count)')
     parser.add_argument('--resume', action='store_true',
                         help='continue the interrupted campaign in --out')
