@@ -79,10 +79,8 @@ class Stepper:
         eng = Engine(params.omega0_sq, params.gamma, params.n, self._method, self._guard_on,
                      self._energy_check, self._rtol, self._atol, self._jit)
         self._engine = eng
-        self._w2, self._gamma = eng.w2, eng.gamma
         self._inv_inertia = 1.0 / params.inertia
         self._max_torque = MAX_INPUT_ACCEL * params.inertia
-        self._step_fn = eng.step_fn
         self._fast = eng.kind == 'explicit'  # the generated fast path exists
         # The method's Advance (everything the fast path refuses), with fresh memory: a new
         # pendulum or method starts its adaptive substeps afresh.
