@@ -22,22 +22,24 @@ import math
 from typing import Any
 
 from . import embedded
-from .dirk import dirk_step
+from .coulomb import from_rest
 from .errors import IntegratorError
 from .explicit import (
     SCALAR_ENV,
     DampingFn,
+    ErrStepFn,
     StepFn,
-    compile_damping,
     compile_step,
     damping_expression,
     step_source,
 )
-from .guard import FALLBACK, MAX_ANGLE, GuardStats, StabilityGuard, safe_speed_range
-from .methods import FALLBACK_METHOD, Advance, Method
-from .model import damping_derivative
-from .reversal import grade_window, graded_law, graded_mesh, hermite_root
-from .tableaus import BACKWARD_EULER, DOP853, RK4, Tableau
+from .guard import FALLBACK, GuardStats, StabilityGuard, safe_speed_range
+from .implicit import dirk_safe, fallback
+from .methods import Advance, Method
+from .model import FloatArray, damping_derivative
+from .problem import Problem
+from .reversal import graded_mesh, hermite_root
+from .tableaus import DOP853, RK4, Tableau
 
 ENERGY_TOL = 1e-12
 """An explicit step may raise the energy by round-off and by the conservative part of its
@@ -199,16 +201,14 @@ class Engine:
     def __init__(self, w2: float, gamma: float, n: float, method: Method, guard: bool = True,
                  energy_check: bool = True, rtol: float = 1e-8, atol: float = 1e-10,
                  jit: bool = False) -> None:
+        prob = self.problem = Problem(w2, gamma, n)
         self.w2, self.gamma, self.n = w2, gamma, n
         self.jit = jit  # the adaptive method's steps compiled by numba (``jit.py``)
-        self.omega0 = math.sqrt(w2)
+        self.omega0 = prob.omega0
         self.method = method
         self.kind = method.kind
         tab = method.tableau
-        self.coulomb = n == 0.0 and gamma > 0.0
-        smooth = n >= 1.0 and n == int(n) and int(n) % 2 == 1
-        self.nonsmooth = gamma > 0.0 and not smooth
-        self.reach = grade_window(self.omega0) if self.nonsmooth and graded_law(n) else 0.0
+        self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
         self.v_acc = accuracy_speed(gamma, n, self.omega0) if guard and self.kind == 'explicit' \
             else math.inf
         self.w_ref = max(self.omega0, 1.0)
@@ -219,12 +219,11 @@ class Engine:
         self.branch_fn: StepFn = compile_step(self.plain_tableau, n, branch=True)
         self.guard = guard_for(tab) if guard and self.kind == 'explicit' else None
         self.energy_check = energy_check and gamma > 0.0 and self.kind == 'explicit'
-        law = compile_damping(n)
-        g = gamma
-        self.damping: DampingFn = lambda v: law(v, g, 1.0)
+        self.damping: DampingFn = prob.damping
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
         self.rtol, self.atol = rtol, atol
         self._stiff_steps: Any = None  # the dop853 pair of :meth:`stiff`, on first use
+        self._pair: tuple[ErrStepFn, ErrStepFn] | None = None  # the adaptive method's
 
     def fresh_advance(self) -> Advance:
         """Return this method's :class:`~pendulum_sim.core.methods.Advance` with fresh memory."""
@@ -232,7 +231,27 @@ class Engine:
             return self.careful
         if self.kind == 'implicit':
             return self.implicit_advance
-        return embedded.Cover(self, self.rtol, self.atol)
+        return embedded.Cover(self.problem, self.method.tableau, self.pair_steps(), self.rtol,
+                              self.atol, self.from_rest, self.last_resort)
+
+    def pair_steps(self) -> tuple[ErrStepFn, ErrStepFn]:
+        """Return the adaptive method's embedded steps (plain and branch law), made once."""
+        if self._pair is None:
+            self._pair = embedded.pair_steps(self.method.tableau, self.n, self.jit)
+        return self._pair
+
+    @property
+    def dense_capable(self) -> bool:
+        """Return True where ``embedded.dense_run`` may serve this adaptive method."""
+        return embedded.dense_capable(self.kind, self.coulomb)
+
+    def dense(self, p: float, v: float, t_out: FloatArray, ain: float,
+              stats: GuardStats) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Run the adaptive method over all of ``t_out`` in one cover (``embedded.dense_run``)."""
+        if not self.dense_capable:
+            raise IntegratorError(f'{self.method.name} has no dense output here')
+        return embedded.dense_run(self.problem, self.method.tableau, self.pair_steps(),
+                                  self.from_rest, p, v, t_out, ain, self.rtol, self.atol, stats)
 
     # ------------------------------------------------------------------ fast path
     def fast_range(self, h: float, ain: float) -> tuple[float, float]:
@@ -294,7 +313,7 @@ class Engine:
         """Take the implicit method's own DIRK step of h (``dirk.py``)."""
         tab = self.method.tableau
         assert isinstance(tab, Tableau)  # an 'implicit' method is a DIRK tableau
-        p1, v1, w = self.dirk_safe(tab, p, v, h, ain)
+        p1, v1, w = dirk_safe(self.problem, tab, p, v, h, ain)
         return self._settle(p, v, h, ain, p1, v1, w, stats)
 
     def _settle(self, p: float, v: float, h: float, ain: float, p1: float, v1: float, w: float,
@@ -328,8 +347,9 @@ class Engine:
             raise OverflowError('damping slope beyond float64')
         first = min(h, 1.0 / d) if d > 0.0 else h
         try:
-            p1, v1, w, _ = embedded.cover(self, p, v, h, ain, tol, tol, first, stats, DOP853,
-                                          STIFF_MAX_TRIALS, self._stiff_steps)
+            p1, v1, w, _ = embedded.cover(self.problem, DOP853, self._stiff_steps, self.from_rest,
+                                          p, v, h, ain, tol, tol, first, stats,
+                                          STIFF_MAX_TRIALS)
         except embedded.CoverFailed:
             return self.guarded(p, v, h, ain, stats)
         return p1, v1, w
@@ -494,14 +514,7 @@ class Engine:
     def from_rest(self, p: float, h: float, ain: float,
                   v: float = 0.0) -> tuple[float, float, float]:
         """Coulomb friction at (or within round-off of) rest: stick, or break away."""
-        force = ain - self.w2 * math.sin(p)
-        if abs(force) <= self.gamma:
-            return p, 0.0, 0.0
-        sign = 1.0 if force > 0.0 else -1.0
-        p1, v1, w, _ = self.branch_fn(p, v, h, ain, self.w2, self.gamma, sign)
-        if v1 * sign < 0.0:
-            return p, 0.0, 0.0  # the break-away reversed within the step: it stops again
-        return p1, v1, w
+        return from_rest(self.problem, self.branch_fn, p, h, ain, v)
 
     def redo_energy(self, p: float, v: float, h: float, e0: float,
                     stats: GuardStats) -> tuple[float, float, float]:
@@ -527,40 +540,12 @@ class Engine:
         return p1, v1, e0 - specific_energy(v1, math.sin(0.5 * p1), w2)
 
     def speed_gain(self, h: float, ain: float) -> float:
-        """Return the most |φ'| can grow in h: h (|τ/I| + ω0²), damping only opposes motion."""
-        return h * (abs(ain) + self.w2)
+        """Return the most |φ'| can grow in h (:meth:`Problem.speed_gain`)."""
+        return self.problem.speed_gain(h, ain)
 
     def implicit(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
-        """Take the step with the L-stable fallback, in substeps that obey the angle limit.
-
-        A substep sweeps at most MAX_ANGLE (damping only slows, so |φ'| + h (|a_in| + ω0²)
-        bounds the speed) and resolves ω0, re-judged after each one.
-        """
-        tab = FALLBACK_METHOD.tableau
-        assert isinstance(tab, Tableau)
-        left, w = h, 0.0
-        while left > 0.0:
-            reach = left * (abs(v) + self.speed_gain(left, ain) + self.omega0)
-            hh = left if reach <= MAX_ANGLE else left / math.ceil(reach / MAX_ANGLE)
-            p, v, wi = self.dirk_safe(tab, p, v, hh, ain)
-            w += wi
-            left = 0.0 if hh == left else left - hh
-        return p, v, w
-
-    def dirk_safe(self, tab: Tableau, p: float, v: float, h: float,
-                  ain: float) -> tuple[float, float, float]:
-        """Take a DIRK step; replace it by backward Euler where it turned φ' round spuriously.
-
-        Once φ' has passed 0 it can grow again by at most h (|τ/I| + ω0²) within the step, since
-        damping only opposes the motion: a reversed velocity larger than that is the stages'
-        doing, not the flow's. Backward Euler's single stage is monotone in φ'.
-        """
-        args = (p, v, h, ain, self.w2, self.gamma, self.n, self.damping)
-        p1, v1, w, _ = dirk_step(tab, *args)
-        if v1 * v < 0.0 and abs(v1) > self.speed_gain(h, ain):
-            pb, vb, wb, _ = dirk_step(BACKWARD_EULER, *args)
-            return pb, vb, wb
-        return p1, v1, w
+        """Take the step with the L-stable fallback (``implicit.fallback``)."""
+        return fallback(self.problem, p, v, h, ain)
 
 
 __all__ = [

@@ -81,9 +81,6 @@ METHODS: dict[str, Method] = {
     'extrap8': Method('extrap8', 'adaptive', EXTRAP8),
 }
 
-FALLBACK_METHOD = METHODS['sdirk3']
-
-
 def get_method(name: str) -> Method:
     """Return the method called ``name`` or raise IntegratorError listing the known ones."""
     try:

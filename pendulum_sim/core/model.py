@@ -154,7 +154,7 @@ class PendulumParams:
     @property
     def smooth_damping(self) -> bool:
         """Return True where φ'|φ'|^(n−1) is infinitely differentiable (n = 1, 3, 5, ...)."""
-        return self.n >= 1.0 and self.n == int(self.n) and int(self.n) % 2 == 1
+        return smooth_law(self.n)
 
     def jacobian_eigenvalues(self, phi: float, dphi: float) -> tuple[complex, complex]:
         """Return the eigenvalues of the Jacobian [[0, 1], [−ω0² cos φ, −d]] (eq 18-19).
@@ -164,6 +164,14 @@ class PendulumParams:
         d = damping_derivative(self.gamma, self.n, dphi)
         c = self.omega0_sq * math.cos(phi)
         return _eigs(d, c)
+
+
+def smooth_law(n: float) -> bool:
+    """Return True where φ'|φ'|^(n−1) is infinitely differentiable: n = 1, 3, 5, ... (eq 15).
+
+    Every other law has a kink at φ' = 0 (n even, non-integer, or 0): the core's one test.
+    """
+    return n >= 1.0 and n == int(n) and int(n) % 2 == 1
 
 
 def damping_derivative(gamma: float, n: float, dphi: float) -> float:
