@@ -285,13 +285,13 @@ def dense_nodes(order: int) -> int:
     return min((m for o, m in DENSE_NODES.items() if order <= o), default=0)
 
 
-def dense_capable(kind: str, coulomb: bool) -> bool:
-    """Return True where :func:`dense_run` may serve a method of ``kind``.
+def dense_capable(error_controlled: bool, coulomb: bool) -> bool:
+    """Return True where :func:`dense_run` may serve a method (of an error-controlled family).
 
     Every adaptive method but under Coulomb friction (n = 0: sticking at rest is decided per
     output interval by the cover, and the interval's end matters).
     """
-    return kind == 'adaptive' and not coulomb
+    return error_controlled and not coulomb
 
 
 def dense_run(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, ErrStepFn],

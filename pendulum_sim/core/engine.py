@@ -206,19 +206,18 @@ class Engine:
         self.jit = jit  # the adaptive method's steps compiled by numba (``jit.py``)
         self.omega0 = prob.omega0
         self.method = method
-        self.kind = method.kind
+        fast = self.fast = method.family.fast_path  # plain explicit steps, guarded
         tab = method.tableau
         self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
-        self.v_acc = accuracy_speed(gamma, n, self.omega0) if guard and self.kind == 'explicit' \
-            else math.inf
+        self.v_acc = accuracy_speed(gamma, n, self.omega0) if guard and fast else math.inf
         self.w_ref = max(self.omega0, 1.0)
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
         # only for a Coulomb break-away, never for the implicit method's own steps).
         self.plain_tableau = tab if _explicit(tab) else RK4
         self.step_fn: StepFn = compile_step(self.plain_tableau, n)
         self.branch_fn: StepFn = compile_step(self.plain_tableau, n, branch=True)
-        self.guard = guard_for(tab) if guard and self.kind == 'explicit' else None
-        self.energy_check = energy_check and gamma > 0.0 and self.kind == 'explicit'
+        self.guard = guard_for(tab) if guard and fast else None
+        self.energy_check = energy_check and gamma > 0.0 and fast
         self.damping: DampingFn = prob.damping
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
         self.rtol, self.atol = rtol, atol
@@ -227,9 +226,9 @@ class Engine:
 
     def fresh_advance(self) -> Advance:
         """Return this method's :class:`~pendulum_sim.core.methods.Advance` with fresh memory."""
-        if self.kind == 'explicit':
+        if self.fast:
             return self.careful
-        if self.kind == 'implicit':
+        if not self.method.family.error_controlled:
             return self.implicit_advance
         return embedded.Cover(self.problem, self.method.tableau, self.pair_steps(), self.rtol,
                               self.atol, self.from_rest, self.last_resort)
@@ -243,7 +242,7 @@ class Engine:
     @property
     def dense_capable(self) -> bool:
         """Return True where ``embedded.dense_run`` may serve this adaptive method."""
-        return embedded.dense_capable(self.kind, self.coulomb)
+        return embedded.dense_capable(self.method.family.error_controlled, self.coulomb)
 
     def dense(self, p: float, v: float, t_out: FloatArray, ain: float,
               stats: GuardStats) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -261,7 +260,7 @@ class Engine:
         cached per octave of torque and stays valid within it). Without the guard the range is
         everything; for an implicit or adaptive method it is empty (no fast path).
         """
-        if self.kind != 'explicit':
+        if not self.fast:
             return math.inf, -math.inf
         if self.guard is None:
             return 0.0, math.inf
@@ -357,7 +356,7 @@ class Engine:
     @property
     def unguarded(self) -> bool:
         """Return True for an explicit method run without the guard (plain steps)."""
-        return self.kind == 'explicit' and self.guard is None
+        return self.fast and self.guard is None
 
     def _diverged(self, p: float, v: float) -> IntegratorError:
         return IntegratorError(

@@ -67,7 +67,7 @@ class Stepper:
         self._atol = check_tolerance('atol', atol)
         self._guard_on = bool(guard)
         self._energy_check = bool(energy_check)
-        self._jit = check_jit(jit, self._method.name, self._method.kind == 'adaptive')
+        self._jit = check_jit(jit, self._method.name, self._method.family.error_controlled)
         self._initial = validate_state(phi0, dphi0, params)
         self.stats = GuardStats()
         self._configure(params)
@@ -81,7 +81,7 @@ class Stepper:
         self._engine = eng
         self._inv_inertia = 1.0 / params.inertia
         self._max_torque = MAX_INPUT_ACCEL * params.inertia
-        self._fast = eng.kind == 'explicit'  # the generated fast path exists
+        self._fast = eng.fast  # the generated fast path exists
         # The method's Advance (everything the fast path refuses), with fresh memory: a new
         # pendulum or method starts its adaptive substeps afresh.
         self._slow = eng.fresh_advance()

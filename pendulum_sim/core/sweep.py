@@ -53,6 +53,7 @@ from .model import (
     check_run_length,
     check_step,
     check_torque,
+    smooth_law,
     speed_limit,
     validate_state,
 )
@@ -63,8 +64,8 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
-SWEEP_METHODS = ('euler', 'midpoint', 'rk4')
-"""The explicit methods a sweep can use."""
+SWEEP_METHODS = tuple(name for name, m in METHODS.items() if m.family.fast_path)
+"""The methods a sweep can use: those of the explicit family (``euler``, ``midpoint``, ``rk4``)."""
 BLOCK = 16384
 """Pendulums stepped per numpy pass: a block's temporaries stay in the cache."""
 STIFF_MARGIN = 1.0 - 1e-9
@@ -310,7 +311,7 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
               zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, BLOCK)]
     for val, a, b in pieces:
         sl = slice(a, b)
-        smooth = val >= 1.0 and val == int(val) and int(val) % 2 == 1
+        smooth = smooth_law(val)
         lo = np.zeros(b - a)
         hi = np.full(b - a, math.inf)
         omega0 = np.sqrt(om2[sl])
