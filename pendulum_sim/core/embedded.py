@@ -189,15 +189,17 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
                     return float(ain - sg * g * abs(vv) ** n - w2 * math.sin(pp))
 
                 th = hermite_root(v, v1, step_h * a0, step_h * accel(p1, v1))
+                pm, vm, wm, _, _, _ = fn(p, v, th * step_h, ain, w2, g, sign)
                 for _ in range(8):
-                    pm, vm, wm, _, _, _ = fn(p, v, th * step_h, ain, w2, g, sign)
                     acc = accel(pm, vm)
                     if abs(vm) <= 1e-15 * abs(v) or acc == 0.0:
                         break
                     nth = th - vm / (acc * step_h)
-                    if not 0.0 < nth <= 1.0:
+                    if not 0.0 < nth < 1.0:
                         break
                     th = nth
+                    # The state at the θ kept (also after the last iteration).
+                    pm, vm, wm, _, _, _ = fn(p, v, th * step_h, ain, w2, g, sign)
                 stats.reversals += 1
                 p, v = pm, 0.0
                 w_total += wm
