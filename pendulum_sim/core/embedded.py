@@ -27,7 +27,7 @@ from .guard import GuardStats
 from .jit import compile_step as jit_step
 from .model import FloatArray, damping_derivative
 from .problem import Problem
-from .reversal import hermite_root
+from .reversal import branch_accel, locate_reversal
 from .rosenbrock import compile_rosenbrock
 from .tableaus import Extrapolation, Tableau
 
@@ -186,20 +186,15 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
             if nonsmooth and v1 * v < 0.0:
                 # Cut at the reversal: the branch continuation's φ'(θ step_h) = 0.
                 def accel(pp: float, vv: float, sg: float = sign) -> float:
-                    return float(ain - sg * g * abs(vv) ** n - w2 * math.sin(pp))
+                    return branch_accel(pp, vv, ain, sg, g, n, w2)
 
-                th = hermite_root(v, v1, step_h * a0, step_h * accel(p1, v1))
-                pm, vm, wm, _, _, _ = fn(p, v, th * step_h, ain, w2, g, sign)
-                for _ in range(8):
-                    acc = accel(pm, vm)
-                    if abs(vm) <= 1e-15 * abs(v) or acc == 0.0:
-                        break
-                    nth = th - vm / (acc * step_h)
-                    if not 0.0 < nth < 1.0:
-                        break
-                    th = nth
-                    # The state at the θ kept (also after the last iteration).
-                    pm, vm, wm, _, _, _ = fn(p, v, th * step_h, ain, w2, g, sign)
+                def at(hh: float, p0: float = p, v0: float = v, sg: float = sign,
+                       fn: ErrStepFn = fn) -> tuple[float, float, float]:
+                    pa, va, wa, _, _, _ = fn(p0, v0, hh, ain, w2, g, sg)
+                    return pa, va, wa
+
+                th, pm, _, wm = locate_reversal(at, accel, v, v1, a0, accel(p1, v1), step_h,
+                                                1e-15, 8)
                 stats.reversals += 1
                 p, v = pm, 0.0
                 w_total += wm

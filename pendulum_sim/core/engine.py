@@ -38,7 +38,7 @@ from .implicit import dirk_safe, fallback
 from .methods import Advance, Method
 from .model import FloatArray, damping_derivative
 from .problem import Problem
-from .reversal import graded_mesh, hermite_root
+from .reversal import branch_accel, graded_mesh, locate_reversal
 from .tableaus import DOP853, RK4, Tableau
 
 ENERGY_TOL = 1e-12
@@ -447,7 +447,11 @@ class Engine:
         before = self.branch_fn
 
         def accel(pp: float, vv: float) -> float:
-            return float(ain - sign * g * abs(vv) ** n - w2 * math.sin(pp))
+            return branch_accel(pp, vv, ain, sign, g, n, w2)
+
+        def at(hh: float) -> tuple[float, float, float]:
+            pa, va, wa, _ = before(p, v, hh, ain, w2, g, sign)
+            return pa, va, wa
 
         p1, v1, w1, _ = before(p, v, h, ain, w2, g, sign)
         if v1 * v > 0.0:
@@ -457,19 +461,7 @@ class Engine:
                 lens = graded_mesh(max(x - h, 0.0), x, h, n, self.reach)[::-1]
                 return self._branch_run(p, v, lens, ain, sign)
             return p1, v1, w1
-        th = hermite_root(v, v1, h * a0, h * accel(p1, v1))
-        pm, vm, wm, _ = before(p, v, th * h, ain, w2, g, sign)
-        for _ in range(4):
-            if abs(vm) <= 1e-14 * abs(v):
-                break
-            acc = accel(pm, vm)
-            if acc == 0.0:
-                break
-            nth = th - vm / (acc * h)
-            if not 0.0 < nth < 1.0:
-                break
-            th = nth
-            pm, vm, wm, _ = before(p, v, th * h, ain, w2, g, sign)
+        th, pm, vm, wm = locate_reversal(at, accel, v, v1, a0, accel(p1, v1), h, 1e-14, 4)
         lens = graded_mesh(0.0, th * h, h, n, self.reach)[::-1]
         if len(lens) > 1:
             for _ in range(3):
