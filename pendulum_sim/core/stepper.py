@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import math
 
-from .engine import ENERGY_TOL, Engine, compile_fast_step
+from .decisions import ENERGY_TOL, compile_fast_step
+from .engine import Engine
 from .errors import ModelError
 from .guard import GuardStats
 from .jit import check_jit

@@ -30,17 +30,16 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .engine import (
+from .decisions import (
     CROSS_SRC,
     REVERSAL_SRC,
-    Engine,
     accuracy_speed,
     ain_bound,
     energy_rose,
-    guard_for,
     specific_energy,
     stiff_transient,
 )
+from .engine import Engine, guard_for
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step
 from .guard import GuardStats, safe_speed_ranges
