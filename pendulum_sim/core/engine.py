@@ -107,7 +107,7 @@ class Engine:
         if not self.method.family.error_controlled:
             return self.implicit_advance
         return embedded.Cover(self.problem, self.method.tableau, self.pair_steps(), self.rtol,
-                              self.atol, self.from_rest, self.last_resort)
+                              self.atol, self.plain.from_rest, self.last_resort)
 
     def pair_steps(self) -> tuple[ErrStepFn, ErrStepFn]:
         """Return the adaptive method's embedded steps (plain and branch law), made once."""
@@ -126,7 +126,8 @@ class Engine:
         if not self.dense_capable:
             raise IntegratorError(f'{self.method.name} has no dense output here')
         return embedded.dense_run(self.problem, self.method.tableau, self.pair_steps(),
-                                  self.from_rest, p, v, t_out, ain, self.rtol, self.atol, stats)
+                                  self.plain.from_rest, p, v, t_out, ain, self.rtol,
+                                  self.atol, stats)
 
     # ------------------------------------------------------------------ fast path
     def fast_range(self, h: float, ain: float) -> tuple[float, float]:
@@ -161,7 +162,7 @@ class Engine:
         """
         try:
             if self.coulomb and v == 0.0:
-                p1, v1, w = self.from_rest(p, h, ain)
+                p1, v1, w = self.plain.from_rest(p, h, ain)
             elif self.guard is None:
                 p1, v1, w = self.micro(p, v, h, ain, stats)
             elif abs(v) > self.v_acc and stiff_transient(
@@ -222,9 +223,9 @@ class Engine:
             raise OverflowError('damping slope beyond float64')
         first = min(h, 1.0 / d) if d > 0.0 else h
         try:
-            p1, v1, w, _ = embedded.cover(self.problem, DOP853, self._stiff_steps, self.from_rest,
-                                          p, v, h, ain, tol, tol, first, stats,
-                                          STIFF_MAX_TRIALS)
+            p1, v1, w, _ = embedded.cover(self.problem, DOP853, self._stiff_steps,
+                                          self.plain.from_rest, p, v, h, ain, tol, tol, first,
+                                          stats, STIFF_MAX_TRIALS)
         except embedded.CoverFailed:
             return self.guarded(p, v, h, ain, stats)
         return p1, v1, w
@@ -275,11 +276,6 @@ class Engine:
         stats.substeps += taken - 1
         return p, v, w
 
-    def from_rest(self, p: float, h: float, ain: float,
-                  v: float = 0.0) -> tuple[float, float, float]:
-        """Coulomb friction at (or within round-off of) rest: stick, or break away."""
-        return self.plain.from_rest(p, h, ain, v)
-
     def redo_energy(self, p: float, v: float, h: float, e0: float,
                     stats: GuardStats) -> tuple[float, float, float]:
         """Redo a step whose energy rose without input; project if the implicit one rose too.
@@ -302,10 +298,6 @@ class Engine:
             p1 = p  # even the angle would climb above the energy available: stay put
             v1 = 0.0
         return p1, v1, e0 - specific_energy(v1, math.sin(0.5 * p1), w2)
-
-    def speed_gain(self, h: float, ain: float) -> float:
-        """Return the most |φ'| can grow in h (:meth:`Problem.speed_gain`)."""
-        return self.problem.speed_gain(h, ain)
 
     def implicit(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
         """Take the step with the L-stable fallback (``implicit.fallback``)."""
