@@ -22,6 +22,7 @@ import math
 from typing import Any
 
 from . import embedded
+from .coulomb import creep
 from .decisions import (
     ENERGY_TOL,
     STIFF_MAX_TRIALS,
@@ -85,6 +86,7 @@ class Engine:
         fast = self.fast = method.family.fast_path  # plain explicit steps, guarded
         tab = method.tableau
         self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
+        self.near_coulomb = 0.0 < n < 1.0 and gamma > 0.0  # may creep (``coulomb.py``)
         self.v_acc = accuracy_speed(gamma, n, self.omega0) if guard and fast else math.inf
         self.w_ref = max(self.omega0, 1.0)
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
@@ -163,6 +165,8 @@ class Engine:
         try:
             if self.coulomb and v == 0.0:
                 p1, v1, w = self.plain.from_rest(p, h, ain)
+            elif self.near_coulomb and (crept := creep(self.problem, p, v, h, ain)):
+                p1, v1, w = crept
             elif self.guard is None:
                 p1, v1, w = self.micro(p, v, h, ain, stats)
             elif abs(v) > self.v_acc and stiff_transient(

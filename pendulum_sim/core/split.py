@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from .coulomb import from_rest
+from .coulomb import creep, from_rest
 from .decisions import reversal_suspect
 from .explicit import StepFn, compile_step
 from .guard import GuardStats
@@ -140,6 +140,9 @@ class SplitSteps:
         if self.coulomb:
             p2, v2, w2_ = self.from_rest(pm, rest, ain, vm)
             return p2, v2, wm + w2_
+        crept = creep(self.problem, pm, vm, rest, ain)
+        if crept is not None:
+            return crept[0], crept[1], wm + crept[2]
         after = ain - w2 * math.sin(pm)
         if after == 0.0:
             p2, v2, w2_, _ = self.step_fn(pm, vm, rest, ain, w2, g, 1.0)
