@@ -79,9 +79,12 @@ def initial_step(prob: Problem, p: float, v: float, h: float, ain: float, rtol: 
     """Return a first trial substep from the scale of y and its first two derivatives.
 
     The starting-step rule of Hairer, Nørsett and Wanner (*Solving ODEs I*, II.4): h₀ =
-    0.01 ‖y‖/‖f‖, then h₁ = (0.01 / max(‖f‖, ‖f'‖ h₀-estimate))^(1/(p+1)), the smaller of 100 h₀
-    and h₁, at most h, and at most 1/ρ with ρ = d + ω0 √|cos φ| a bound on the Jacobian's
-    spectral radius (d the damping slope, eq 18-19): the first step resolves the fastest rate
+    0.01 ‖y‖/‖f‖, then h₁ = (0.01 / max(‖f‖, ‖f'‖ h₀-estimate))^(1/(p+1)), p the ``order`` of
+    the error estimate (the embedded solution's: 4 for dopri5, as in scipy's RK45; the
+    propagated order 5 makes the first step of a fast transient too long for its estimate to
+    see its error), the smaller of 100 h₀ and h₁, at most h, and at most 1/ρ with
+    ρ = d + ω0 √|cos φ| a bound on the Jacobian's spectral radius (d the damping slope,
+    eq 18-19): the first step resolves the fastest rate
     at the start (a stiff transient from rest) instead of stepping over it.
     """
     w2, damp = prob.w2, prob.damping
@@ -154,7 +157,7 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
     sqrt = math.sqrt
     q = 1.0 / (tab.error_order + 1)
     done, w_total = 0.0, 0.0
-    hh = h_try if h_try > 0.0 else initial_step(prob, p, v, h, ain, rtol, atol, tab.order)
+    hh = h_try if h_try > 0.0 else initial_step(prob, p, v, h, ain, rtol, atol, tab.error_order)
     ahead = iter(stops)
     target = next(ahead, h)
     while done < h:
