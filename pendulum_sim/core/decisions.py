@@ -13,6 +13,7 @@ import functools
 import math
 from typing import Any
 
+from .codegen import define
 from .explicit import SCALAR_ENV, damping_expression, step_source
 from .tableaus import Tableau
 
@@ -35,8 +36,7 @@ with ``and``/``or`` for ``&``/``|``, into the Stepper's generated fast step
 
 def _expr(args: str, src: str) -> Any:
     env: dict[str, object] = {'ENERGY_TOL': ENERGY_TOL}
-    exec(compile(f'def f({args}):\n    return {src}\n', '<decision>', 'exec'), env)
-    return env['f']
+    return define(f'def f({args}):\n    return {src}\n', 'f', env, '<decision>')
 
 
 _REVERSAL = _expr('v, v1, a0, h, reach', REVERSAL_SRC)
@@ -134,8 +134,7 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
         lines += ['    return p1, v1, w, NAN']
     env: dict[str, object] = dict(SCALAR_ENV, n=n, reach=reach, v_acc=v_acc, INF=math.inf,
                                   NAN=math.nan, ENERGY_TOL=ENERGY_TOL, w2=w2, gamma=gamma)
-    exec(compile('\n'.join(lines) + '\n', f'<fast {tableau.name} n={n}>', 'exec'), env)
-    return env['fast']
+    return define('\n'.join(lines) + '\n', 'fast', env, f'<fast {tableau.name}>')
 
 
 def ain_bound(ain: float) -> float:

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .codegen import define
 from .decisions import (
     CROSS_SRC,
     REVERSAL_SRC,
@@ -213,8 +214,7 @@ def _decision(args: str, src: str) -> Any:
     """
     env: dict[str, object] = {}
     body = src.replace('abs(v)', 'av')
-    exec(compile(f'def f({args}):\n    return {body}\n', '<sweep decision>', 'exec'), env)
-    return env['f']
+    return define(f'def f({args}):\n    return {body}\n', 'f', env, '<sweep decision>')
 
 
 _CROSS = _decision('v, av, v1, a0, h', CROSS_SRC)
