@@ -91,6 +91,12 @@ the transient's error falls with h at the method's order while it costs few subs
 STIFF_MAX_TRIALS = 2000
 """Trial substeps per step before the error-controlled path hands the step to the guard."""
 
+MAX_FALLBACK_SUBSTEPS = 100_000
+"""The most substeps the fallback (:meth:`Engine.implicit`) may take to cover one step: beyond
+it the step is refused (an IntegratorError naming h) instead of taken in unbounded time. Each
+substep sweeps at most MAX_ANGLE, so the bound is h (|φ'| + h (|τ/I| + ω0²) + ω0) <=
+MAX_ANGLE · MAX_FALLBACK_SUBSTEPS."""
+
 
 def accuracy_speed(gamma: float, n: float, omega0: float) -> float:
     """Return the speed above which a damping-dominated n > 1 transient is error-controlled."""
@@ -276,6 +282,8 @@ class Engine:
                 p1, v1, w = self.stiff(p, v, h, ain, stats)
             else:
                 p1, v1, w = self.guarded(p, v, h, ain, stats)
+        except IntegratorError:  # a refusal (the fallback's work bound), not an overflow
+            raise
         except (OverflowError, ValueError):  # |x|^n beyond float64, sin(inf)
             if self.unguarded:
                 raise self._diverged(p, v) from None
@@ -340,15 +348,21 @@ class Engine:
         return self.kind == 'explicit' and self.guard is None
 
     def _diverged(self, p: float, v: float) -> IntegratorError:
+        if self.unguarded:
+            return IntegratorError(
+                f'the unguarded {self.method.name} step diverged beyond float64 from '
+                f'phi = {p:g} rad, dphi = {v:g} rad/s; run with guard=True')
         return IntegratorError(
-            f'the unguarded {self.method.name} step diverged beyond float64 from '
-            f'phi = {p:g} rad, dphi = {v:g} rad/s; run with guard=True')
+            f'the {self.method.name} step and its fallback diverged beyond float64 from '
+            f'phi = {p:g} rad, dphi = {v:g} rad/s')
 
     def last_resort(self, p: float, v: float, h: float,
                     ain: float) -> tuple[float, float, float]:
         """Replace a step that overflowed or came out non-finite by the fallback's."""
         try:
             return self.implicit(p, v, h, ain)
+        except IntegratorError:  # refused by the fallback's work bound
+            raise
         except (OverflowError, ValueError):
             # Reachable only once the state itself has blown up.
             raise self._diverged(p, v) from None
@@ -538,6 +552,12 @@ class Engine:
         """
         tab = FALLBACK_METHOD.tableau
         assert isinstance(tab, Tableau)
+        if not h * (abs(v) + self.speed_gain(h, ain) + self.omega0) <= (
+                MAX_ANGLE * MAX_FALLBACK_SUBSTEPS):  # also inf and NaN
+            raise IntegratorError(
+                f'a step of {h:g} s from phi = {p:g} rad, dphi = {v:g} rad/s needs more than '
+                f'MAX_FALLBACK_SUBSTEPS = {MAX_FALLBACK_SUBSTEPS} substeps of the fallback '
+                f'(each sweeps at most {MAX_ANGLE:g} rad); use a smaller h')
         left, w = h, 0.0
         while left > 0.0:
             reach = left * (abs(v) + self.speed_gain(left, ain) + self.omega0)
