@@ -368,10 +368,11 @@ def check_speed(dphi: float, gamma: float, n: float, omega0_sq: float,
                 t: float | None = None) -> None:
     """Refuse to go on from a state faster than :func:`run_speed_limit`.
 
-    Called along a run (``Stepper``, ``simulate``, ``sweep``, the adaptive substeps): an input
-    torque that drives |φ'| beyond it ends the run there with an IntegratorError (at time ``t``
-    where known), so that no step or substep starts far outside the state bound of
-    :func:`validate_state` (the work of a step grows with the speed it starts at).
+    Called after every step along a guarded run (``Stepper``, ``simulate``, ``sweep``; the
+    adaptive substeps reject a trial beyond the limit instead): an input torque that drives
+    |φ'| beyond it ends the run there with an IntegratorError (at time ``t`` where known), so
+    that no step starts far outside the state bound of :func:`validate_state` (the work of a
+    step grows with the speed it starts at).
     """
     lim = run_speed_limit(gamma, n, omega0_sq)
     if not abs(dphi) <= lim:
