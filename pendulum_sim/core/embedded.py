@@ -25,7 +25,7 @@ from .explicit import ErrStepFn, compile_damping, compile_step
 from .extrapolation import compile_extrapolation
 from .guard import GuardStats
 from .jit import compile_step as jit_step
-from .model import FloatArray, damping_derivative
+from .model import FloatArray, damping_derivative, run_speed_limit
 from .problem import Problem
 from .reversal import branch_accel, locate_reversal
 from .rosenbrock import compile_rosenbrock
@@ -156,6 +156,9 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
     coulomb, nonsmooth = prob.coulomb, prob.nonsmooth
     sqrt = math.sqrt
     q = 1.0 / (tab.error_order + 1)
+    # Beyond the speed a run may reach (``model.run_speed_limit``) a trial is rejected like one
+    # that overflows: a loose tolerance scales its error by that speed and would accept it.
+    vmax = run_speed_limit(g, n, w2)
     done, w_total = 0.0, 0.0
     hh = h_try if h_try > 0.0 else initial_step(prob, p, v, h, ain, rtol, atol, tab.error_order)
     ahead = iter(stops)
@@ -182,7 +185,7 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
             ap, ap1, av, av1 = abs(p), abs(p1), abs(v), abs(v1)
             ep /= atol + rtol * (ap if ap > ap1 else ap1)
             ev /= atol + rtol * (av if av > av1 else av1)
-            err = sqrt(0.5 * (ep * ep + ev * ev))
+            err = sqrt(0.5 * (ep * ep + ev * ev)) if av1 <= vmax else math.inf
         except (OverflowError, ValueError):
             err = math.inf  # a trial step that overflows is rejected like any other
         if err <= 1.0:  # (False for inf and NaN)

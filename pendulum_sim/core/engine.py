@@ -175,6 +175,8 @@ class Engine:
                 p1, v1, w = self.stiff(p, v, h, ain, stats)
             else:
                 p1, v1, w = self.guarded(p, v, h, ain, stats)
+        except IntegratorError:  # a refusal (the fallback's work bound), not an overflow
+            raise
         except (OverflowError, ValueError):  # |x|^n beyond float64, sin(inf)
             if self.unguarded:
                 raise self._diverged(p, v) from None
@@ -240,15 +242,21 @@ class Engine:
         return self.fast and self.guard is None
 
     def _diverged(self, p: float, v: float) -> IntegratorError:
+        if self.unguarded:
+            return IntegratorError(
+                f'the unguarded {self.method.name} step diverged beyond float64 from '
+                f'phi = {p:g} rad, dphi = {v:g} rad/s; run with guard=True')
         return IntegratorError(
-            f'the unguarded {self.method.name} step diverged beyond float64 from '
-            f'phi = {p:g} rad, dphi = {v:g} rad/s; run with guard=True')
+            f'the {self.method.name} step and its fallback diverged beyond float64 from '
+            f'phi = {p:g} rad, dphi = {v:g} rad/s')
 
     def last_resort(self, p: float, v: float, h: float,
                     ain: float) -> tuple[float, float, float]:
         """Replace a step that overflowed or came out non-finite by the fallback's."""
         try:
             return self.implicit(p, v, h, ain)
+        except IntegratorError:  # refused by the fallback's work bound
+            raise
         except (OverflowError, ValueError):
             # Reachable only once the state itself has blown up.
             raise self._diverged(p, v) from None

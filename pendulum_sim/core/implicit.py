@@ -9,12 +9,19 @@ from __future__ import annotations
 import math
 
 from .dirk import dirk_step
+from .errors import IntegratorError
 from .guard import MAX_ANGLE
 from .problem import Problem
 from .tableaus import BACKWARD_EULER, SDIRK3, Tableau
 
 FALLBACK_TABLEAU = SDIRK3
 """The fallback's method: the L-stable SDIRK of order 3."""
+
+MAX_FALLBACK_SUBSTEPS = 100_000
+"""The most substeps the fallback (:func:`fallback`) may take to cover one step: beyond it the
+step is refused (an IntegratorError naming h) instead of taken in unbounded time. Each substep
+sweeps at most MAX_ANGLE, so the bound is h (|φ'| + h (|τ/I| + ω0²) + ω0) <=
+MAX_ANGLE · MAX_FALLBACK_SUBSTEPS."""
 
 
 def dirk_safe(prob: Problem, tab: Tableau, p: float, v: float, h: float,
@@ -38,8 +45,15 @@ def fallback(prob: Problem, p: float, v: float, h: float,
     """Take the step with the L-stable fallback, in substeps that obey the angle limit.
 
     A substep sweeps at most MAX_ANGLE (damping only slows, so |φ'| + h (|a_in| + ω0²)
-    bounds the speed) and resolves ω0, re-judged after each one.
+    bounds the speed) and resolves ω0, re-judged after each one. A step that would need more
+    than MAX_FALLBACK_SUBSTEPS substeps is refused (IntegratorError).
     """
+    if not h * (abs(v) + prob.speed_gain(h, ain) + prob.omega0) <= (
+            MAX_ANGLE * MAX_FALLBACK_SUBSTEPS):  # also inf and NaN
+        raise IntegratorError(
+            f'a step of {h:g} s from phi = {p:g} rad, dphi = {v:g} rad/s needs more than '
+            f'MAX_FALLBACK_SUBSTEPS = {MAX_FALLBACK_SUBSTEPS} substeps of the fallback '
+            f'(each sweeps at most {MAX_ANGLE:g} rad); use a smaller h')
     left, w = h, 0.0
     while left > 0.0:
         reach = left * (abs(v) + prob.speed_gain(left, ain) + prob.omega0)
@@ -50,4 +64,4 @@ def fallback(prob: Problem, p: float, v: float, h: float,
     return p, v, w
 
 
-__all__ = ['FALLBACK_TABLEAU', 'dirk_safe', 'fallback']
+__all__ = ['FALLBACK_TABLEAU', 'MAX_FALLBACK_SUBSTEPS', 'dirk_safe', 'fallback']

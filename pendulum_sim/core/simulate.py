@@ -15,8 +15,10 @@ from .model import (
     PendulumParams,
     check_count,
     check_run_length,
+    check_speed,
     check_torque,
     energy,
+    run_speed_limit,
 )
 from .stepper import Stepper
 
@@ -185,6 +187,11 @@ def _dense(stepper: Stepper, t_end: float, k_full: int, last: float, record_ever
     p0, v0 = stepper.phi, stepper.dphi
     phi, dphi, w = stepper.engine.dense(p0, v0, t, tau / params.inertia, stepper.stats)
     phi[0], dphi[0], w[0] = p0, v0, 0.0
+    lim = run_speed_limit(params.gamma, params.n, params.omega0_sq)
+    fast = np.flatnonzero(~(np.abs(dphi) <= lim))
+    if fast.size:
+        check_speed(float(dphi[fast[0]]), params.gamma, params.n, params.omega0_sq,
+                    float(t[fast[0]]))
     stepper.stats.steps = k_full + (1 if last > 0.0 else 0)
     return Trajectory(
         t=t, phi=phi, dphi=dphi, energy=np.asarray(energy(params, phi, dphi)),

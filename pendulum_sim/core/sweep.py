@@ -50,9 +50,13 @@ from .model import (
     MAX_STEPS,
     PendulumParams,
     check_count,
+    check_finite,
+    check_flag,
     check_run_length,
+    check_speed,
     check_step,
     check_torque,
+    run_speed_limit,
     smooth_law,
     speed_limit,
     validate_state,
@@ -128,6 +132,8 @@ class SweepResult:
 
 
 def _as_vector(name: str, value: Any) -> FloatArray:
+    if np.ndim(value) == 0:  # one number: the core's scalar validation and its message
+        return np.asarray(check_finite(name, value))
     try:
         arr = np.asarray(value)
     except Exception:
@@ -426,6 +432,8 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         Scalars broadcast to the common length N.
     """
     om2, gam, nn, p0, v0, tau = _validate(omega0_sq, gamma, n, phi0, dphi0, torque)
+    guard = check_flag('guard', guard)
+    energy_check = check_flag('energy_check', energy_check)
     if method not in SWEEP_METHODS:
         raise IntegratorError(f'sweep supports the explicit methods '
                               f'{", ".join(SWEEP_METHODS)}, got {method!r}')
@@ -442,6 +450,8 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     om2, gam, nn, tau = om2[order], gam[order], nn[order], tau[order]
     phi, v = p0[order].copy(), v0[order].copy()
     energy = specific_energy(v, np.sin(0.5 * phi), om2)
+    # The state bound, held along the run where the guard is on (as in the Stepper).
+    vmax = _each(run_speed_limit, gam, nn, om2) if guard else np.full(size, np.inf)
     stats: dict[int, GuardStats] = {}
     engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
     meth = METHODS[method]
@@ -468,6 +478,15 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
             for _ in range(count):
                 for grp in groups:
                     _advance(grp, hh, engines, stats, meth, guard, energy_check)
+                    fast = np.flatnonzero(~(np.abs(grp.v) <= vmax[grp.sl]))
+                    if fast.size:
+                        j = grp.sl.start + int(fast[0])
+                        try:
+                            check_speed(float(grp.v[fast[0]]), float(gam[j]), float(nn[j]),
+                                        float(om2[j]),
+                                        t_end if done + 1 == total else (done + 1) * h)
+                        except IntegratorError as exc:
+                            raise IntegratorError(f'{exc} (index {int(order[j])})') from None
                 done += 1
                 if record_every is not None and (done % record_every == 0 or done == total):
                     record(t_end if done == total else done * h)
