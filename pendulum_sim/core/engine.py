@@ -95,6 +95,7 @@ class Engine:
         self.plain = SplitSteps(prob, self.plain_tableau, self.last_resort)
         self.micro = self.plain.micro
         self.guard = guard_for(tab) if guard and fast else None
+        self.unguarded = fast and not guard  # plain explicit steps, as asked
         self.energy_check = energy_check and gamma > 0.0 and fast
         self.damping: DampingFn = prob.damping
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
@@ -236,11 +237,6 @@ class Engine:
             return self.guarded(p, v, h, ain, stats)
         return p1, v1, w
 
-    @property
-    def unguarded(self) -> bool:
-        """Return True for an explicit method run without the guard (plain steps)."""
-        return self.fast and self.guard is None
-
     def _diverged(self, p: float, v: float) -> IntegratorError:
         if self.unguarded:
             return IntegratorError(
@@ -254,7 +250,7 @@ class Engine:
                     ain: float) -> tuple[float, float, float]:
         """Replace a step that overflowed or came out non-finite by the fallback's."""
         try:
-            return self.implicit(p, v, h, ain)
+            return fallback(self.problem, p, v, h, ain)
         except IntegratorError:  # refused by the fallback's work bound
             raise
         except (OverflowError, ValueError):
@@ -277,7 +273,7 @@ class Engine:
                                     abs(ain - w2 * math.sin(p)))
             if m == FALLBACK:
                 stats.fallbacks += 1
-                p, v, wi = self.implicit(p, v, left, ain)
+                p, v, wi = fallback(self.problem, p, v, left, ain)
                 stats.substeps += max(taken - 1, 0)
                 return p, v, w + wi
             hh = left / m
@@ -298,7 +294,7 @@ class Engine:
         """
         w2 = self.w2
         stats.energy_rejections += 1
-        p1, v1, w = self.implicit(p, v, h, 0.0)
+        p1, v1, w = fallback(self.problem, p, v, h, 0.0)
         e1 = specific_energy(v1, math.sin(0.5 * p1), w2)
         if not energy_rose(e0, e1, w2):
             return p1, v1, w
@@ -311,9 +307,6 @@ class Engine:
             v1 = 0.0
         return p1, v1, e0 - specific_energy(v1, math.sin(0.5 * p1), w2)
 
-    def implicit(self, p: float, v: float, h: float, ain: float) -> tuple[float, float, float]:
-        """Take the step with the L-stable fallback (``implicit.fallback``)."""
-        return fallback(self.problem, p, v, h, ain)
 
 
 __all__ = [
