@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from .explicit import compile_damping
+
 GRADE_WINDOW = 1.0
 """Laws graded at reversals: the window, in units of 1/ω0 (1 s without gravity), on either
 side of a reversal inside which steps are graded (:func:`graded_mesh`)."""
@@ -58,8 +60,11 @@ def hermite_root(v0: float, v1: float, dv0: float, dv1: float) -> float:
 
 def branch_accel(p: float, v: float, ain: float, sign: float, gamma: float, n: float,
                  w2: float) -> float:
-    """Return φ'' on the damping branch ``sign``: a_in − s γ |φ'|^n − ω0² sin φ (eq 16)."""
-    return float(ain - sign * gamma * abs(v) ** n - w2 * math.sin(p))
+    """Return φ'' on the damping branch ``sign``: a_in − s γ |φ'|^n − ω0² sin φ (eq 16).
+
+    The branch law is the generated one (``explicit.damping_expression``), as in the steps.
+    """
+    return float(ain - compile_damping(n, True)(v, gamma, sign) - w2 * math.sin(p))
 
 
 def locate_reversal(at: Callable[[float], tuple[float, float, float]],
