@@ -86,7 +86,8 @@ class Engine:
         fast = self.fast = method.family.fast_path  # plain explicit steps, guarded
         tab = method.tableau
         self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
-        self.near_coulomb = 0.0 < n < 1.0 and gamma > 0.0  # may creep (``coulomb.py``)
+        # May creep (``coulomb.py``); plain unguarded steps are taken as asked.
+        self.near_coulomb = 0.0 < n < 1.0 and gamma > 0.0 and not (fast and not guard)
         self.v_acc = accuracy_speed(gamma, n, self.omega0) if guard and fast else math.inf
         self.w_ref = max(self.omega0, 1.0)
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
