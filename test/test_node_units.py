@@ -18,7 +18,7 @@ from pendulum_sim.node.errors import SceneError
 from pendulum_sim.node.parameters import SPEC_BY_NAME, SPECS, check
 from pendulum_sim.node.realtime import RateMeter, Schedule, WakeStats
 from pendulum_sim.node.scenes import available_scenes, find_scene
-from pendulum_sim.node.sensors import DelayLine, SensorModel
+from pendulum_sim.node.sensors import SensorModel
 from pendulum_sim.node.serialized import ClockBytes, Float64Bytes, JointStateBytes
 from pendulum_sim.node.status import status_text
 from pendulum_sim.node.urdf import pendulum_urdf
@@ -105,18 +105,6 @@ def test_sensor_noise_is_seeded_and_quantised() -> None:
     assert abs(np.mean(dphi) + 1.0) < 4 * 0.1 / math.sqrt(1000)
     assert SensorModel(7).ideal and SensorModel(7).measure(0.3, -1.0) == (0.3, -1.0)
     assert SensorModel(8, 0.01).measure(0.3, 0.0) != SensorModel(7, 0.01).measure(0.3, 0.0)
-
-
-def test_delay_line_releases_in_order_when_due() -> None:
-    """Items come out at their release time, oldest first."""
-    line: DelayLine[str] = DelayLine()
-    for t, item in ((10, 'a'), (20, 'b'), (30, 'c')):
-        line.push(t, item)
-    assert line.pop_due(5) == []
-    assert line.pop_due(20) == ['a', 'b']
-    assert len(line) == 1
-    line.clear()
-    assert line.pop_due(100) == []
 
 
 # ---------------------------------------------------------------------- messages as bytes

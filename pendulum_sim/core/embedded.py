@@ -15,8 +15,7 @@ free across many output times and interpolates them (dense output, order ≤ 4 m
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -26,15 +25,19 @@ from .explicit import ErrStepFn, compile_damping, compile_step
 from .extrapolation import compile_extrapolation
 from .guard import GuardStats
 from .jit import compile_step as jit_step
-from .model import FloatArray, damping_derivative
-from .reversal import hermite_root
+from .model import FloatArray, damping_derivative, run_speed_limit
+from .problem import Problem
+from .reversal import branch_accel, locate_reversal
 from .rosenbrock import compile_rosenbrock
 from .tableaus import Extrapolation, Tableau
 
 IntArray = npt.NDArray[np.intp]
 
-if TYPE_CHECKING:  # the engine builds on this module; its type only is needed here
-    from .engine import Engine
+StepResult = tuple[float, float, float]
+FromRest = Callable[[float, float, float], StepResult]
+"""Coulomb friction at rest: ``(φ, h, a_in) → (φ₁, φ'₁, w)`` (``coulomb.from_rest``)."""
+Fallback = Callable[[float, float, float, float], StepResult]
+"""The step a cover could not take: ``(φ, φ', h, a_in) → (φ₁, φ'₁, w)`` (the implicit one)."""
 
 
 def pair_steps(tab: Tableau | Extrapolation, n: float,
@@ -71,17 +74,20 @@ def min_step(h: float) -> float:
     return 1e-14 * max(1.0, h)
 
 
-def initial_step(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float,
+def initial_step(prob: Problem, p: float, v: float, h: float, ain: float, rtol: float,
                  atol: float, order: int) -> float:
     """Return a first trial substep from the scale of y and its first two derivatives.
 
     The starting-step rule of Hairer, Nørsett and Wanner (*Solving ODEs I*, II.4): h₀ =
-    0.01 ‖y‖/‖f‖, then h₁ = (0.01 / max(‖f‖, ‖f'‖ h₀-estimate))^(1/(p+1)), the smaller of 100 h₀
-    and h₁, at most h, and at most 1/ρ with ρ = d + ω0 √|cos φ| a bound on the Jacobian's
-    spectral radius (d the damping slope, eq 18-19): the first step resolves the fastest rate
+    0.01 ‖y‖/‖f‖, then h₁ = (0.01 / max(‖f‖, ‖f'‖ h₀-estimate))^(1/(p+1)), p the ``order`` of
+    the error estimate (the embedded solution's: 4 for dopri5, as in scipy's RK45; the
+    propagated order 5 makes the first step of a fast transient too long for its estimate to
+    see its error), the smaller of 100 h₀ and h₁, at most h, and at most 1/ρ with
+    ρ = d + ω0 √|cos φ| a bound on the Jacobian's spectral radius (d the damping slope,
+    eq 18-19): the first step resolves the fastest rate
     at the start (a stiff transient from rest) instead of stepping over it.
     """
-    w2, damp = eng.w2, eng.damping
+    w2, damp = prob.w2, prob.damping
 
     def rms(x: float, y: float, sp: float, sv: float) -> float:
         return math.sqrt(0.5 * ((x / sp) ** 2 + (y / sv) ** 2))
@@ -97,7 +103,7 @@ def initial_step(eng: Engine, p: float, v: float, h: float, ain: float, rtol: fl
         d2 = rms(v1 - v, a1 - a0, sp, sv) / h0
         big = max(d1, d2)
         h1 = max(1e-6, h0 * 1e-3) if big <= 1e-15 else (0.01 / big) ** (1.0 / (order + 1))
-        rho = damping_derivative(eng.gamma, eng.n, v) + math.sqrt(w2 * abs(math.cos(p)))
+        rho = damping_derivative(prob.gamma, prob.n, v) + math.sqrt(w2 * abs(math.cos(p)))
     except (OverflowError, ValueError, ZeroDivisionError):
         return h * 1e-3
     first = min(100.0 * h0, h1, h)
@@ -127,40 +133,41 @@ class StepTooSmall(CoverFailed):
     """Raised by :func:`cover` when the error control asks for a substep below ``min_step``."""
 
 
-def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
-          h_try: float, stats: GuardStats, tableau: Tableau | Extrapolation | None = None,
-          max_trials: int = 0,
-          steps: tuple[ErrStepFn, ErrStepFn] | None = None,
+def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, ErrStepFn],
+          rest: FromRest, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
+          h_try: float, stats: GuardStats, max_trials: int = 0,
           trace: list[float] | None = None,
           stops: Sequence[float] = (), per: float = 0.0) -> tuple[float, float, float, float]:
     """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial).
 
-    ``tableau`` is the embedded pair (default: the engine's method); every trial after the
-    first counts as a substep in ``stats``; with ``max_trials`` > 0, :class:`TooManySubsteps`
+    ``tab`` is the embedded pair and ``steps`` its compiled steps (:func:`pair_steps`),
+    ``rest`` the Coulomb step from rest; every trial after the first counts as a substep in
+    ``stats``; with ``max_trials`` > 0, :class:`TooManySubsteps`
     is raised once that many trials did not cover h (with ``per`` > 0: once they exceed
     ``max_trials`` for every ``per`` of time covered, and one more); :class:`StepTooSmall` where
-    the error control asks for less than :func:`min_step`. ``steps`` are the pair's compiled steps
-    (:func:`pair_steps`) where the caller keeps them. ``trace``, if given, receives
+    the error control asks for less than :func:`min_step`. ``trace``, if given, receives
     ``t, φ, φ', w`` after every accepted substep (t from the start of h): the mesh of
     :func:`dense_run`. ``stops`` (increasing, inside (0, h)) are times a substep must land on,
     as if h were covered by one call per stretch between them, the trial-step memory carried.
     """
-    tab = eng.method.tableau if tableau is None else tableau
     trials = 0
-    plain, branch = pair_steps(tab, eng.n, eng.jit) if steps is None else steps
-    w2, g, n = eng.w2, eng.gamma, eng.n
-    coulomb, nonsmooth = eng.coulomb, eng.nonsmooth
+    plain, branch = steps
+    w2, g, n = prob.w2, prob.gamma, prob.n
+    coulomb, nonsmooth = prob.coulomb, prob.nonsmooth
     sqrt = math.sqrt
     q = 1.0 / (tab.error_order + 1)
+    # Beyond the speed a run may reach (``model.run_speed_limit``) a trial is rejected like one
+    # that overflows: a loose tolerance scales its error by that speed and would accept it.
+    vmax = run_speed_limit(g, n, w2)
     done, w_total = 0.0, 0.0
-    hh = h_try if h_try > 0.0 else initial_step(eng, p, v, h, ain, rtol, atol, tab.order)
+    hh = h_try if h_try > 0.0 else initial_step(prob, p, v, h, ain, rtol, atol, tab.error_order)
     ahead = iter(stops)
     target = next(ahead, h)
     while done < h:
         while done >= target:
             target = next(ahead, h)
         if coulomb and v == 0.0:
-            p, v, w = eng.from_rest(p, h - done, ain)
+            p, v, w = rest(p, h - done, ain)
             w_total += w
             break
         trials += 1
@@ -178,25 +185,22 @@ def cover(eng: Engine, p: float, v: float, h: float, ain: float, rtol: float, at
             ap, ap1, av, av1 = abs(p), abs(p1), abs(v), abs(v1)
             ep /= atol + rtol * (ap if ap > ap1 else ap1)
             ev /= atol + rtol * (av if av > av1 else av1)
-            err = sqrt(0.5 * (ep * ep + ev * ev))
+            err = sqrt(0.5 * (ep * ep + ev * ev)) if av1 <= vmax else math.inf
         except (OverflowError, ValueError):
             err = math.inf  # a trial step that overflows is rejected like any other
         if err <= 1.0:  # (False for inf and NaN)
             if nonsmooth and v1 * v < 0.0:
                 # Cut at the reversal: the branch continuation's φ'(θ step_h) = 0.
                 def accel(pp: float, vv: float, sg: float = sign) -> float:
-                    return float(ain - sg * g * abs(vv) ** n - w2 * math.sin(pp))
+                    return branch_accel(pp, vv, ain, sg, g, n, w2)
 
-                th = hermite_root(v, v1, step_h * a0, step_h * accel(p1, v1))
-                for _ in range(8):
-                    pm, vm, wm, _, _, _ = fn(p, v, th * step_h, ain, w2, g, sign)
-                    acc = accel(pm, vm)
-                    if abs(vm) <= 1e-15 * abs(v) or acc == 0.0:
-                        break
-                    nth = th - vm / (acc * step_h)
-                    if not 0.0 < nth <= 1.0:
-                        break
-                    th = nth
+                def at(hh: float, p0: float = p, v0: float = v, sg: float = sign,
+                       fn: ErrStepFn = fn) -> tuple[float, float, float]:
+                    pa, va, wa, _, _, _ = fn(p0, v0, hh, ain, w2, g, sg)
+                    return pa, va, wa
+
+                th, pm, _, wm = locate_reversal(at, accel, v, v1, a0, accel(p1, v1), step_h,
+                                                1e-15, 8)
                 stats.reversals += 1
                 p, v = pm, 0.0
                 w_total += wm
@@ -231,33 +235,40 @@ class Cover:
 
     Parameters
     ----------
-    eng : Engine
-        The pendulum and method (an embedded pair, e.g. ``dopri5``).
+    prob : Problem
+        The pendulum.
+    tab, steps :
+        The embedded pair (e.g. ``dopri5``) and its compiled steps (:func:`pair_steps`).
     rtol, atol : float
         Tolerances of the error control.
+    rest, fallback : callable
+        The Coulomb step from rest, and the step that takes what the cover could not.
     """
 
-    def __init__(self, eng: Engine, rtol: float, atol: float) -> None:
-        self.eng, self.rtol, self.atol = eng, rtol, atol
+    def __init__(self, prob: Problem, tab: Tableau | Extrapolation,
+                 steps: tuple[ErrStepFn, ErrStepFn], rtol: float, atol: float, rest: FromRest,
+                 fallback: Fallback) -> None:
+        self.prob, self.tab, self.steps = prob, tab, steps
+        self.rtol, self.atol = rtol, atol
+        self.rest, self.fallback = rest, fallback
         self.h_try = 0.0  # the next trial substep, carried from step to step
-        self.steps = pair_steps(eng.method.tableau, eng.n, eng.jit)
 
     def __call__(self, p: float, v: float, h: float, ain: float,
                  stats: GuardStats) -> tuple[float, float, float]:
         """Cover one step of h; the fallback takes what the cover could not (or not finitely)."""
         try:
-            p1, v1, w, self.h_try = cover(self.eng, p, v, h, ain, self.rtol, self.atol,
-                                          self.h_try, stats, max_trials=MAX_TRIALS,
-                                          steps=self.steps)
+            p1, v1, w, self.h_try = cover(self.prob, self.tab, self.steps, self.rest, p, v, h,
+                                          ain, self.rtol, self.atol, self.h_try, stats,
+                                          max_trials=MAX_TRIALS)
         except CoverFailed as failed:
             done, p1, v1, w = failed.reached
             self.h_try = 0.0  # the next step starts afresh
             stats.fallbacks += 1
-            p2, v2, w2 = self.eng.last_resort(p1, v1, h - done, ain)
+            p2, v2, w2 = self.fallback(p1, v1, h - done, ain)
             return p2, v2, w + w2
         if not (math.isfinite(p1) and math.isfinite(v1)):
             stats.fallbacks += 1
-            return self.eng.last_resort(p, v, h, ain)
+            return self.fallback(p, v, h, ain)
         return p1, v1, w
 
 
@@ -277,16 +288,17 @@ def dense_nodes(order: int) -> int:
     return min((m for o, m in DENSE_NODES.items() if order <= o), default=0)
 
 
-def dense_capable(eng: Engine) -> bool:
-    """Return True where :func:`dense_run` may serve the engine's adaptive method.
+def dense_capable(error_controlled: bool, coulomb: bool) -> bool:
+    """Return True where :func:`dense_run` may serve a method (of an error-controlled family).
 
     Every adaptive method but under Coulomb friction (n = 0: sticking at rest is decided per
     output interval by the cover, and the interval's end matters).
     """
-    return eng.kind == 'adaptive' and not eng.coulomb
+    return error_controlled and not coulomb
 
 
-def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rtol: float,
+def dense_run(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, ErrStepFn],
+              rest: FromRest, p: float, v: float, t_out: FloatArray, ain: float, rtol: float,
               atol: float, stats: GuardStats) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Integrate over [0, t_out[-1]] in one cover; return φ, φ', w at ``t_out``.
 
@@ -307,14 +319,12 @@ def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rt
     the run. Raises :class:`CoverFailed` where the substeps cannot cover the run (more than
     :data:`MAX_TRIALS` trials per output interval, or a substep below :func:`min_step`).
     """
-    if not dense_capable(eng):
-        raise IntegratorError(f'{eng.method.name} has no dense output here')
-    m = dense_nodes(eng.method.tableau.order)
+    m = dense_nodes(tab.order)
     trace: list[float] = [0.0, p, v, 0.0]
     stops = () if m else t_out[1:-1].tolist()
     span = float(t_out[-1])
-    cover(eng, p, v, span, ain, rtol, atol, 0.0, stats, max_trials=MAX_TRIALS, trace=trace,
-          stops=stops, per=span / (len(t_out) - 1))
+    cover(prob, tab, steps, rest, p, v, span, ain, rtol, atol, 0.0, stats,
+          max_trials=MAX_TRIALS, trace=trace, stops=stops, per=span / (len(t_out) - 1))
     # Counted as one cover per output interval would count them: the first trial of each
     # stretch after a landing is a step, not a substep.
     stats.substeps -= len(stops)
@@ -328,7 +338,7 @@ def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rt
     k = np.searchsorted(ts, t_out, side='right') - 1
     np.minimum(k, last - 1, out=k)  # t_out[-1] = ts[-1] belongs to the last step
     # m mesh points around the step, within the stretch between kinks that holds it.
-    kinks = np.flatnonzero(vs[1:-1] == 0.0) + 1 if eng.nonsmooth else ()
+    kinks = np.flatnonzero(vs[1:-1] == 0.0) + 1 if prob.nonsmooth else ()
     if len(kinks):
         ends = np.concatenate(([0], kinks, [last]))
         seg = np.searchsorted(ends, k, side='right') - 1
@@ -351,7 +361,7 @@ def dense_run(eng: Engine, p: float, v: float, t_out: FloatArray, ain: float, rt
     if short:
         idx = np.minimum(idx, top)
     x = ts[idx] + extra if short else ts[idx]  # distinct placeholder abscissae: finite
-    rate = vs * compile_damping(eng.n, vector=True)(vs, eng.gamma, 1.0)  # dw/dt = φ' D(φ')
+    rate = vs * compile_damping(prob.n, vector=True)(vs, prob.gamma, 1.0)  # dw/dt = φ' D(φ')
     # (node, [φ, w, φ', dw/dt], output), contiguous per node
     data = np.ascontiguousarray(np.array((ps, ws, vs, rate)).T[idx].transpose(0, 2, 1))
     val, der = hermite_eval(x, data[:, :2], data[:, 2:], terms if short else None, t_out)

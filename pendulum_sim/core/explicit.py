@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from .codegen import define
 from .tableaus import Tableau
 
 StepFn = Callable[..., tuple[Any, Any, Any, Any]]
@@ -88,8 +89,7 @@ def compile_damping(n: float, branch: bool = False, vector: bool = False) -> Any
     """Return the damping law ``D(v, gamma, s)`` for exponent ``n`` (numpy with ``vector``)."""
     src = f'def damping(v, gamma, s):\n    return {damping_expression(n, branch)}\n'
     env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV, n=n)
-    exec(compile(src, f'<damping n={n}>', 'exec'), env)
-    return env['damping']
+    return define(src, 'damping', env, '<damping>')
 
 
 def _num(x: float) -> str:
@@ -109,6 +109,7 @@ def _weighted(terms: list[tuple[float, str]], hs: dict[float, str]) -> str:
     return ' + '.join(parts) or '0.0'
 
 
+@functools.lru_cache(maxsize=256)
 def step_source(tableau: Tableau, damping: str, with_error: bool = False) -> str:
     """Return the unrolled source of one explicit step of ``tableau`` with the law ``damping``.
 
@@ -180,5 +181,4 @@ def compile_step(tableau: Tableau, n: float, branch: bool = False, vector: bool 
         raise ValueError(f'{tableau.name} has no embedded error estimate')
     src = step_source(tableau, damping_expression(n, branch, scalar=not vector), with_error)
     env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV, n=n)
-    exec(compile(src, f'<{tableau.name} step n={n}>', 'exec'), env)
-    return env['step']
+    return define(src, 'step', env, f'<{tableau.name} step>')

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from .codegen import define
 from .explicit import SCALAR_ENV, damping_expression
 from .model import damping_derivative
 from .tableaus import Extrapolation, FloatArray
@@ -132,5 +133,4 @@ def compile_extrapolation(ext: Extrapolation, n: float, branch: bool = False) ->
     src = step_source(ext, damping_expression(n, branch, scalar=True))
     env: dict[str, object] = dict(SCALAR_ENV, n=n, cos=math.cos, slope=damping_derivative,
                                   INF=math.inf)
-    exec(compile(src, f'<{ext.name} step n={n}>', 'exec'), env)
-    return env['step']
+    return define(src, 'step', env, f'<{ext.name} step>')

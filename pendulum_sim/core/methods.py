@@ -38,19 +38,44 @@ class Advance(Protocol):
 
 
 @dataclass(frozen=True)
-class Method:
-    """An integration method of the core.
+class Family:
+    """A family of methods: how its steps are taken, read by the drivers instead of its name.
 
-    ``kind`` is ``'explicit'`` (fixed step, guarded), ``'adaptive'`` (embedded pair with error
-    control: explicit ``dopri5`` for offline accuracy, ``dop853`` for tight tolerances,
+    ``fast_path``: plain explicit steps of h, guarded, with the fast path and the careful path
+    (``engine.py``); ``error_controlled``: embedded pairs that choose their own substeps within
+    each step of h (``embedded.py``), h being the output spacing; neither: the implicit DIRK
+    family (``implicit.py``), one step of h each.
+    """
+
+    name: str
+    fast_path: bool
+    error_controlled: bool
+
+
+EXPLICIT = Family('explicit', fast_path=True, error_controlled=False)
+IMPLICIT = Family('implicit', fast_path=False, error_controlled=False)
+ADAPTIVE = Family('adaptive', fast_path=False, error_controlled=True)
+
+
+@dataclass(frozen=True)
+class Method:
+    """An integration method of the core: a name, its family and its data.
+
+    ``family`` is :data:`EXPLICIT` (fixed step, guarded), :data:`ADAPTIVE` (embedded pair with
+    error control: explicit ``dopri5`` for offline accuracy, ``dop853`` for tight tolerances,
     linearly implicit ``rodas4`` for long stiff runs and ``extrap6``/``extrap8`` for tight
-    tolerances on them) or ``'implicit'`` (L-stable DIRK, for stiff damping). ``tableau`` is
+    tolerances on them) or :data:`IMPLICIT` (L-stable DIRK, for stiff damping). ``tableau`` is
     the method's data: a Butcher tableau, or the step sequence of an extrapolation method.
     """
 
     name: str
-    kind: str
+    family: Family
     tableau: Tableau | Extrapolation
+
+    @property
+    def kind(self) -> str:
+        """Return the family's name: ``'explicit'``, ``'adaptive'`` or ``'implicit'``."""
+        return self.family.name
 
     @property
     def order(self) -> int:
@@ -60,7 +85,7 @@ class Method:
     @property
     def fixed_step(self) -> bool:
         """Return True unless the method chooses its own substeps (h is then output spacing)."""
-        return self.kind != 'adaptive'
+        return not self.family.error_controlled
 
     @property
     def description(self) -> str:
@@ -69,20 +94,17 @@ class Method:
 
 
 METHODS: dict[str, Method] = {
-    'euler': Method('euler', 'explicit', EULER),
-    'midpoint': Method('midpoint', 'explicit', MIDPOINT),
-    'rk4': Method('rk4', 'explicit', RK4),
-    'dopri5': Method('dopri5', 'adaptive', DOPRI5),
-    'dop853': Method('dop853', 'adaptive', DOP853),
-    'sdirk2': Method('sdirk2', 'implicit', SDIRK2),
-    'sdirk3': Method('sdirk3', 'implicit', SDIRK3),
-    'rodas4': Method('rodas4', 'adaptive', RODAS4),
-    'extrap6': Method('extrap6', 'adaptive', EXTRAP6),
-    'extrap8': Method('extrap8', 'adaptive', EXTRAP8),
+    'euler': Method('euler', EXPLICIT, EULER),
+    'midpoint': Method('midpoint', EXPLICIT, MIDPOINT),
+    'rk4': Method('rk4', EXPLICIT, RK4),
+    'dopri5': Method('dopri5', ADAPTIVE, DOPRI5),
+    'dop853': Method('dop853', ADAPTIVE, DOP853),
+    'sdirk2': Method('sdirk2', IMPLICIT, SDIRK2),
+    'sdirk3': Method('sdirk3', IMPLICIT, SDIRK3),
+    'rodas4': Method('rodas4', ADAPTIVE, RODAS4),
+    'extrap6': Method('extrap6', ADAPTIVE, EXTRAP6),
+    'extrap8': Method('extrap8', ADAPTIVE, EXTRAP8),
 }
-
-FALLBACK_METHOD = METHODS['sdirk3']
-
 
 def get_method(name: str) -> Method:
     """Return the method called ``name`` or raise IntegratorError listing the known ones."""

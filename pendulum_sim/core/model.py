@@ -45,17 +45,34 @@ INERTIA_RTOL = 1e-12
 """Round-off allowed in the parallel-axis test I >= m l²."""
 
 
+NOT_REAL = (bool, np.bool_, str, bytes, complex, np.complexfloating)
+"""Types refused as a real number although ``float()`` may take them: ``True`` is not a number
+of anything and a complex value would make the state complex (arrays of one or more entries
+are refused as well: an array is not one number)."""
+
+
+def shown(value: object) -> str:
+    """Return ``repr(value)`` for a message, at most 60 characters (a long array or integer)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2 ** 1024:
+        return f'an integer of {value.bit_length()} bits'  # repr may refuse > 4300 digits
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + '...'
+
+
 def check_finite(name: str, value: float) -> float:
     """Return ``value`` as a float, or raise ModelError naming it if not a finite real.
 
-    Booleans and strings are refused (``True`` is not a number of anything).
+    Booleans, strings, complex numbers and arrays are refused (:data:`NOT_REAL`); an integer
+    beyond float64 is refused as not finite.
     """
-    if isinstance(value, (bool, str, bytes)):
-        raise ModelError(f'{name} must be a real number, got {value!r}')
+    if isinstance(value, NOT_REAL) or np.ndim(value) > 0:
+        raise ModelError(f'{name} must be a real number, got {shown(value)}')
     try:
         x = float(value)
+    except OverflowError:
+        raise ModelError(f'{name} must be finite, got {shown(value)} (beyond float64)') from None
     except (TypeError, ValueError):
-        raise ModelError(f'{name} must be a real number, got {value!r}') from None
+        raise ModelError(f'{name} must be a real number, got {shown(value)}') from None
     if not math.isfinite(x):
         raise ModelError(f'{name} must be finite, got {x}')
     return x
@@ -154,7 +171,7 @@ class PendulumParams:
     @property
     def smooth_damping(self) -> bool:
         """Return True where φ'|φ'|^(n−1) is infinitely differentiable (n = 1, 3, 5, ...)."""
-        return self.n >= 1.0 and self.n == int(self.n) and int(self.n) % 2 == 1
+        return smooth_law(self.n)
 
     def jacobian_eigenvalues(self, phi: float, dphi: float) -> tuple[complex, complex]:
         """Return the eigenvalues of the Jacobian [[0, 1], [−ω0² cos φ, −d]] (eq 18-19).
@@ -164,6 +181,14 @@ class PendulumParams:
         d = damping_derivative(self.gamma, self.n, dphi)
         c = self.omega0_sq * math.cos(phi)
         return _eigs(d, c)
+
+
+def smooth_law(n: float) -> bool:
+    """Return True where φ'|φ'|^(n−1) is infinitely differentiable: n = 1, 3, 5, ... (eq 15).
+
+    Every other law has a kink at φ' = 0 (n even, non-integer, or 0): the core's one test.
+    """
+    return n >= 1.0 and n == int(n) and int(n) % 2 == 1
 
 
 def damping_derivative(gamma: float, n: float, dphi: float) -> float:
@@ -284,14 +309,12 @@ def check_torque(torque: float, params: PendulumParams) -> float:
 
 def check_step(h: float, params: PendulumParams | None = None) -> float:
     """Return the step ``h`` as a float: finite, > 0 and, given ``params``, h ω0 <= 100."""
-    if isinstance(h, (bool, str, bytes)):
-        raise IntegratorError(f'h must be a finite step > 0 s, got {h!r}')
     try:
-        x = float(h)
-    except (TypeError, ValueError):
-        raise IntegratorError(f'h must be a finite step > 0 s, got {h!r}') from None
-    if not (math.isfinite(x) and x > 0.0):
-        raise IntegratorError(f'h must be a finite step > 0 s, got {h!r}')
+        x = check_finite('h', h)
+    except ModelError:
+        x = math.nan
+    if not x > 0.0:
+        raise IntegratorError(f'h must be a finite step > 0 s, got {shown(h)}')
     if params is not None and params.omega0_sq > 0.0:
         limit = MAX_PHASE_PER_STEP / math.sqrt(params.omega0_sq)
         if x > limit:
@@ -300,15 +323,73 @@ def check_step(h: float, params: PendulumParams | None = None) -> float:
     return x
 
 
+MAX_TOLERANCE = {'rtol': 1e-3, 'atol': 1e-3}
+"""The loosest ``rtol`` and ``atol`` an adaptive method accepts.
+
+The error control rests on the pair's error estimate, which is asymptotic: it bounds the error
+only while the error is small. At rtol or atol around 1 and above it no longer does (``dopri5``
+at rtol = 10 ran to an infinite energy, at γ = 1e4 with rtol = atol = 1 to 1e138 J; ``rodas4``
+at rtol = atol = 1e-2 gained 3.6 % energy in 2 s without damping), so such tolerances are
+refused rather than answered with garbage. At 1e-3 the unforced energy rises by at most 7e-4
+of its start over 10 s for every adaptive method (``test_core_hardening.py``)."""
+
+
 def check_tolerance(name: str, value: float) -> float:
-    """Return a tolerance as a float: finite and > 0 (IntegratorError otherwise)."""
+    """Return a tolerance as a float: finite, > 0, <= :data:`MAX_TOLERANCE` (IntegratorError)."""
     try:
         x = check_finite(name, value)
     except ModelError:
         x = math.nan
     if not x > 0.0:
-        raise IntegratorError(f'{name} must be a finite tolerance > 0, got {value!r}')
+        raise IntegratorError(f'{name} must be a finite tolerance > 0, got {shown(value)}')
+    limit = MAX_TOLERANCE[name]
+    if x > limit:
+        raise IntegratorError(f'{name} must be <= {limit:g} (the error control cannot honour a '
+                              f'looser tolerance), got {x:g}')
     return x
+
+
+def check_flag(name: str, value: object) -> bool:
+    """Return a switch (``guard``, ``energy_check``) as a bool: True or False only."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise IntegratorError(f'{name} must be True or False, got {shown(value)}')
+    return bool(value)
+
+
+RUN_SPEED_SLACK = 1e-6
+"""Relative slack of :func:`run_speed_limit` for the integrators' own energy error (``dopri5``
+at rtol 1e-8 carried a state at the bound 1.3e-8 of it past the exact limit within 3 ms)."""
+
+
+def run_speed_limit(gamma: float, n: float, omega0_sq: float) -> float:
+    """Return the largest |φ'| (rad/s) a run may reach: the state bound raised by gravity.
+
+    ``sqrt(L² + 4 ω0²)`` with L = :func:`speed_limit`: the most a state within the state bound
+    reaches without input, since gravity can turn at most 2 ω0² of E/I into ½ φ'² (eq 23),
+    times 1 + :data:`RUN_SPEED_SLACK`. Only an input torque drives a run beyond it.
+    """
+    lim = speed_limit(gamma, n)
+    return math.sqrt(lim * lim + 4.0 * omega0_sq) * (1.0 + RUN_SPEED_SLACK)
+
+
+def check_speed(dphi: float, gamma: float, n: float, omega0_sq: float,
+                t: float | None = None) -> None:
+    """Refuse to go on from a state faster than :func:`run_speed_limit`.
+
+    Called after every step along a guarded run (``Stepper``, ``simulate``, ``sweep``; the
+    adaptive substeps reject a trial beyond the limit instead): an input torque that drives
+    |φ'| beyond it ends the run there with an IntegratorError (at time ``t`` where known), so
+    that no step starts far outside the state bound of :func:`validate_state` (the work of a
+    step grows with the speed it starts at).
+    """
+    lim = run_speed_limit(gamma, n, omega0_sq)
+    if not abs(dphi) <= lim:
+        at = '' if t is None else f' at t = {t:g} s'
+        raise IntegratorError(
+            f'dphi reached {dphi:.9g} rad/s{at}, beyond +-{lim:.9g} rad/s (the state bound '
+            f'{speed_limit(gamma, n):.6g} rad/s raised by the most gravity adds, '
+            f'sqrt(bound**2 + 4*omega0**2)): the run stops there')
+
 
 
 def check_count(name: str, value: object, minimum: int = 1) -> int:

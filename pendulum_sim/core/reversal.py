@@ -7,6 +7,11 @@ the engine's careful path and by the embedded cover's reversal cut.
 """
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+
+from .explicit import compile_damping
+
 GRADE_WINDOW = 1.0
 """Laws graded at reversals: the window, in units of 1/ω0 (1 s without gravity), on either
 side of a reversal inside which steps are graded (:func:`graded_mesh`)."""
@@ -53,6 +58,43 @@ def hermite_root(v0: float, v1: float, dv0: float, dv1: float) -> float:
     return th
 
 
+def branch_accel(p: float, v: float, ain: float, sign: float, gamma: float, n: float,
+                 w2: float) -> float:
+    """Return φ'' on the damping branch ``sign``: a_in − s γ |φ'|^n − ω0² sin φ (eq 16).
+
+    The branch law is the generated one (``explicit.damping_expression``), as in the steps.
+    """
+    return float(ain - compile_damping(n, True)(v, gamma, sign) - w2 * math.sin(p))
+
+
+def locate_reversal(at: Callable[[float], tuple[float, float, float]],
+                    accel: Callable[[float, float], float], v: float, v1: float, a0: float,
+                    a1: float, h: float, tol: float,
+                    iterations: int) -> tuple[float, float, float, float]:
+    """Return (θ, φ, φ', w) where a step of h from φ' = ``v`` to ``v1`` reverses, θ in (0, 1).
+
+    The first guess is the root of the cubic Hermite interpolant of φ' (:func:`hermite_root`,
+    end slopes h ``a0`` and h ``a1``, φ'' on the start's branch); Newton iterations on the
+    partial step's own φ'(θh) (``at(θh)`` returns its φ, φ', w; ``accel`` is the branch's φ'')
+    then put θ where the method itself says φ' = 0, until |φ'| <= ``tol`` |v| or for
+    ``iterations`` at most; a Newton step that leaves (0, 1) ends them.
+    """
+    th = hermite_root(v, v1, h * a0, h * a1)
+    pm, vm, wm = at(th * h)
+    for _ in range(iterations):
+        if abs(vm) <= tol * abs(v):
+            break
+        acc = accel(pm, vm)
+        if acc == 0.0:
+            break
+        nth = th - vm / (acc * h)
+        if not 0.0 < nth < 1.0:
+            break
+        th = nth
+        pm, vm, wm = at(th * h)
+    return th, pm, vm, wm
+
+
 def graded_mesh(x_a: float, x_b: float, h: float, n: float, window: float) -> list[float]:
     """Return substep lengths covering distances [x_a, x_b] (s) from a velocity reversal.
 
@@ -83,4 +125,5 @@ def graded_mesh(x_a: float, x_b: float, h: float, n: float, window: float) -> li
     return lens
 
 
-__all__ = ['GRADE_WINDOW', 'grade_window', 'graded_law', 'graded_mesh', 'hermite_root']
+__all__ = ['GRADE_WINDOW', 'branch_accel', 'grade_window', 'graded_law', 'graded_mesh',
+           'hermite_root', 'locate_reversal']

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .codegen import define
 from .explicit import SCALAR_ENV, damping_expression
 from .model import damping_derivative
 from .tableaus import Tableau
@@ -155,5 +156,4 @@ def compile_rosenbrock(tableau: Tableau, n: float, branch: bool = False) -> Any:
     src = step_source(tableau, damping_expression(n, branch, scalar=True))
     env: dict[str, object] = dict(SCALAR_ENV, n=n, cos=math.cos, slope=damping_derivative,
                                   INF=math.inf)
-    exec(compile(src, f'<{tableau.name} step n={n}>', 'exec'), env)
-    return env['step']
+    return define(src, 'step', env, f'<{tableau.name} step>')

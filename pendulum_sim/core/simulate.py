@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .embedded import CoverFailed, dense_capable, dense_run
+from .embedded import CoverFailed
 from .guard import GuardStats
 from .model import (
     MAX_STEPS,
@@ -15,8 +15,10 @@ from .model import (
     PendulumParams,
     check_count,
     check_run_length,
+    check_speed,
     check_torque,
     energy,
+    run_speed_limit,
 )
 from .stepper import Stepper
 
@@ -113,7 +115,7 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         tau_of: Callable[[float, float, float], float] = torque
     else:
         tau_const = 0.0 if torque is None else check_torque(torque, params)
-        if dense_capable(stepper.engine):
+        if stepper.engine.dense_capable:
             try:
                 return _dense(stepper, t_end, k_full, last, record_every, tau_const)
             except CoverFailed:
@@ -183,9 +185,13 @@ def _dense(stepper: Stepper, t_end: float, k_full: int, last: float, record_ever
     params = stepper.params
     t = output_times(t_end, stepper.h, k_full, last, record_every)
     p0, v0 = stepper.phi, stepper.dphi
-    phi, dphi, w = dense_run(stepper.engine, p0, v0, t, tau / params.inertia,
-                             stepper.engine.rtol, stepper.engine.atol, stepper.stats)
+    phi, dphi, w = stepper.engine.dense(p0, v0, t, tau / params.inertia, stepper.stats)
     phi[0], dphi[0], w[0] = p0, v0, 0.0
+    lim = run_speed_limit(params.gamma, params.n, params.omega0_sq)
+    fast = np.flatnonzero(~(np.abs(dphi) <= lim))
+    if fast.size:
+        check_speed(float(dphi[fast[0]]), params.gamma, params.n, params.omega0_sq,
+                    float(t[fast[0]]))
     stepper.stats.steps = k_full + (1 if last > 0.0 else 0)
     return Trajectory(
         t=t, phi=phi, dphi=dphi, energy=np.asarray(energy(params, phi, dphi)),

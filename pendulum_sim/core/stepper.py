@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import math
 
-from .engine import ENERGY_TOL, Engine, compile_fast_step
+from .decisions import ENERGY_TOL, compile_fast_step
+from .engine import Engine
 from .errors import ModelError
 from .guard import GuardStats
 from .jit import check_jit
@@ -18,9 +19,12 @@ from .methods import Method, get_method
 from .model import (
     MAX_INPUT_ACCEL,
     PendulumParams,
+    check_flag,
+    check_speed,
     check_step,
     check_tolerance,
     check_torque,
+    run_speed_limit,
     validate_state,
 )
 
@@ -65,9 +69,9 @@ class Stepper:
         self._h = check_step(h, self._limited(params))
         self._rtol = check_tolerance('rtol', rtol)
         self._atol = check_tolerance('atol', atol)
-        self._guard_on = bool(guard)
-        self._energy_check = bool(energy_check)
-        self._jit = check_jit(jit, self._method.name, self._method.kind == 'adaptive')
+        self._guard_on = check_flag('guard', guard)
+        self._energy_check = check_flag('energy_check', energy_check)
+        self._jit = check_jit(jit, self._method.name, self._method.family.error_controlled)
         self._initial = validate_state(phi0, dphi0, params)
         self.stats = GuardStats()
         self._configure(params)
@@ -79,11 +83,13 @@ class Stepper:
         eng = Engine(params.omega0_sq, params.gamma, params.n, self._method, self._guard_on,
                      self._energy_check, self._rtol, self._atol, self._jit)
         self._engine = eng
-        self._w2, self._gamma = eng.w2, eng.gamma
         self._inv_inertia = 1.0 / params.inertia
         self._max_torque = MAX_INPUT_ACCEL * params.inertia
-        self._step_fn = eng.step_fn
-        self._fast = eng.kind == 'explicit'  # the generated fast path exists
+        # The state bound, held along a run; not on plain unguarded steps (their work does not
+        # grow with the speed, and their divergence is the answer they were asked for).
+        self._max_speed = math.inf if eng.unguarded else run_speed_limit(
+            params.gamma, params.n, params.omega0_sq)
+        self._fast = eng.fast  # the generated fast path exists
         # The method's Advance (everything the fast path refuses), with fresh memory: a new
         # pendulum or method starts its adaptive substeps afresh.
         self._slow = eng.fresh_advance()
@@ -204,8 +210,8 @@ class Stepper:
         self._range_ain = math.nan
 
     def _advance(self, h: float, torque: float, count: int) -> None:
-        if not abs(torque) <= self._max_torque:  # also NaN
-            check_torque(torque, self._params)
+        if type(torque) is not float or not abs(torque) <= self._max_torque:  # also NaN
+            torque = check_torque(torque, self._params)
         ain = torque * self._inv_inertia
         p, v = self._p, self._v
         if self._fast:
@@ -227,6 +233,10 @@ class Stepper:
                 p1, v1, w, self._e = r
         else:
             p1, v1, w = self._slow(p, v, h, ain, self.stats)
+        if not abs(v1) <= self._max_speed:
+            params = self._params
+            self._e = math.nan  # the state stays (p, v)
+            check_speed(v1, params.gamma, params.n, params.omega0_sq, self._steps * self._h + h)
         self._work_damping += w
         self._work_input += torque * (p1 - p)
         self._p, self._v = p1, v1
@@ -241,8 +251,8 @@ class Stepper:
         by 1 / (2^p − 1): the 2-norm over (φ, φ') of the error the next step will make, in rad
         and rad/s.
         """
-        if not abs(torque) <= self._max_torque:
-            check_torque(torque, self._params)
+        if type(torque) is not float or not abs(torque) <= self._max_torque:
+            torque = check_torque(torque, self._params)
         ain = torque * self._inv_inertia
         p, v, h = self._p, self._v, self._h
         scratch = GuardStats()

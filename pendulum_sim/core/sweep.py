@@ -30,17 +30,17 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .engine import (
+from .codegen import define
+from .decisions import (
     CROSS_SRC,
     REVERSAL_SRC,
-    Engine,
     accuracy_speed,
     ain_bound,
     energy_rose,
-    guard_for,
     specific_energy,
     stiff_transient,
 )
+from .engine import Engine, guard_for
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step
 from .guard import GuardStats, safe_speed_ranges
@@ -50,9 +50,14 @@ from .model import (
     MAX_STEPS,
     PendulumParams,
     check_count,
+    check_finite,
+    check_flag,
     check_run_length,
+    check_speed,
     check_step,
     check_torque,
+    run_speed_limit,
+    smooth_law,
     speed_limit,
     validate_state,
 )
@@ -63,8 +68,8 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
-SWEEP_METHODS = ('euler', 'midpoint', 'rk4')
-"""The explicit methods a sweep can use."""
+SWEEP_METHODS = tuple(name for name, m in METHODS.items() if m.family.fast_path)
+"""The methods a sweep can use: those of the explicit family (``euler``, ``midpoint``, ``rk4``)."""
 BLOCK = 16384
 """Pendulums stepped per numpy pass: a block's temporaries stay in the cache."""
 STIFF_MARGIN = 1.0 - 1e-9
@@ -127,6 +132,8 @@ class SweepResult:
 
 
 def _as_vector(name: str, value: Any) -> FloatArray:
+    if np.ndim(value) == 0:  # one number: the core's scalar validation and its message
+        return np.asarray(check_finite(name, value))
     try:
         arr = np.asarray(value)
     except Exception:
@@ -213,8 +220,7 @@ def _decision(args: str, src: str) -> Any:
     """
     env: dict[str, object] = {}
     body = src.replace('abs(v)', 'av')
-    exec(compile(f'def f({args}):\n    return {body}\n', '<sweep decision>', 'exec'), env)
-    return env['f']
+    return define(f'def f({args}):\n    return {body}\n', 'f', env, '<sweep decision>')
 
 
 _CROSS = _decision('v, av, v1, a0, h', CROSS_SRC)
@@ -310,7 +316,7 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
               zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, BLOCK)]
     for val, a, b in pieces:
         sl = slice(a, b)
-        smooth = val >= 1.0 and val == int(val) and int(val) % 2 == 1
+        smooth = smooth_law(val)
         lo = np.zeros(b - a)
         hi = np.full(b - a, math.inf)
         omega0 = np.sqrt(om2[sl])
@@ -426,6 +432,8 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         Scalars broadcast to the common length N.
     """
     om2, gam, nn, p0, v0, tau = _validate(omega0_sq, gamma, n, phi0, dphi0, torque)
+    guard = check_flag('guard', guard)
+    energy_check = check_flag('energy_check', energy_check)
     if method not in SWEEP_METHODS:
         raise IntegratorError(f'sweep supports the explicit methods '
                               f'{", ".join(SWEEP_METHODS)}, got {method!r}')
@@ -442,6 +450,8 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     om2, gam, nn, tau = om2[order], gam[order], nn[order], tau[order]
     phi, v = p0[order].copy(), v0[order].copy()
     energy = specific_energy(v, np.sin(0.5 * phi), om2)
+    # The state bound, held along the run where the guard is on (as in the Stepper).
+    vmax = _each(run_speed_limit, gam, nn, om2) if guard else np.full(size, np.inf)
     stats: dict[int, GuardStats] = {}
     engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
     meth = METHODS[method]
@@ -468,6 +478,15 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
             for _ in range(count):
                 for grp in groups:
                     _advance(grp, hh, engines, stats, meth, guard, energy_check)
+                    fast = np.flatnonzero(~(np.abs(grp.v) <= vmax[grp.sl]))
+                    if fast.size:
+                        j = grp.sl.start + int(fast[0])
+                        try:
+                            check_speed(float(grp.v[fast[0]]), float(gam[j]), float(nn[j]),
+                                        float(om2[j]),
+                                        t_end if done + 1 == total else (done + 1) * h)
+                        except IntegratorError as exc:
+                            raise IntegratorError(f'{exc} (index {int(order[j])})') from None
                 done += 1
                 if record_every is not None and (done % record_every == 0 or done == total):
                     record(t_end if done == total else done * h)

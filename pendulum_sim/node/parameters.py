@@ -227,9 +227,3 @@ def merged(current: Mapping[str, Value], changes: Iterable[tuple[str, Value]]) -
         if name in SPEC_BY_NAME:
             out[name] = value
     return out
-
-
-def is_finite_number(value: object) -> bool:
-    """Return True for an int or a finite float (not a bool)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(
-        value)

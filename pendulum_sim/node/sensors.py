@@ -1,4 +1,4 @@
-"""What a real joint sensor adds to the true state: seeded noise, encoder steps, a delay.
+"""What a real joint sensor adds to the true state: seeded noise and encoder steps.
 
 The node publishes measured values on ``joint_states``; the ``energy`` topic always reports the
 true state.
@@ -6,10 +6,6 @@ true state.
 from __future__ import annotations
 
 import random
-from collections import deque
-from typing import Generic, TypeVar
-
-T = TypeVar('T')
 
 
 class SensorModel:
@@ -52,29 +48,3 @@ class SensorModel:
             if abs(counts) < 2.0**52:
                 phi = self.resolution * round(counts)
         return phi, dphi
-
-
-class DelayLine(Generic[T]):
-    """Hold items until their release time (a sensor's transport delay)."""
-
-    def __init__(self) -> None:
-        self._items: deque[tuple[int, T]] = deque()
-
-    def push(self, release_ns: int, item: T) -> None:
-        """Queue ``item`` for release at ``release_ns`` (times must not decrease)."""
-        self._items.append((release_ns, item))
-
-    def pop_due(self, now_ns: int) -> list[T]:
-        """Return the items due at ``now_ns``, oldest first, and drop them from the line."""
-        out: list[T] = []
-        items = self._items
-        while items and items[0][0] <= now_ns:
-            out.append(items.popleft()[1])
-        return out
-
-    def clear(self) -> None:
-        """Drop everything queued."""
-        self._items.clear()
-
-    def __len__(self) -> int:
-        return len(self._items)

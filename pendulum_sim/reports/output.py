@@ -59,12 +59,6 @@ def write_csv(path: Path, rows: Sequence[Row], columns: Sequence[str] | None = N
     return path
 
 
-def read_csv(path: Path) -> list[dict[str, str]]:
-    """Read a CSV table written by :func:`write_csv` back as dicts of strings."""
-    with path.open(newline='', encoding='utf-8') as fh:
-        return list(csv.DictReader(fh))
-
-
 def markdown_table(rows: Sequence[Row], columns: Sequence[str],
                    headers: Sequence[str] | None = None, digits: int = 3) -> str:
     """Return a GitHub Markdown table of ``rows`` restricted to ``columns``."""

@@ -1,0 +1,164 @@
+"""The fast path's decisions, written once as source text and compiled for floats and arrays.
+
+A plain explicit step of h is accepted on the fast path when ``|φ'|`` lies in the guard's safe
+speed range (``guard.py``), no velocity reversal is suspected (:func:`reversal_suspect`), the
+step is not in a damping-dominated transient (:func:`stiff_transient`), energy did not rise
+without input (:func:`energy_rose`) and the result is finite. The texts below are compiled into
+functions that work on floats and numpy arrays (the sweep and the careful path call them) and
+inlined into the Stepper's generated fast step (:func:`compile_fast_step`).
+"""
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any
+
+from .codegen import define
+from .explicit import SCALAR_ENV, damping_expression, step_source
+from .tableaus import Tableau
+
+ENERGY_TOL = 1e-12
+"""An explicit step may raise the energy by round-off and by the conservative part of its
+truncation error near turning points, where the damping removes almost nothing; anything above
+this relative size (of E/I + ω0²) is a defect and the step is redone implicitly."""
+
+CROSS_SRC = '(v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))'
+NEAR_SRC = 'abs(v) < reach * abs(a0)'
+REVERSAL_SRC = f'{CROSS_SRC} | ({NEAR_SRC})'
+STIFF_SRC = '(abs(v) > v_acc) & (abs(a0) > 0.5 * gamma * abs(v) ** n)'
+ENERGY_SRC = '0.5 * v * v + 2.0 * w2 * s * s'
+ROSE_SRC = 'e1 > e0 + ENERGY_TOL * (e0 + w2)'
+"""The fast path's decisions as source text, written once: compiled into the functions below
+(which work on floats and numpy arrays: ``sweep`` and the careful path use them) and inlined,
+with ``and``/``or`` for ``&``/``|``, into the Stepper's generated fast step
+(:func:`compile_fast_step`)."""
+
+
+def _expr(args: str, src: str) -> Any:
+    env: dict[str, object] = {'ENERGY_TOL': ENERGY_TOL}
+    return define(f'def f({args}):\n    return {src}\n', 'f', env, '<decision>')
+
+
+_REVERSAL = _expr('v, v1, a0, h, reach', REVERSAL_SRC)
+_STIFF = _expr('v, a0, gamma, n, v_acc', STIFF_SRC)
+_ENERGY = _expr('v, s, w2', ENERGY_SRC)
+_ROSE = _expr('e0, e1, w2', ROSE_SRC)
+
+
+def reversal_suspect(v: Any, v1: Any, a0: Any, h: float, reach: Any = 0.0) -> Any:
+    """Return where a step from φ' = ``v`` to ``v1`` may have crossed or come near φ' = 0.
+
+    A reversal shows as a sign change over the step, or, where a stage already crossed and
+    spoiled the result, as a deceleration ``a0`` that could stop the pendulum within h; with
+    ``reach`` > 0 (graded laws: the window S of :func:`grade_window`) also as a speed below
+    S |a0|, i.e. a reversal within about S before or after (:data:`REVERSAL_SRC`).
+    """
+    return _REVERSAL(v, v1, a0, h, reach)
+
+
+STIFF_K = 100.0
+"""For n > 1: a plain step's error in a damping-dominated transient, relative to its error on
+the smooth oscillation, is about γ⁴ |φ'|^(4n−3) / (n ω_r⁵) (ω_r = max(ω0, 1 s⁻¹)); above
+this factor the step is taken by error-controlled substeps instead (:meth:`Engine.stiff`)."""
+
+STIFF_TOL = 1.0
+"""Local tolerance of the error-controlled substeps: STIFF_TOL (h ω_r)⁴ in rad and rad/s, so
+the transient's error falls with h at the method's order while it costs few substeps."""
+
+STIFF_MAX_TRIALS = 2000
+"""Trial substeps per step before the error-controlled path hands the step to the guard."""
+
+
+def accuracy_speed(gamma: float, n: float, omega0: float) -> float:
+    """Return the speed above which a damping-dominated n > 1 transient is error-controlled."""
+    if n <= 1.0 or gamma <= 0.0:
+        return math.inf
+    w_r = max(omega0, 1.0)
+    log_v = (math.log(STIFF_K * n) + 5.0 * math.log(w_r) - 4.0 * math.log(gamma)) / (
+        4.0 * n - 3.0)
+    return math.exp(min(log_v, 700.0))
+
+
+def stiff_transient(v: Any, a0: Any, gamma: Any, n: float, v_acc: Any) -> Any:
+    """Return where a step starts in a damping-dominated transient too fast for a plain step.
+
+    Above :func:`accuracy_speed` and with the net acceleration at least half the damping
+    γ|φ'|^n (the damping is not balanced by gravity and input, as it is in a creep;
+    :data:`STIFF_SRC`).
+    """
+    return _STIFF(v, a0, gamma, n, v_acc)
+
+
+def specific_energy(v: Any, sin_half: Any, w2: Any) -> Any:
+    """Return E/I = ½ φ'² + 2 ω0² sin²(φ/2) (eq 23 divided by I) from ``sin(φ/2)``."""
+    return _ENERGY(v, sin_half, w2)
+
+
+def energy_rose(e0: Any, e1: Any, w2: Any) -> Any:
+    """Return where E/I rose from ``e0`` to ``e1`` by more than ENERGY_TOL of its scale."""
+    return _ROSE(e0, e1, w2)
+
+
+def _scalar(src: str) -> str:
+    return src.replace(' | ', ' or ').replace(' & ', ' and ')
+
+
+@functools.lru_cache(maxsize=256)
+def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float, v_acc: float,
+                      check_energy: bool, w2: float, gamma: float) -> Any:
+    """Compile the Stepper's fast path: one plain step and the fast-path decisions, inlined.
+
+    ``fast(p0, v0, h, ain, e0)`` (ω0² = ``w2`` and γ = ``gamma`` bound in) returns
+    ``(φ₁, φ'₁, w, E₁/I)`` when the engine's decisions accept the plain step (E₁/I is NaN
+    where the energy check does not apply), and None when the careful path must take it;
+    ``e0`` is E/I at the start or NaN if unknown.
+    The step is ``explicit.step_source`` and the decisions are the ``*_SRC`` texts above, so
+    this is the same code ``sweep`` runs on arrays, without the calls between its parts.
+    """
+    body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
+    lines = ['def fast(p0, v0, h, ain, e0):', *body,
+             '    if not (-INF < p1 < INF and -INF < v1 < INF):', '        return None',
+             '    v = v0', '    a0 = a_0']
+    if nonsmooth:
+        test = _scalar(REVERSAL_SRC if reach > 0.0 else CROSS_SRC)
+        lines += [f'    if {test}:', '        return None']
+    if math.isfinite(v_acc):
+        lines += [f'    if abs(v) > v_acc and {_scalar(STIFF_SRC)}:', '        return None']
+    if check_energy:
+        lines += ['    if ain != 0.0:', '        return p1, v1, w, NAN',
+                  '    if e0 != e0:', '        s = sin(0.5 * p0)',
+                  f'        e0 = {ENERGY_SRC}',
+                  '    v = v1', '    s = sin(0.5 * p1)', f'    e1 = {ENERGY_SRC}',
+                  f'    if {ROSE_SRC}:', '        return None', '    return p1, v1, w, e1']
+    else:
+        lines += ['    return p1, v1, w, NAN']
+    env: dict[str, object] = dict(SCALAR_ENV, n=n, reach=reach, v_acc=v_acc, INF=math.inf,
+                                  NAN=math.nan, ENERGY_TOL=ENERGY_TOL, w2=w2, gamma=gamma)
+    return define('\n'.join(lines) + '\n', 'fast', env, f'<fast {tableau.name}>')
+
+
+def ain_bound(ain: float) -> float:
+    """Return the power of two just above |a_in| (0 for 0): the torque octave of a fast range."""
+    a = abs(ain)
+    return 0.0 if a == 0.0 else 2.0 ** math.frexp(a)[1]
+
+
+__all__ = [
+    'CROSS_SRC',
+    'ENERGY_SRC',
+    'ENERGY_TOL',
+    'NEAR_SRC',
+    'REVERSAL_SRC',
+    'ROSE_SRC',
+    'STIFF_K',
+    'STIFF_MAX_TRIALS',
+    'STIFF_SRC',
+    'STIFF_TOL',
+    'accuracy_speed',
+    'ain_bound',
+    'compile_fast_step',
+    'energy_rose',
+    'reversal_suspect',
+    'specific_energy',
+    'stiff_transient',
+]

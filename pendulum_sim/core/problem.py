@@ -1,0 +1,69 @@
+"""The per-pendulum problem: what one pendulum's (ω0², γ, n) fixes, computed once.
+
+A :class:`Problem` is frozen and knows nothing of methods or drivers: the Stepper (through its
+engine), the sweep (one per distinct pendulum it hands to the careful path) and every method
+family (explicit, implicit, embedded) read the same object, so a decision that depends only on
+the pendulum (is the law smooth, is it Coulomb friction, how wide is the graded window around
+a reversal) is taken in one place.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from .explicit import DampingFn, compile_damping
+from .model import smooth_law
+from .reversal import grade_window, graded_law
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One pendulum: φ'' = a_in − γ φ'|φ'|^(n−1) − ω0² sin φ (eq 16 divided by I, with input).
+
+    Parameters
+    ----------
+    w2, gamma, n : float
+        ω0² in s⁻², γ in s^(n−2) and n >= 0 (eq 11, 15).
+
+    Attributes
+    ----------
+    omega0 : float
+        ω0 in s⁻¹.
+    coulomb : bool
+        Dry friction (n = 0, γ > 0): the pendulum sticks where the forces allow.
+    nonsmooth : bool
+        The damping has a kink at φ' = 0 (γ > 0 and not n = 1, 3, 5, ...): steps are split at
+        velocity reversals.
+    reach : float
+        The window S (s) around a reversal inside which steps are graded (0: no grading).
+    damping : callable
+        The damping acceleration D(φ') = γ φ'|φ'|^(n−1), compiled for this n and γ.
+    """
+
+    w2: float
+    gamma: float
+    n: float
+    omega0: float = field(init=False)
+    coulomb: bool = field(init=False)
+    nonsmooth: bool = field(init=False)
+    reach: float = field(init=False)
+    damping: DampingFn = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        omega0 = math.sqrt(self.w2)
+        set_(self, 'omega0', omega0)
+        set_(self, 'coulomb', self.n == 0.0 and self.gamma > 0.0)
+        nonsmooth = self.gamma > 0.0 and not smooth_law(self.n)
+        set_(self, 'nonsmooth', nonsmooth)
+        set_(self, 'reach', grade_window(omega0) if nonsmooth and graded_law(self.n) else 0.0)
+        law = compile_damping(self.n)
+        g = self.gamma
+        set_(self, 'damping', lambda v: law(v, g, 1.0))
+
+    def speed_gain(self, h: float, ain: float) -> float:
+        """Return the most |φ'| can grow in h: h (|τ/I| + ω0²), damping only opposes motion."""
+        return h * (abs(ain) + self.w2)
+
+
+__all__ = ['Problem']

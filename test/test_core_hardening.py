@@ -1,0 +1,287 @@
+"""The core API's second hardening pass: tolerances, work bounds, torque and flag types, huge
+integers. Each input is refused with the core's own message naming the argument and its limit,
+or gives a finite, energy-consistent result; work is asserted as counted steps, never as time."""
+from __future__ import annotations
+
+import re
+from decimal import Decimal
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pendulum_sim.core import IntegratorError, ModelError, PendulumParams, Stepper, simulate
+from pendulum_sim.core.embedded import MAX_TRIALS
+from pendulum_sim.core.model import MAX_SPEED, MAX_TOLERANCE, run_speed_limit
+from pendulum_sim.core.sweep import sweep
+
+PAPER = PendulumParams()
+ADAPTIVE = ('dopri5', 'dop853', 'rodas4', 'extrap6', 'extrap8')
+
+
+def loose(name: str, value: str) -> str:
+    return f'{name} must be <= 0.001 (the error control cannot honour a looser tolerance), ' \
+           f'got {value}'
+
+
+# --------------------------------------------------------------------------- 11: tolerances
+
+
+@pytest.mark.parametrize(('method', 'gamma', 'rtol', 'atol', 'message'), [
+    ('dopri5', 1e4, 1.0, 1.0, loose('rtol', '1')),        # ran to 3e119 J
+    ('dopri5', 1.0, 10.0, 1e-10, loose('rtol', '10')),    # ran to inf
+    ('dop853', 1.0, 1e3, 1e-10, loose('rtol', '1000')),   # ran to inf
+    ('rodas4', 1.0, 10.0, 1e-10, loose('rtol', '10')),    # energy 2.8 J -> 24 J
+    ('dopri5', 1e4, 1e-8, 1.0, loose('atol', '1')),
+])
+def test_tolerances_that_cannot_be_honoured_are_refused_with_the_limit(
+        method: str, gamma: float, rtol: float, atol: float, message: str) -> None:
+    params = PAPER.with_changes(gamma=gamma)
+    with pytest.raises(IntegratorError, match=f'^{re.escape(message)}$'):
+        simulate(params, 2.0, 0.0, 1.0, 1e-3, method, rtol=rtol, atol=atol)
+    with pytest.raises(IntegratorError, match=f'^{re.escape(message)}$'):
+        Stepper(params, 2.0, 0.0, 1e-3, method, rtol=rtol, atol=atol)
+
+
+@pytest.mark.parametrize('method', ADAPTIVE)
+@pytest.mark.parametrize(('gamma', 'n'), [(0.0, 1.0), (1.0, 1.0), (1.0, 2.0), (1e4, 1.0),
+                                          (1.0, 0.5), (1.0, 0.0)])
+@pytest.mark.parametrize('h', [1e-3, 1e-1])
+def test_the_loosest_tolerances_accepted_give_finite_energy_consistent_runs(
+        method: str, gamma: float, n: float, h: float) -> None:
+    tol = MAX_TOLERANCE['rtol']
+    assert tol == MAX_TOLERANCE['atol'] == 1e-3
+    run = simulate(PAPER.with_changes(gamma=gamma, n=n), 2.0, 0.0, 10.0, h, method,
+                   rtol=tol, atol=tol)
+    assert np.all(np.isfinite(run.state)) and np.all(np.isfinite(run.residual))
+    # Unforced: the energy never rises above an earlier value by more than the tolerance
+    # (measured: 6.6e-4 of E(0) at most, rodas4 without damping).
+    e = run.energy
+    assert np.max(e - np.minimum.accumulate(e)) <= tol * e[0]
+    # The energy balance: within 5 % of E(0) for the γ = 1e4 creep, whose speeds (1e-3 rad/s)
+    # are of atol's size (measured 5.0e-2, dopri5), within 1e-3 elsewhere (measured 4.8e-4).
+    assert np.max(np.abs(run.residual)) <= (0.06 if gamma == 1e4 else tol) * e[0]
+
+
+# --------------------------------------------------------------------------- 12: work bounds
+
+
+def speed_message(v: str, t: str, bound: str = '10000.012') -> str:
+    return (f'dphi reached {v} rad/s at t = {t} s, beyond +-{bound} rad/s (the state bound '
+            f'10000 rad/s raised by the most gravity adds, sqrt(bound**2 + 4*omega0**2)): the '
+            f'run stops there')
+
+
+def test_the_speed_bound_holds_along_a_run_under_the_largest_torque() -> None:
+    # τ = 2e7 N m on I = 0.2 kg m² is 1e8 rad/s²: one step of 1 ms adds 1e5 rad/s. Before, the
+    # run went on to 1e7 rad/s, each step costing more guard substeps than the last.
+    params = PAPER.with_changes(gamma=0.0)
+    # One step from rest: 1e8 rad/s² for 1 ms, less what gravity takes back: 99999.9992 rad/s.
+    exact = f'^{re.escape(speed_message("99999.9992", "0.001"))}$'
+    with pytest.raises(IntegratorError, match=exact):
+        simulate(params, 0.0, 0.0, 0.002, 1e-3, torque=2e7)
+    with pytest.raises(IntegratorError, match=exact):
+        simulate(params, 0.0, 0.0, 0.002, 1e-3, torque=lambda t, p, v: 2e7)
+    stepper = Stepper(params, 0.0, 0.0, 1e-3)
+    with pytest.raises(IntegratorError, match=exact):
+        stepper.step(2e7)
+    # Nothing is lost: the state is the last one inside the bound, and stepping on works.
+    assert (stepper.phi, stepper.dphi, stepper.steps) == (0.0, 0.0, 0)
+    stepper.step(1e3)
+    assert stepper.steps == 1 and 0.0 < stepper.dphi <= MAX_SPEED
+
+
+def test_a_run_starting_at_the_state_bound_keeps_running_under_gravity() -> None:
+    # Gravity alone moves |φ'| about the bound (E conserved): within sqrt(1e4² + 4 ω0²).
+    s = Stepper(PAPER.with_changes(gamma=0.0), 2.0, MAX_SPEED, 1e-4)
+    s.advance(100)
+    assert s.steps == 100 and MAX_SPEED < s.dphi <= run_speed_limit(0.0, 1.0, 9.8)
+
+
+def test_sweep_holds_the_speed_bound_and_names_the_pendulum() -> None:
+    message = speed_message('99999.9999', '0.001', '10000.0102') + ' (index 1)'
+    with pytest.raises(IntegratorError, match=f'^{re.escape(message)}$'):
+        sweep(1.0, 0.0, 1.0, 0.0, 0.0, 0.002, 1e-3, torque=[0.0, 1e8])
+
+
+@pytest.mark.parametrize('method', ADAPTIVE)
+def test_the_adaptive_substeps_hold_the_speed_bound(method: str) -> None:
+    # Inside a step the error-controlled substeps reject a trial beyond the bound (a loose
+    # relative tolerance scales its error by that speed and would accept it); the fallback
+    # takes the rest of the step and the run stops after it, with few trials spent.
+    exact = f'^{re.escape(speed_message("99999.9992", "0.001"))}$'
+    with pytest.raises(IntegratorError, match=exact):
+        simulate(PAPER.with_changes(gamma=0.0), 0.0, 0.0, 0.01, 1e-3, method, torque=2e7)
+    stepper = Stepper(PAPER.with_changes(gamma=0.0), 0.0, 0.0, 1e-3, method)
+    with pytest.raises(IntegratorError, match=exact):
+        stepper.step(2e7)
+    assert stepper.stats.fallbacks == 1 and stepper.stats.substeps < 100  # measured 32-45
+    assert (stepper.phi, stepper.dphi, stepper.steps) == (0.0, 0.0, 0)
+
+
+@pytest.mark.parametrize('g', [4e10, 1e11])
+def test_adaptive_work_at_a_huge_gravity_is_bounded_by_the_trial_budget(g: float) -> None:
+    # ω0 = 2e5-3e5 s⁻¹ from φ = 2 rad: every output interval costs at most MAX_TRIALS trial
+    # substeps (before, at g = 1e11, the cover ran out of them and the fallback took 1e5
+    # substeps a step, for minutes).
+    run = simulate(PAPER.with_changes(g=g), 2.0, 0.0, 0.003, 1e-3, 'dopri5')
+    assert run.stats.steps == 3
+    assert 0 < run.stats.substeps <= MAX_TRIALS * run.stats.steps
+    assert np.all(np.isfinite(run.residual))
+
+
+def test_adaptive_work_is_bounded_by_the_trial_budget_per_output() -> None:
+    # g = 1e11 at a small amplitude stays inside the speed bound: each output interval costs at
+    # most MAX_TRIALS trial substeps, so the work is at most MAX_TRIALS t_end / h.
+    run = simulate(PAPER.with_changes(g=1e11), 1e-3, 0.0, 0.01, 1e-3, 'dopri5')
+    assert run.stats.steps == 10
+    assert 0 < run.stats.substeps <= MAX_TRIALS * run.stats.steps
+    assert np.all(np.isfinite(run.residual))
+
+
+@pytest.mark.parametrize('method', ['rodas4', 'dopri5'])
+def test_an_output_the_fallback_cannot_cover_in_bounded_substeps_is_refused(method: str) -> None:
+    # One output at 1e20 s: where the error-controlled substeps give up, the fallback would
+    # need 1e20 substeps of at most 0.5 rad (before: it ran unbounded).
+    message = ('a step of 1e+20 s from phi = 2 rad, dphi = 0 rad/s needs more than '
+               'MAX_FALLBACK_SUBSTEPS = 100000 substeps of the fallback (each sweeps at most '
+               '0.5 rad); use a smaller h')
+    with pytest.raises(IntegratorError, match=f'^{re.escape(message)}$'):
+        simulate(PAPER, 2.0, 0.0, 1e20, 1e20, method)
+
+
+# --------------------------------------------------------------------------- 13: h = 1e300
+
+
+@pytest.mark.parametrize('method', ['dopri5', 'rodas4', 'extrap6'])
+def test_a_huge_guarded_step_is_refused_for_what_it_is(method: str) -> None:
+    # Before: "the unguarded ... step diverged; run with guard=True", with the guard on.
+    message = ('a step of 1e+300 s from phi = 2 rad, dphi = 0 rad/s needs more than '
+               'MAX_FALLBACK_SUBSTEPS = 100000 substeps of the fallback (each sweeps at most '
+               '0.5 rad); use a smaller h')
+    with pytest.raises(IntegratorError, match=f'^{re.escape(message)}$'):
+        simulate(PAPER, 2.0, 0.0, 1e300, 1e300, method)
+    with pytest.raises(IntegratorError, match=f'^{re.escape(message)}$'):
+        Stepper(PAPER, 2.0, 0.0, 1e300, method, guard=True).step()
+
+
+# --------------------------------------------------------------------------- 14: torque types
+
+BAD_TORQUES: list[tuple[Any, str]] = [
+    (np.complex128(1), 'torque must be a real number, got np.complex128(1+0j)'),
+    (1 + 0j, 'torque must be a real number, got (1+0j)'),
+    (True, 'torque must be a real number, got True'),
+    (np.bool_(True), 'torque must be a real number, got np.True_'),
+    ('1', "torque must be a real number, got '1'"),
+    (np.array([1.0]), 'torque must be a real number, got array([1.])'),
+    (np.array([1.0, 2.0]), 'torque must be a real number, got array([1., 2.])'),
+    (float('nan'), 'torque must be finite, got nan'),
+]
+
+
+@pytest.mark.parametrize(('torque', 'message'), BAD_TORQUES)
+def test_every_entry_point_refuses_a_torque_that_is_not_one_real_number(
+        torque: Any, message: str) -> None:
+    exact = f'^{re.escape(message)}$'
+    stepper = Stepper(PAPER, 1.0, 0.0, 1e-3)
+    with pytest.raises(ModelError, match=exact):
+        stepper.step(torque)
+    with pytest.raises(ModelError, match=exact):
+        stepper.advance(2, torque)
+    with pytest.raises(ModelError, match=exact):
+        stepper.step_by(5e-4, torque)
+    with pytest.raises(ModelError, match=exact):
+        stepper.local_error_estimate(torque)
+    assert stepper.steps == 0 and isinstance(stepper.dphi, float)
+    with pytest.raises(ModelError, match=exact):
+        simulate(PAPER, 1.0, 0.0, 0.01, 1e-3, torque=torque)
+    with pytest.raises(ModelError, match=exact):
+        simulate(PAPER, 1.0, 0.0, 0.01, 1e-3, torque=lambda t, p, v: torque)
+    with pytest.raises(ModelError, match=exact):
+        simulate(PAPER, 1.0, 0.0, 0.01, 1e-3, 'dopri5', torque=torque)
+    if np.ndim(torque) == 0:  # sweep takes an array of torques, one per pendulum
+        with pytest.raises(ModelError, match=exact):
+            sweep(9.8, 1.0, 1.0, 1.0, 0.0, 0.01, 1e-3, torque=torque)
+
+
+def test_none_is_no_torque_in_simulate_and_refused_by_the_stepper() -> None:
+    message = 'torque must be a real number, got None'
+    with pytest.raises(ModelError, match=f'^{re.escape(message)}$'):
+        Stepper(PAPER, 1.0, 0.0, 1e-3).step(None)  # type: ignore[arg-type]
+    with pytest.raises(ModelError, match=f'^{re.escape(message)}$'):
+        sweep(9.8, 1.0, 1.0, 1.0, 0.0, 0.01, 1e-3, torque=None)
+    free = simulate(PAPER, 1.0, 0.0, 0.01, 1e-3, torque=None)
+    assert np.all(free.torque == 0.0)
+
+
+def test_a_decimal_torque_is_the_real_number_it_spells() -> None:
+    a, b = Stepper(PAPER, 1.0, 0.0, 1e-3), Stepper(PAPER, 1.0, 0.0, 1e-3)
+    a.step(Decimal('0.25'))  # type: ignore[arg-type]
+    b.step(0.25)
+    assert (a.phi, a.dphi) == (b.phi, b.dphi) and type(a.dphi) is float
+    run = simulate(PAPER, 1.0, 0.0, 0.01, 1e-3, torque=Decimal('0.25'))  # type: ignore[arg-type]
+    assert run.torque.dtype == np.float64 and np.all(run.torque == 0.25)
+
+
+# --------------------------------------------------------------------------- 15: huge integers
+
+HUGE = 10 ** 400
+BITS = 'an integer of 1329 bits'
+
+
+@pytest.mark.parametrize(('call', 'error', 'message'), [
+    (lambda: PendulumParams(m=HUGE), ModelError, f'm must be finite, got {BITS} (beyond float64)'),
+    (lambda: PendulumParams(g=HUGE), ModelError, f'g must be finite, got {BITS} (beyond float64)'),
+    (lambda: PendulumParams(n=HUGE), ModelError, f'n must be finite, got {BITS} (beyond float64)'),
+    (lambda: simulate(PAPER, HUGE, 0.0, 1.0, 1e-3), ModelError,
+     f'phi0 must be finite, got {BITS} (beyond float64)'),
+    (lambda: simulate(PAPER, 1.0, HUGE, 1.0, 1e-3), ModelError,
+     f'dphi0 must be finite, got {BITS} (beyond float64)'),
+    (lambda: simulate(PAPER, 1.0, 0.0, HUGE, 1e-3), ModelError,
+     f't_end must be finite, got {BITS} (beyond float64)'),
+    (lambda: simulate(PAPER, 1.0, 0.0, 1.0, HUGE), IntegratorError,
+     f'h must be a finite step > 0 s, got {BITS}'),
+    (lambda: simulate(PAPER, 1.0, 0.0, 1.0, 1e-3, 'dopri5', rtol=HUGE), IntegratorError,
+     f'rtol must be a finite tolerance > 0, got {BITS}'),
+    (lambda: simulate(PAPER, 1.0, 0.0, 1.0, 1e-3, torque=HUGE), ModelError,
+     f'torque must be finite, got {BITS} (beyond float64)'),
+    (lambda: sweep(9.8, 1.0, 1.0, 1.0, 0.0, HUGE, 1e-3), ModelError,
+     f't_end must be finite, got {BITS} (beyond float64)'),
+    (lambda: sweep(HUGE, 1.0, 1.0, 1.0, 0.0, 1.0, 1e-3), ModelError,
+     f'omega0_sq must be finite, got {BITS} (beyond float64)'),
+    (lambda: sweep(9.8, 1.0, 1.0, 1.0, 0.0, 1.0, HUGE), IntegratorError,
+     f'h must be a finite step > 0 s, got {BITS}'),
+])
+def test_integers_beyond_float64_are_refused_naming_the_argument(
+        call: Any, error: type[Exception], message: str) -> None:
+    with pytest.raises(error, match=f'^{re.escape(message)}$'):
+        call()
+
+
+# --------------------------------------------------------------------------- 16: flags
+
+
+@pytest.mark.parametrize(('flag', 'value', 'shown'), [
+    ('energy_check', 'no', "'no'"),
+    ('energy_check', None, 'None'),
+    ('energy_check', np.array([True, False]), 'array([ True, False])'),
+    ('guard', np.array([True, False]), 'array([ True, False])'),
+    ('guard', 1, '1'),
+])
+def test_flags_are_true_or_false_in_sweep_simulate_and_the_stepper(
+        flag: str, value: Any, shown: str) -> None:
+    exact = f'^{re.escape(f"{flag} must be True or False, got {shown}")}$'
+    with pytest.raises(IntegratorError, match=exact):
+        sweep([9.8, 9.8], 1.0, 1.0, 1.0, 0.0, 0.01, 1e-3, **{flag: value})
+    with pytest.raises(IntegratorError, match=exact):
+        simulate(PAPER, 1.0, 0.0, 0.01, 1e-3, **{flag: value})
+    with pytest.raises(IntegratorError, match=exact):
+        Stepper(PAPER, 1.0, 0.0, 1e-3, **{flag: value})
+
+
+def test_numpy_booleans_are_flags() -> None:
+    yes: Any = np.True_
+    no: Any = np.False_
+    a = sweep(9.8, 1.0, 1.0, 1.0, 0.0, 0.01, 1e-3, guard=yes, energy_check=no)
+    b = sweep(9.8, 1.0, 1.0, 1.0, 0.0, 0.01, 1e-3, guard=True, energy_check=False)
+    assert a.phi[0] == b.phi[0] and a.dphi[0] == b.dphi[0]
