@@ -1,0 +1,126 @@
+"""What the node sends out for each state: ``/clock``, ``joint_states``, energy, the recording.
+
+The hot path: each message is packed as CDR bytes from a template (``serialized.py``) and
+published as bytes; the same bytes go to the recording, stamped with simulated time. A broken
+recorder is reported once and never stops the joint.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from .errors import JointError
+from .joint import SimulatedJoint
+from .serialized import ClockBytes, Float64Bytes, JointStateBytes
+
+
+class Recording:
+    """The node's recorder, if any: writes that never raise, an error reported once."""
+
+    def __init__(self, recorder: Any, log_error: Callable[[str], None]) -> None:
+        self.recorder = recorder
+        self._log_error = log_error
+        self._error_logged = False
+
+    def write(self, topic: str, msg: Any, stamp_ns: int) -> None:
+        """Write a message (or its CDR bytes) at ``stamp_ns``; never raise."""
+        rec = self.recorder
+        if rec is None:
+            return
+        try:
+            if isinstance(msg, bytes):
+                rec.write_serialized(topic, msg, stamp_ns)
+            else:
+                rec.write(topic, msg, stamp_ns)
+        except Exception as exc:  # a broken recorder must not stop the joint
+            self.failed(exc)
+
+    def reset(self, stamp_ns: int, message: str) -> None:
+        """Record a reset (a new segment starts at ``stamp_ns``)."""
+        rec = self.recorder
+        if rec is None:
+            return
+        try:
+            rec.write_reset(stamp_ns, message)
+        except Exception as exc:  # a broken recorder must not stop the joint
+            self.failed(exc)
+
+    def failed(self, exc: BaseException) -> None:
+        """Report a recorder error once."""
+        if not self._error_logged:
+            self._error_logged = True
+            self._log_error(f'recording failed, simulation continues: {exc}')
+
+    def check(self) -> None:
+        """Report an error the recorder met on its own (its writer process)."""
+        rec = self.recorder
+        if rec is not None and rec.error is not None:
+            self.failed(rec.error)
+
+
+class StateOutputs:
+    """Publish the joint's state: /clock (lockstep), joint_states, energy and its terms.
+
+    Parameters
+    ----------
+    joint : SimulatedJoint
+        Whose state is sent.
+    joint_name : str
+        The name in joint_states.
+    states, clock, energy : publisher or None
+        rclpy publishers (``publish`` takes bytes); None for what the scene switches off.
+    terms : list of publishers
+        energy_terms/{kinetic, potential, dissipated_power, residual}, or empty.
+    recording : Recording
+        Where every publication (but /clock and the terms) is also written.
+    """
+
+    def __init__(self, joint: SimulatedJoint, joint_name: str, states: Any, clock: Any,
+                 energy: Any, terms: list[Any], recording: Recording) -> None:
+        self.joint = joint
+        self._states = states
+        self._clock = clock
+        self._energy = energy
+        self._terms = terms
+        self._recording = recording
+        self._js_bytes = JointStateBytes(joint_name)
+        self._clock_bytes = ClockBytes()
+        self._float_bytes = Float64Bytes()
+        self._states_topic = str(states.topic_name)
+        self._energy_topic = str(energy.topic_name) if energy is not None else ''
+
+    def __call__(self, with_clock: bool) -> None:
+        """Publish the state now (and /clock when ``with_clock`` and lockstep)."""
+        joint = self.joint
+        if joint.failed is not None:
+            return
+        stamp_ns = joint.stamp_ns()
+        if with_clock and self._clock is not None:
+            self._clock.publish(self._clock_bytes.pack(*divmod(stamp_ns, 1_000_000_000)))
+        sample = joint.sample()
+        record = self._recording.recorder is not None
+        if sample is not None:
+            sec, nanosec = divmod(sample.stamp_ns, 1_000_000_000)
+            data = self._js_bytes.pack(sec, nanosec, sample.position, sample.velocity,
+                                       sample.effort)
+            self._states.publish(data)
+            if record:
+                self._recording.write(self._states_topic, data, stamp_ns)
+        if self._energy is None and not self._terms:
+            return
+        try:
+            energy = joint.energy()
+            terms = joint.terms() if self._terms else None
+        except JointError as exc:
+            joint.fail(str(exc))
+            return
+        pack = self._float_bytes.pack
+        if self._energy is not None:
+            e = pack(energy)
+            self._energy.publish(e)
+            if record:
+                self._recording.write(self._energy_topic, e, stamp_ns)
+        if terms is not None:
+            values = (terms.kinetic, terms.potential, terms.dissipated_power, terms.residual)
+            for pub, value in zip(self._terms, values, strict=True):
+                pub.publish(pack(value))
