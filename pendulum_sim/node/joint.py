@@ -37,6 +37,7 @@ from pendulum_sim.core import (
     kinetic_energy,
     potential_energy,
 )
+from pendulum_sim.core.model import speed_limit
 
 from .errors import JointError
 from .sensors import SensorModel
@@ -243,6 +244,8 @@ class SimulatedJoint:
         h_ns = config.h * NS
         self._h_ns_int = round(h_ns) if abs(h_ns - round(h_ns)) < 1e-6 else 0
         self._epoch_ns = config.epoch_ns
+        self._vmax = self._speed_bound(config)
+        self._inertia_per_h = config.params.inertia / config.h
 
     # ------------------------------------------------------------------ state
     @property
@@ -364,11 +367,27 @@ class SimulatedJoint:
             tau = c.servo.position_p * (self._target - phi) - c.servo.position_d * dphi
         return self._velocity_limited(min(max(tau, -c.max_effort), c.max_effort), dphi)
 
+    @staticmethod
+    def _speed_bound(config: JointConfig) -> float:
+        """Return the speed no torque may drive the joint past: max_velocity, or the core's
+        state bound for the damping (``speed_limit``) if that is lower."""
+        p = config.params
+        return min(config.max_velocity, speed_limit(p.gamma, p.n))
+
     def _velocity_limited(self, tau: float, dphi: float) -> float:
-        """Return ``tau``, or 0 (counted) if it would drive the joint further past max_velocity."""
-        if tau * dphi > 0.0 and abs(dphi) >= self._config.max_velocity:
+        """Return ``tau``, limited (counted) so that it drives the joint no faster than the
+        speed bound: 0 at or past it, and never more than one step of it takes to reach it."""
+        vmax = self._vmax
+        speed = abs(dphi)
+        pushing = tau * dphi > 0.0
+        if pushing and speed >= vmax:
             self.counters.limited += 1
             return 0.0
+        room = vmax - speed if pushing or dphi == 0.0 else vmax + speed
+        most = room * self._inertia_per_h
+        if abs(tau) > most:
+            self.counters.limited += 1
+            return math.copysign(most, tau)
         return tau
 
     # ------------------------------------------------------------------ stepping
@@ -435,9 +454,10 @@ class SimulatedJoint:
         else:
             want = now - d
             hist = self._history
-            if not hist or hist[0][0] > want:
+            # The history holds consecutive steps, the oldest d + 1 steps back at most; it
+            # fills again after a reset or a change of the delay.
+            if not hist or hist[0][0] > want or want - hist[0][0] >= len(hist):
                 return None
-            # The history holds consecutive steps, the oldest d + 1 steps back at most.
             step, phi, dphi, tau = hist[want - hist[0][0]]
         if not self._sensor.ideal:
             phi, dphi = self._sensor.measure(phi, dphi)
@@ -486,7 +506,10 @@ class SimulatedJoint:
                 raise JointError(f'{name} is fixed for the joint lifetime')
         if config.params != old.params:
             self._stepper.set_params(config.params)
+        if config.sensor_delay_steps != old.sensor_delay_steps:
+            self._history.clear()   # its steps were kept for the old delay
         self._config = config
+        self._vmax = self._speed_bound(config)
         if config.command_interface == 'effort':
             self._target = min(max(self._target, -config.max_effort), config.max_effort)
         s = self._sensor

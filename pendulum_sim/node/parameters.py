@@ -8,6 +8,7 @@ cross-parameter rules hold; its messages are the reasons the set is rejected wit
 from __future__ import annotations
 
 import math
+import unicodedata
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -160,6 +161,7 @@ SPECS: tuple[Spec, ...] = (
 
 SPEC_BY_NAME: dict[str, Spec] = {s.name: s for s in SPECS}
 PHYSICS = ('m', 'l', 'inertia', 'g', 'gamma', 'n')
+COMMAND_INPUTS = ('effort_input', 'joint_commands_input', 'array_command_input')
 LIVE = frozenset(s.name for s in SPECS if not s.read_only)
 
 
@@ -183,13 +185,21 @@ def check(values: Mapping[str, Value]) -> str | None:
     if values['integrator'] not in METHODS:
         known = ', '.join(sorted(METHODS))
         return f"integrator must be one of {known}, got '{values['integrator']}'"
-    if not str(values['joint_name']).strip():
-        return f"joint_name must be a non-empty name, got '{values['joint_name']}'"
+    name = str(values['joint_name'])
+    if not name.strip():
+        return f"joint_name must be a non-empty name, got '{name}'"
+    control = next((c for c in name if unicodedata.category(c) == 'Cc'), None)
+    if control is not None:
+        return (f'joint_name must hold no control characters (a URDF or a log would not show '
+                f'them), got {name!r} with {control!r}')
     rtf = float(values['real_time_factor'])
     if rtf == 0.0 and not values['lockstep']:
         return 'real_time_factor must be > 0 unless lockstep is true, got 0.0'
     if values['synchronous'] and not values['lockstep']:
         return 'synchronous needs lockstep: true'
+    if values['synchronous'] and not any(values[k] for k in COMMAND_INPUTS):
+        return ('synchronous needs a command input to answer each state: set one of '
+                + ', '.join(COMMAND_INPUTS) + ' to true')
     if values['sync_timeout_action'] not in ('hold', 'stop'):
         action = values['sync_timeout_action']
         return f"sync_timeout_action must be one of hold, stop, got '{action}'"

@@ -186,7 +186,13 @@ class PendulumNode(Node):
         return self._stop_requested
 
     def _log(self, level: str, text: str) -> None:
-        getattr(self.get_logger(), level)(text)
+        logger = self.get_logger()   # rclpy ties a severity to each call site: one per level
+        if level == 'error':
+            logger.error(text)
+        elif level == 'warning':
+            logger.warning(text)
+        else:
+            logger.info(text)
 
     def _urdf(self) -> str:
         """Return the URDF of this joint, its ros2_control block naming this node's topics."""
