@@ -51,8 +51,8 @@ def test_signals_end_the_running_loop_cleanly() -> None:
                 node.proc.send_signal(sig)  # type: ignore[union-attr]
                 ctrl.proc.send_signal(sig)  # type: ignore[union-attr]
             for i, node, ctrl in runs:
-                results.append((i, node.output(), node.wait(10.0), ctrl.output(),
-                                ctrl.wait(10.0)))
+                n_code, c_code = node.wait(10.0), ctrl.wait(10.0)
+                results.append((i, node.output(), n_code, ctrl.output(), c_code))
         finally:
             for _, node, ctrl in runs:
                 for p in (node, ctrl):
