@@ -17,10 +17,30 @@ from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 class Recording:
     """The node's recorder, if any: writes that never raise, an error reported once."""
 
-    def __init__(self, recorder: Any, log_error: Callable[[str], None]) -> None:
+    def __init__(self, recorder: Any, log_error: Callable[[str], None],
+                 log_info: Callable[[str], None] = print) -> None:
         self.recorder = recorder
         self._log_error = log_error
+        self._log_info = log_info
         self._error_logged = False
+
+    def open(self, path: str, overwrite: bool, metadata: dict[str, dict[str, str]],
+             channels: list[tuple[str, Any, Any]]) -> None:
+        """Open an MCAP recording at ``path`` with these channels and /parameter_events."""
+        try:
+            from pendulum_sim.recording import McapRecorder
+        except ImportError as exc:
+            self._log_error(f'recording is not available ({exc}); not recording')
+            return
+        from rcl_interfaces.msg import ParameterEvent
+
+        rec = McapRecorder(path, overwrite=overwrite, metadata=metadata)
+        rec.open()
+        for topic, msg_type, qos in channels:
+            rec.add_channel(topic, msg_type, qos)
+        rec.add_channel('/parameter_events', ParameterEvent, 10)
+        self.recorder = rec
+        self._log_info(f'recording to {rec.path}')
 
     def write(self, topic: str, msg: Any, stamp_ns: int) -> None:
         """Write a message (or its CDR bytes) at ``stamp_ns``; never raise."""

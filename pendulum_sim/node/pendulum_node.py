@@ -25,7 +25,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, String, UInt32
@@ -42,36 +42,19 @@ from .exchange import Gate, StepError, SyncExchange
 from .joint import SimulatedJoint
 from .outputs import Recording, StateOutputs
 from .parameters import SPEC_BY_NAME, Value, check, declare_all, joint_config, merged, physics
+from .qos import (
+    COMMAND_QOS,
+    JOINT_STATE_QOS,
+    LATCHED_QOS,
+    SERVICE_QOS,
+    STEP_QOS,
+    SYNC_COMMAND_QOS,
+)
 from .realtime import WakeStats
 from .status import StatusLine, summary_text
 from .telemetry import Telemetry
 from .urdf import urdf_from_values
 
-
-def _qos(depth: int, reliable: bool = True, latched: bool = False,
-         keep_all: bool = False) -> QoSProfile:
-    """Return a profile: keep-last ``depth`` (or keep-all), reliable or best effort, volatile
-    or latched."""
-    return QoSProfile(depth=depth,
-                      history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
-                      reliability=ReliabilityPolicy.RELIABLE if reliable
-                      else ReliabilityPolicy.BEST_EFFORT,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
-                      else DurabilityPolicy.VOLATILE)
-
-
-# Reliable, volatile, depth 10: matches reliable and best-effort subscriptions alike.
-JOINT_STATE_QOS = _qos(10)
-# Commands in real time and free lockstep: best effort matches either kind of publisher.
-COMMAND_QOS = _qos(10, reliable=False)
-# Synchronous mode: every command answers a state, so none may be lost.
-SYNC_COMMAND_QOS = _qos(100)
-# ~/step_periods: every request counts, however many arrive at once.
-STEP_QOS = _qos(1000, keep_all=True)
-# Late joiners (RViz, Foxglove) must still get the URDF (as robot_state_publisher does).
-LATCHED_QOS = _qos(1, latched=True)
-# Services keep many requests: a burst of 100 concurrent ~/reset calls is answered in full.
-SERVICE_QOS = _qos(1000)
 DIAGNOSTICS_PERIOD_NS = 1_000_000_000
 LOCKSTEP_PERIOD = 1e-3
 SYNC_WATCH_PERIOD = 0.02     # synchronous mode: how often to look for controllers, timeouts
@@ -130,10 +113,16 @@ class PendulumNode(Node):
             self.create_service(Trigger, '~/step', self._on_step_one, qos_profile=SERVICE_QOS)
             self.create_subscription(UInt32, '~/step_periods', self._on_step_periods,
                                      STEP_QOS)
-        self._recording = Recording(None, self.get_logger().error)
+        self._recording = Recording(None, self.get_logger().error, self.get_logger().info)
         if v['recording.path']:
-            self._open_recorder(str(v['recording.path']), bool(v['recording.overwrite']),
-                                energy)
+            channels: list[tuple[str, Any, Any]] = [
+                (self._js_pub.topic_name, JointState, JOINT_STATE_QOS)]
+            channels += [(pub.topic_name, t, 10) for pub, t in (
+                (energy, Float64), (self._diag_pub, DiagnosticArray)) if pub is not None]
+            channels += [(s.topic_name, s.msg_type, 10) for s in self._cmd_subs]
+            self._recording.open(str(v['recording.path']), bool(v['recording.overwrite']),
+                                 {'scene': {k: str(x) for k, x in v.items()},
+                                  'pendulum_sim': {'version': __version__}}, channels)
 
         # The joint and its driver start after every entity (and the recorder) exists, so the
         # first wake has no set-up time to catch up; a wall-anchored epoch is read now.
@@ -226,27 +215,6 @@ class PendulumNode(Node):
         subscribers = self._js_pub.get_subscription_count()
         ready = subscribers >= 1 and any(s.get_publisher_count() > 0 for s in self._cmd_subs)
         return ready, subscribers
-
-    def _open_recorder(self, path: str, overwrite: bool, energy: Any) -> None:
-        try:
-            from pendulum_sim.recording import McapRecorder
-        except ImportError as exc:
-            self.get_logger().error(f'recording is not available ({exc}); not recording')
-            return
-        meta = {'scene': {k: str(val) for k, val in self._values.items()},
-                'pendulum_sim': {'version': __version__}}
-        rec = McapRecorder(path, overwrite=overwrite, metadata=meta)
-        rec.open()
-        rec.add_channel(self._js_pub.topic_name, JointState, JOINT_STATE_QOS)
-        if energy is not None:
-            rec.add_channel(energy.topic_name, Float64, 10)
-        for sub in self._cmd_subs:
-            rec.add_channel(sub.topic_name, sub.msg_type, 10)
-        if self._diag_pub is not None:
-            rec.add_channel(self._diag_pub.topic_name, DiagnosticArray, 10)
-        rec.add_channel('/parameter_events', ParameterEvent, 10)
-        self._recording.recorder = rec
-        self.get_logger().info(f'recording to {rec.path}')
 
     # ------------------------------------------------------------------ callbacks
     def _guarded(self, fn: Any, *args: Any) -> Any:
