@@ -75,3 +75,13 @@ class Drops:
             more = f', {_short(detail)}' if detail else ''
             return f'dropped a command on {topic}: {reason}{more} ({count} so far)'
         return None
+
+
+def incompatible_line(topic: str, policy: str, synchronous: bool, count: int) -> str | None:
+    """Return the log line for a publisher on ``topic`` whose QoS cannot connect (the first,
+    then every 100th), naming the policy and what to publish instead."""
+    if count != 1 and count % 100 != 0:
+        return None
+    need = 'reliable (synchronous mode loses no command)' if synchronous else 'a compatible QoS'
+    return (f'a publisher on {topic} cannot connect: its QoS is incompatible '
+            f"({policy.removeprefix('RMW_QOS_POLICY_')}); publish {need} ({count} so far)")

@@ -80,6 +80,19 @@ class Driver:
         joint.command(value)
         return joint.stamp_ns()
 
+    def pause(self, paused: bool, now_ns: int) -> bool:
+        """Pause or resume (``~/pause``), ending any step budget; return False if nothing
+        changed."""
+        changed = self.gate.pause(paused)
+        if changed:
+            self.gate_changed(now_ns)
+        return changed
+
+    def step(self, periods: int, now_ns: int) -> None:
+        """Add control periods to the budget while paused (raise StepError if it cannot)."""
+        self.gate.step(periods)
+        self.gate_changed(now_ns)
+
     def gate_changed(self, now_ns: int) -> None:
         """Follow a change of pause or budget: count wall time only while the gate is open."""
         if self.gate.open:
@@ -259,6 +272,18 @@ class SyncDriver(Driver):
         stamp = aw.stamp_ns
         self.wake(now_ns, now_ns + WAKE_BUDGET_NS)
         return stamp
+
+    def pause(self, paused: bool, now_ns: int) -> bool:
+        changed = self.exchange.pause(paused)
+        if changed:
+            self.gate_changed(now_ns)
+            self.wake(now_ns, now_ns + WAKE_BUDGET_NS)
+        return changed
+
+    def step(self, periods: int, now_ns: int) -> None:
+        self.exchange.step(periods)
+        self.gate_changed(now_ns)
+        self.wake(now_ns, now_ns + WAKE_BUDGET_NS)
 
     def after_reset(self, now_ns: int) -> None:
         self._failure_logged = False

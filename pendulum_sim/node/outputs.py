@@ -6,6 +6,7 @@ recorder is reported once and never stops the joint.
 """
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -70,6 +71,18 @@ class Recording:
         if not self._error_logged:
             self._error_logged = True
             self._log_error(f'recording failed, simulation continues: {exc}')
+
+    def close(self) -> None:
+        """Close the recording (report, never raise: the shutdown goes on)."""
+        rec, self.recorder = self.recorder, None
+        if rec is None:
+            return
+        try:
+            rec.close()
+        except Exception as exc:  # report, keep shutting down
+            print(f'pendulum_node: closing the recording failed: {exc}', file=sys.stderr)
+        if rec.error is not None:
+            print(f'pendulum_node: recording error: {rec.error}', file=sys.stderr)
 
     def check(self) -> None:
         """Report an error the recorder met on its own (its writer process)."""

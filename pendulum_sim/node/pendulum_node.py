@@ -1,16 +1,9 @@
-"""``pendulum_node``: the core's pendulum served as a simulated ROS 2 joint.
+"""``pendulum_node``: the core's pendulum served as a simulated ROS 2 joint (wiring only).
 
-This file is wiring only: it declares parameters, creates the publishers, subscriptions,
-services and the timer, and hands each callback to a ROS-free part:
-
-- ``joint.py`` — the joint between two publications (commands, limits, delays, sensor, stamps);
-- ``drivers.py`` — when the joint advances in each mode (real time, lockstep, synchronous);
-- ``exchange.py`` — pause, the step budget, and which command answers which state;
-- ``commands.py`` — decoding the command messages and counting what is dropped;
-- ``outputs.py`` — publishing (and recording) each state as CDR bytes;
-- ``telemetry.py`` — diagnostics, the status line and the shutdown summary.
-
-The command line lives in ``cli.py``.
+The node declares parameters, creates the publishers, subscriptions, services and timer, and hands
+each callback to a ROS-free part: ``joint.py`` (the joint), ``drivers.py`` (when it advances, per
+mode), ``exchange.py`` (pause, step budget, synchronous answers), ``commands.py`` (decoding),
+``outputs.py`` (publishing, recording) and ``telemetry.py`` (diagnostics, summary).
 """
 from __future__ import annotations
 
@@ -75,10 +68,8 @@ class PendulumNode(Node):
         if reason is not None:
             raise ParameterError(reason)
         v = self._values
-        self._h = float(v['h'])
         lockstep, self._sync = bool(v['lockstep']), bool(v['synchronous'])
         self._joint_name = str(v['joint_name'])
-        start_time = float(v['start_time'])
         self._interface = str(v['command_interface'])
         self._incompatible: dict[str, int] = {}
         self._drops = commands.Drops()
@@ -126,8 +117,8 @@ class PendulumNode(Node):
 
         # The joint and its driver start after every entity (and the recorder) exists, so the
         # first wake has no set-up time to catch up; a wall-anchored epoch is read now.
-        epoch_ns = (time.time_ns() if start_time < 0.0 and not lockstep
-                    else round(max(start_time, 0.0) * 1e9))
+        start = float(v['start_time'])
+        epoch_ns = time.time_ns() if start < 0.0 and not lockstep else round(max(start, 0) * 1e9)
         self._joint = joint = SimulatedJoint(joint_config(v, epoch_ns))
         self._gate = gate = Gate(bool(v['start_paused']))
         self._outputs = StateOutputs(joint, self._joint_name, self._js_pub, clock, energy,
@@ -135,16 +126,14 @@ class PendulumNode(Node):
         now = time.monotonic_ns()
         rtf = float(v['real_time_factor'])
         self._driver: Driver
-        self._exchange: SyncExchange | None = None
         if self._sync:
             period = SYNC_WATCH_PERIOD
-            self._exchange = SyncExchange(gate, round(float(v['sync_timeout']) * 1e9),
-                                          str(v['sync_timeout_action']))
-            topics = ', '.join(self._topics.values())
+            exchange = SyncExchange(gate, round(float(v['sync_timeout']) * 1e9),
+                                    str(v['sync_timeout_action']))
             self._driver = SyncDriver(
-                joint, self._exchange, self._outputs, self._log, now, self._ready,
-                f'synchronous: waiting for a controller (a subscriber on '
-                f'{self._js_pub.topic_name} and a reliable publisher on {topics})')
+                joint, exchange, self._outputs, self._log, now, self._ready,
+                f'synchronous: waiting for a controller (a subscriber on {self._js_pub.topic_name}'
+                f" and a reliable publisher on {', '.join(self._topics.values())})")
         else:
             period = LOCKSTEP_PERIOD if lockstep else 1.0 / float(v['publish_rate'])
             self._driver = RealTimeDriver(joint, gate, self._outputs, self._log, now, rtf,
@@ -153,21 +142,14 @@ class PendulumNode(Node):
         self._period_ns = round(period * 1e9)
         self._wakes = WakeStats(0 if asap or self._sync else self._period_ns)
         self._telemetry = Telemetry(joint, self._driver, gate, self._drops, self._wakes,
-                                    self._incompatible)
-        self._telemetry.rtf_target = rtf
+                                    self._incompatible, rtf)
         self._next_report_ns = now + DIAGNOSTICS_PERIOD_NS
         self._status = status if v['status_line'] else None
         self._timer = self.create_timer(period, self._on_wake,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
-        mode = 'synchronous lockstep' if self._sync else 'lockstep' if lockstep else 'real time'
-        self.get_logger().info(
-            f'{mode}: h = {self._h:g} s, {v["integrator"]}, control period '
-            f'{joint.config.period_steps} steps ({float(v["publish_rate"]):g} Hz), '
-            f'real_time_factor = {rtf:g}, {self._interface} commands, joint '
-            f'{self._joint_name!r}'
-            + (', paused (~/step or ~/pause false to go on)' if gate.paused else ''))
+        self.get_logger().info(self._telemetry.start_text(v))
 
     @property
     def stop_requested(self) -> bool:
@@ -196,14 +178,10 @@ class PendulumNode(Node):
         def incompatible(event: Any) -> None:
             name = created[0].topic_name if created else topic
             count = self._incompatible[name] = self._incompatible.get(name, 0) + 1
-            if count == 1 or count % 100 == 0:
-                kind = getattr(event.last_policy_kind, 'name', str(event.last_policy_kind))
-                need = ('reliable (synchronous mode loses no command)' if self._sync
-                        else 'a compatible QoS')
-                self.get_logger().warning(
-                    f'a publisher on {name} cannot connect: its QoS is incompatible '
-                    f"({kind.removeprefix('RMW_QOS_POLICY_')}); publish {need} "
-                    f'({count} so far)')
+            kind = getattr(event.last_policy_kind, 'name', str(event.last_policy_kind))
+            line = commands.incompatible_line(name, kind, self._sync, count)
+            if line is not None:
+                self.get_logger().warning(line)
 
         events = SubscriptionEventCallbacks(incompatible_qos=incompatible)
         created.append(self.create_subscription(msg_type, topic, callback, qos,
@@ -285,36 +263,20 @@ class PendulumNode(Node):
         return response
 
     def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> Any:
-        t = self._joint.time
-        paused = bool(request.data)
-        ex = self._exchange
-        changed = ex.pause(paused) if ex is not None else self._gate.pause(paused)
+        t, paused = self._joint.time, bool(request.data)
+        changed = self._guarded(self._driver.pause, paused, time.monotonic_ns())
         response.success = True
-        if not changed:
-            response.message = f'already {"paused" if paused else "running"} at t = {t:.9g} s'
-            return response
-        now = time.monotonic_ns()
-        self._driver.gate_changed(now)
-        if ex is not None:
-            self._guarded(self._driver.wake, now, now + WAKE_BUDGET_NS)
-        response.message = f'{"paused" if paused else "resumed"} at t = {t:.9g} s'
+        response.message = (f'{"paused" if paused else "resumed"} at t = {t:.9g} s' if changed
+                            else f'already {"paused" if paused else "running"} at t = {t:.9g} s')
         return response
 
     def _step(self, count: int) -> str:
         """Queue ``count`` control periods while paused; raise StepError if it cannot."""
-        ex = self._exchange
-        if ex is not None:
-            ex.step(count)
-        else:
-            self._gate.step(count)
-        now = time.monotonic_ns()
-        self._driver.gate_changed(now)
         k = self._joint.config.period_steps
-        target = (self._joint.steps // k + self._gate.budget) * k
-        if ex is not None:
-            self._guarded(self._driver.wake, now, now + WAKE_BUDGET_NS)
-        return (f'stepping {count} control period(s) of {k * self._h:g} s to '
-                f't = {target * self._h:.9g} s')
+        target = (self._joint.steps // k + self._gate.budget + count) * k
+        self._guarded(self._driver.step, count, time.monotonic_ns())
+        h = self._joint.config.h
+        return f'stepping {count} control period(s) of {k * h:g} s to t = {target * h:.9g} s'
 
     def _on_step_one(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         try:
@@ -355,9 +317,9 @@ class PendulumNode(Node):
         if 'real_time_factor' in names and isinstance(self._driver, RealTimeDriver):
             self._driver.set_rtf(float(v['real_time_factor']), now)
         self._telemetry.rtf_target = float(v['real_time_factor'])
-        if self._exchange is not None:
-            self._exchange.timeout_ns = round(float(v['sync_timeout']) * 1e9)
-            self._exchange.action = str(v['sync_timeout_action'])
+        if isinstance(self._driver, SyncDriver):
+            self._driver.exchange.timeout_ns = round(float(v['sync_timeout']) * 1e9)
+            self._driver.exchange.action = str(v['sync_timeout_action'])
         if self._recording.recorder is not None:
             stamp = joint.stamp_ns()
             event = ParameterEvent(node=self.get_fully_qualified_name(), stamp=_stamp(stamp))
@@ -365,10 +327,6 @@ class PendulumNode(Node):
             self._recording.write('/parameter_events', event, stamp)
 
     # ------------------------------------------------------------------ reports
-    def guard_stats(self) -> dict[str, int]:
-        """Return the guard's counters over the whole run (across resets)."""
-        return self._joint.guard_stats()
-
     def _report(self, now: int) -> None:
         self._recording.check()
         if self._diag_pub is None:
@@ -394,11 +352,4 @@ class PendulumNode(Node):
             print(summary_text(self.summary()), file=sys.stderr, flush=True)
         except Exception as exc:  # the summary must never hide the shutdown
             print(f'pendulum_node: no summary ({type(exc).__name__}: {exc})', file=sys.stderr)
-        rec, self._recording.recorder = self._recording.recorder, None
-        if rec is not None:
-            try:
-                rec.close()
-            except Exception as exc:  # report, keep shutting down
-                print(f'pendulum_node: closing the recording failed: {exc}', file=sys.stderr)
-            if rec.error is not None:
-                print(f'pendulum_node: recording error: {rec.error}', file=sys.stderr)
+        self._recording.close()

@@ -31,21 +31,33 @@ class Telemetry:
         The timer's wake statistics.
     incompatible : mapping
         Incompatible-QoS events per command topic.
-    rtf_target : callable
-        Returns the ``real_time_factor`` parameter.
+    rtf_target : float
+        The ``real_time_factor`` parameter (the node updates it).
     """
 
     def __init__(self, joint: SimulatedJoint, driver: Driver, gate: Gate, drops: Drops,
-                 wakes: WakeStats, incompatible: Mapping[str, int]) -> None:
+                 wakes: WakeStats, incompatible: Mapping[str, int],
+                 rtf_target: float = 0.0) -> None:
         self.joint = joint
         self.driver = driver
         self.gate = gate
         self.drops = drops
         self.wakes = wakes
         self.incompatible = incompatible
-        self.rtf_target = 0.0
+        self.rtf_target = rtf_target
         self._last_error = math.nan
         self._max_error = 0.0
+
+    def start_text(self, values: Mapping[str, object]) -> str:
+        """Return the line logged at start: mode, step, integrator, period, commands, joint."""
+        v = values
+        mode = ('synchronous lockstep' if v['synchronous'] else 'lockstep' if v['lockstep']
+                else 'real time')
+        return (f'{mode}: h = {v["h"]:g} s, {v["integrator"]}, control period '
+                f'{self.joint.config.period_steps} steps ({v["publish_rate"]:g} Hz), '
+                f'real_time_factor = {v["real_time_factor"]:g}, {v["command_interface"]} '
+                f'commands, joint {v["joint_name"]!r}'
+                + (', paused (~/step or ~/pause false to go on)' if self.gate.paused else ''))
 
     def estimate_error(self) -> float:
         """Return the core's local error estimate of the next step (nan if it cannot say)."""
