@@ -151,3 +151,50 @@ def test_settings_the_node_cannot_run_are_refused_at_start(params: dict[str, obj
     with NodeProcess('controller_test', params) as node:
         assert node.wait(30.0) == 2
         assert f'pendulum_node: {message}' in node.output()
+
+
+def writer_of(node: NodeProcess) -> int:
+    """Return the pid of the node's recording writer process (its child running the sink)."""
+    assert node.proc is not None
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / 'stat').read_text()
+            cmdline = (entry / 'cmdline').read_bytes()
+        except OSError:
+            continue
+        if int(stat.rsplit(')', 1)[1].split()[1]) == node.proc.pid and b'recording.sink' in (
+                cmdline):
+            return int(entry.name)
+    raise AssertionError('no writer process')
+
+
+def test_sigint_ends_the_node_while_its_writer_is_stopped(tmp_path: Path) -> None:
+    import os
+    import time
+
+    from pendulum_sim.recording import load
+
+    path = tmp_path / 'stopped.mcap'
+    with NodeProcess('default', {'recording.path': str(path), 'status_line': False}) as node, \
+            Probe() as probe:
+        states = probe.subscribe(JointState, f'{node.namespace}/joint_states')
+        probe.spin_until(lambda: len(states) >= 50, 30.0, 'joint_states')
+        writer = writer_of(node)
+        os.kill(writer, signal.SIGSTOP)
+        try:
+            assert node.stop(signal.SIGINT, timeout=2.0) == 0
+            out = node.output()
+        finally:
+            os.kill(writer, signal.SIGCONT)
+    assert f'the writer process (pid {writer}) is stopped; it finalises the file when it ' \
+           'runs again' in out
+    # Continued, the writer finishes the file by itself.
+    end = time.monotonic() + 30.0
+    while Path(f'/proc/{writer}').exists() and b'recording.sink' in Path(
+            f'/proc/{writer}/cmdline').read_bytes():
+        assert time.monotonic() < end, 'the writer never finished'
+        time.sleep(0.05)
+    rec = load(path)
+    assert rec.complete and rec.joint_states is not None and len(rec.joint_states.t) >= 50
