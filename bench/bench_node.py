@@ -311,13 +311,16 @@ def run_node(first: Path | None, scene: str, params: dict[str, str], seconds: fl
     cmd += ['--ros-args', '-r', f'__ns:={unique_namespace()}', '-r', '/clock:=/bench_clock',
             '--params-file', str(root / 'config' / f'{scene}.yaml'),
             *[x for k, v in params.items() for x in ('-p', f'{k}:={v}')]]
+    # cwd: ``python -c`` puts it first on sys.path, so each node imports its own package.
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, cwd=root)
     try:
         time.sleep(warmup)   # a benchmark: start-up excluded by time, not asserted
         c0, w0 = cpu_seconds(proc.pid), time.monotonic()
         time.sleep(seconds)
         share = (cpu_seconds(proc.pid) - c0) / (time.monotonic() - w0)
+        if proc.poll() is not None:
+            raise RuntimeError(f'the node ended early: {proc.communicate()[1][-2000:]}')
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)
     finally:
