@@ -29,6 +29,7 @@ from .realtime import RateMeter, Schedule
 WAKE_BUDGET_NS = 10_000_000
 CHUNK_STEPS = 256
 CATCH_UP_SECONDS = 0.25
+REMIND_AFTER_NS = 20_000_000    # synchronous: /clock again after this long without an answer
 
 Publish = Callable[[bool], None]      # publish the joint's state now (True: with /clock)
 Log = Callable[[str, str], None]      # (level: 'info' | 'warning' | 'error', text)
@@ -252,9 +253,13 @@ class SyncDriver(Driver):
 
     def __init__(self, joint: SimulatedJoint, exchange: SyncExchange, publish: Publish,
                  log: Log, now_ns: int, ready: Callable[[], tuple[bool, int]],
-                 waiting_text: str, clock: Clock = time.monotonic_ns) -> None:
+                 waiting_text: str, clock: Clock = time.monotonic_ns,
+                 remind: Callable[[int, bool], None] | None = None,
+                 remind_state: bool = False) -> None:
         super().__init__(joint, exchange.gate, publish, log, now_ns, clock)
         self.exchange = exchange
+        self.remind = remind
+        self.remind_state = remind_state
         self.ready = ready
         self._waiting_text = waiting_text
         self._waiting_logged = False
@@ -307,6 +312,15 @@ class SyncDriver(Driver):
             if not ready and not ex.started and not self._waiting_logged:
                 self._waiting_logged = True
                 self.log('info', self._waiting_text)
+            aw = ex.awaiting
+            if (self.remind is not None and aw is not None and not aw.answered
+                    and not ex.stepping and self.gate.open
+                    and now_ns - aw.since_ns >= REMIND_AFTER_NS):
+                # Best-effort subscribers matched only just now (TopicBasedSystem's states,
+                # ros2_control_node's /clock) may have missed them: /clock again, and the
+                # state until a first answer when every command input is stamped (a copy
+                # answered by an unstamped controller would count as the next state's answer).
+                self.remind(aw.stamp_ns, self.remind_state and ex.stats['answered'] == 0)
         elif action is Action.PUBLISH:
             if not self._started_logged:
                 self._started_logged = True

@@ -119,8 +119,17 @@ class StateOutputs:
         self._js_bytes = JointStateBytes(joint_name)
         self._clock_bytes = ClockBytes()
         self._float_bytes = Float64Bytes()
+        self.last_states: bytes | None = None
         self._states_topic = str(states.topic_name)
         self._energy_topic = str(energy.topic_name) if energy is not None else ''
+
+    def remind(self, stamp_ns: int, with_state: bool) -> None:
+        """Publish /clock at ``stamp_ns`` again, and the last joint_states if ``with_state``
+        (nothing is recorded again): for best-effort subscribers matched only just now."""
+        if with_state and self.last_states is not None:
+            self._states.publish(self.last_states)
+        if self._clock is not None:
+            self._clock.publish(self._clock_bytes.pack(*divmod(stamp_ns, 1_000_000_000)))
 
     def __call__(self, with_clock: bool) -> None:
         """Publish the state now (and /clock when ``with_clock`` and lockstep)."""
@@ -128,8 +137,6 @@ class StateOutputs:
         if joint.failed is not None:
             return
         stamp_ns = joint.stamp_ns()
-        if with_clock and self._clock is not None:
-            self._clock.publish(self._clock_bytes.pack(*divmod(stamp_ns, 1_000_000_000)))
         sample = joint.sample()
         record = self._recording.recorder is not None
         if sample is not None:
@@ -137,8 +144,13 @@ class StateOutputs:
             data = self._js_bytes.pack(sec, nanosec, sample.position, sample.velocity,
                                        sample.effort)
             self._states.publish(data)
+            self.last_states = data
             if record:
                 self._recording.write(self._states_topic, data, stamp_ns)
+        # /clock after the state: a controller manager woken by /clock (ros2_control_node on
+        # use_sim_time) finds the state of that time already sent when it reads.
+        if with_clock and self._clock is not None:
+            self._clock.publish(self._clock_bytes.pack(*divmod(stamp_ns, 1_000_000_000)))
         if self._energy is None and not self._terms:
             return
         try:

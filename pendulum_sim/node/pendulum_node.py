@@ -133,7 +133,8 @@ class PendulumNode(Node):
             self._driver = SyncDriver(
                 joint, exchange, self._outputs, self._log, now, self._ready,
                 f'synchronous: waiting for a controller (a subscriber on {self._js_pub.topic_name}'
-                f" and a reliable publisher on {', '.join(self._topics.values())})")
+                f" and a reliable publisher on {', '.join(self._topics.values())})",
+                remind=self._outputs.remind, remind_state=set(self._topics) == {'joint_commands'})
         else:
             period = LOCKSTEP_PERIOD if lockstep else 1.0 / float(v['publish_rate'])
             self._driver = RealTimeDriver(joint, gate, self._outputs, self._log, now, rtf,

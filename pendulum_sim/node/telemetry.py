@@ -183,8 +183,8 @@ class Telemetry:
         }
         if isinstance(self.driver, SyncDriver):
             s = self.driver.exchange.stats
-            out['sync answered / timeouts / late / duplicates / ahead'] = (
-                f'{s["answered"]} / {s["timeouts"]} / {s["late"]} / {s["duplicates"]} / '
-                f'{s["ahead"]}')
+            out['sync answered / timeouts / late / duplicates'] = (
+                f'{s["answered"]} / {s["timeouts"]} / {s["late"]} / {s["duplicates"]}')
+            out['sync ahead / republished'] = f'{s["ahead"]} / {s["republished"]}'
         out['stopped by'] = joint.failed or '-'
         return out
