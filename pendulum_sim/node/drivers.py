@@ -307,6 +307,8 @@ class SyncDriver(Driver):
             return 0
         ready, subscribers = self.ready()
         action = ex.poll(now_ns, ready, subscribers)
+        if self.gate.open:
+            self.rate.resume(now_ns)   # a controller connecting may have lifted a stop
         taken = 0
         if action is Action.WAIT:
             if not ready and not ex.started and not self._waiting_logged:
