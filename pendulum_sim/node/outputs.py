@@ -120,8 +120,18 @@ class StateOutputs:
         self._clock_bytes = ClockBytes()
         self._float_bytes = Float64Bytes()
         self.last_states: bytes | None = None
+        self._to_states = self._to_clock = self._to_energy = True
         self._states_topic = str(states.topic_name)
         self._energy_topic = str(energy.topic_name) if energy is not None else ''
+
+    def refresh(self) -> None:
+        """Look up, once per wake, which topics have subscribers: a message nobody would
+        receive is not published (it is still recorded). A subscriber that matches gets
+        messages from the next wake on."""
+        self._to_states = self._states.get_subscription_count() > 0
+        self._to_clock = self._clock is not None and self._clock.get_subscription_count() > 0
+        self._to_energy = (self._energy is not None
+                           and self._energy.get_subscription_count() > 0)
 
     def remind(self, stamp_ns: int, with_state: bool) -> None:
         """Publish /clock at ``stamp_ns`` again, and the last joint_states if ``with_state``
@@ -137,19 +147,20 @@ class StateOutputs:
         if joint.failed is not None:
             return
         stamp_ns = joint.stamp_ns()
-        sample = joint.sample()
+        sample = joint.sample()   # always: the sensor noise sequence must not depend on readers
         record = self._recording.recorder is not None
-        if sample is not None:
+        if sample is not None and (self._to_states or record):
             sec, nanosec = divmod(sample.stamp_ns, 1_000_000_000)
             data = self._js_bytes.pack(sec, nanosec, sample.position, sample.velocity,
                                        sample.effort)
-            self._states.publish(data)
+            if self._to_states:
+                self._states.publish(data)
             self.last_states = data
             if record:
                 self._recording.write(self._states_topic, data, stamp_ns)
         # /clock after the state: a controller manager woken by /clock (ros2_control_node on
         # use_sim_time) finds the state of that time already sent when it reads.
-        if with_clock and self._clock is not None:
+        if with_clock and self._to_clock:
             self._clock.publish(self._clock_bytes.pack(*divmod(stamp_ns, 1_000_000_000)))
         if self._energy is None and not self._terms:
             return
@@ -160,9 +171,10 @@ class StateOutputs:
             joint.fail(str(exc))
             return
         pack = self._float_bytes.pack
-        if self._energy is not None:
+        if self._energy is not None and (self._to_energy or record):
             e = pack(energy)
-            self._energy.publish(e)
+            if self._to_energy:
+                self._energy.publish(e)
             if record:
                 self._recording.write(self._energy_topic, e, stamp_ns)
         if terms is not None:

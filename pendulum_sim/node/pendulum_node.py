@@ -217,6 +217,7 @@ class PendulumNode(Node):
         remaining = self._timer.time_until_next_call()
         sched = now if remaining is None else now + remaining - self._period_ns
         self._wakes.wake(sched, now)
+        self._outputs.refresh()
         taken = self._driver.wake(now, now + WAKE_BUDGET_NS)
         self._driver.check_failed()
         if now >= self._next_report_ns:
