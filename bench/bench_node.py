@@ -8,9 +8,10 @@ Phase 0 (default), the tick and the comparison:
   (the CDR templates of joint_states, /clock and energy), publish (rclpy ``publish`` of the
   bytes, no subscriber) and executor (one timer wake of the EventsExecutor);
 - this node and the first release's (a checkout of commit e07fe85, ``--first``) run the same
-  scenes interleaved, each in its own process, nothing subscribed: the paper scene at 1 kHz
-  (CPU share of one core from /proc, start-up excluded) and free lockstep (``--scene
-  lockstep``, the summary's achieved real-time factor).
+  scenes interleaved, each in its own process: the paper scene at 1 kHz (CPU share of one
+  core from /proc, start-up excluded) and free lockstep (``--scene lockstep``, the summary's
+  achieved real-time factor), with nothing subscribed and with this process subscribed to
+  joint_states and /clock (the node skips publications nobody receives, so both are shown).
 
 Phase 1, real time (1 kHz physics, 1 kHz publishing by default): the publish period seen by the
 subscriber, the stamp-to-receive age, the drift of simulated against wall time over the run,
@@ -300,30 +301,40 @@ def node_cmd(first: Path | None) -> tuple[list[str], dict[str, str]]:
 
 
 def run_node(first: Path | None, scene: str, params: dict[str, str], seconds: float,
-             warmup: float) -> tuple[float, str]:
+             warmup: float, listen: bool = False) -> tuple[float, str]:
     """Run a node for ``warmup + seconds``; return its CPU share after the warm-up and its
-    shutdown summary."""
+    shutdown summary. ``listen``: a subscriber in this process takes its joint_states and
+    /clock meanwhile."""
     import signal
     import subprocess
 
     root = first if first is not None else Path(__file__).resolve().parents[1]
     cmd, env = node_cmd(first)
-    cmd += ['--ros-args', '-r', f'__ns:={unique_namespace()}', '-r', '/clock:=/bench_clock',
+    namespace = unique_namespace()
+    cmd += ['--ros-args', '-r', f'__ns:={namespace}', '-r', f'/clock:={namespace}/clock',
             '--params-file', str(root / 'config' / f'{scene}.yaml'),
             *[x for k, v in params.items() for x in ('-p', f'{k}:={v}')]]
     # cwd: ``python -c`` puts it first on sys.path, so each node imports its own package.
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, cwd=root)
+    probe = Probe('bench_listener', executor='events') if listen else None
     try:
-        time.sleep(warmup)   # a benchmark: start-up excluded by time, not asserted
+        if probe is not None:
+            best_effort = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+            probe.subscribe(JointState, f'{namespace}/joint_states', best_effort)
+            probe.subscribe(Clock, f'{namespace}/clock', best_effort)
+        wait = probe.spin_for if probe is not None else time.sleep
+        wait(warmup)   # a benchmark: start-up excluded by time, not asserted
         c0, w0 = cpu_seconds(proc.pid), time.monotonic()
-        time.sleep(seconds)
+        wait(seconds)
         share = (cpu_seconds(proc.pid) - c0) / (time.monotonic() - w0)
         if proc.poll() is not None:
             raise RuntimeError(f'the node ended early: {proc.communicate()[1][-2000:]}')
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)
     finally:
+        if probe is not None:
+            probe.close()
         if proc.poll() is None:
             proc.kill()
             proc.wait()
@@ -354,6 +365,7 @@ def compare(args: argparse.Namespace) -> None:
         ('this node', None)]
     cpu: dict[str, list[float]] = {name: [] for name, _ in nodes}
     rtf: dict[str, list[float]] = {name: [] for name, _ in nodes}
+    heard: dict[str, list[float]] = {name: [] for name, _ in nodes}
     for _ in range(args.rounds):
         for name, path in nodes:
             share, _ = run_node(path, 'paper', {'publish_rate': '1000.0',
@@ -362,6 +374,9 @@ def compare(args: argparse.Namespace) -> None:
             _, err = run_node(path, 'lockstep', {'status_line': 'false'},
                               args.lockstep_duration, 0.0)
             rtf[name].append(summary_value(err, 'achieved real-time factor'))
+            _, err = run_node(path, 'lockstep', {'status_line': 'false'},
+                              args.lockstep_duration, 2.0, listen=True)
+            heard[name].append(summary_value(err, 'achieved real-time factor'))
     print(f'\nside by side, interleaved, {args.rounds} rounds (machine shared with other '
           f'work: read the ratios):')
     for name, _ in nodes:
@@ -373,10 +388,14 @@ def compare(args: argparse.Namespace) -> None:
         print(f'  {"":<22} free lockstep {args.lockstep_duration:g} s: RTF median '
               f'{np.median(r):6.1f}x ({", ".join(f"{x:.1f}" for x in r)})  '
               f'[target >= 50x: {ok_r}]')
+        hr = np.array(heard[name])
+        print(f'  {"":<22} the same with this process subscribed to joint_states and /clock: '
+              f'RTF median {np.median(hr):6.1f}x ({", ".join(f"{x:.1f}" for x in hr)})')
     if first is not None:
         a, b = nodes[0][0], nodes[1][0]
         print(f'  ratio this/first: CPU {np.median(cpu[b]) / np.median(cpu[a]):.2f}, '
-              f'lockstep RTF {np.median(rtf[b]) / np.median(rtf[a]):.2f}')
+              f'lockstep RTF {np.median(rtf[b]) / np.median(rtf[a]):.2f}, with a subscriber '
+              f'{np.median(heard[b]) / np.median(heard[a]):.2f}')
 
 
 def main() -> int:
