@@ -198,3 +198,18 @@ def test_sigint_ends_the_node_while_its_writer_is_stopped(tmp_path: Path) -> Non
         time.sleep(0.05)
     rec = load(path)
     assert rec.complete and rec.joint_states is not None and len(rec.joint_states.t) >= 50
+
+
+def test_topics_nobody_took_are_published_to_a_subscriber_that_comes_later() -> None:
+    """A publication nobody would receive is skipped; a subscriber that matches later gets
+    every topic, energy terms included (which are then computed again)."""
+    with NodeProcess('paper', {'status_line': False}) as node, Probe() as probe:
+        diags = probe.subscribe(DiagnosticArray, '/diagnostics')
+        probe.spin_until(lambda: len(reports(diags, node)) >= 1, 30.0, 'the node running')
+        kinetic = probe.subscribe(Float64, f'{node.namespace}/energy_terms/kinetic')
+        energy = probe.subscribe(Float64, f'{node.namespace}/energy')
+        states = probe.subscribe(JointState, f'{node.namespace}/joint_states')
+        probe.spin_until(lambda: min(len(kinetic), len(energy), len(states)) >= 20, 30.0,
+                         'every topic')
+        assert all(m.data >= 0.0 for m in kinetic.msgs)
+        assert node.stop(signal.SIGINT, timeout=2.0) == 0

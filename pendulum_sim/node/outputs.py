@@ -121,6 +121,7 @@ class StateOutputs:
         self._float_bytes = Float64Bytes()
         self.last_states: bytes | None = None
         self._to_states = self._to_clock = self._to_energy = True
+        self._to_terms = bool(terms)
         self._states_topic = str(states.topic_name)
         self._energy_topic = str(energy.topic_name) if energy is not None else ''
 
@@ -132,6 +133,7 @@ class StateOutputs:
         self._to_clock = self._clock is not None and self._clock.get_subscription_count() > 0
         self._to_energy = (self._energy is not None
                            and self._energy.get_subscription_count() > 0)
+        self._to_terms = any(pub.get_subscription_count() > 0 for pub in self._terms)
 
     def remind(self, stamp_ns: int, with_state: bool) -> None:
         """Publish /clock at ``stamp_ns`` again, and the last joint_states if ``with_state``
@@ -166,7 +168,7 @@ class StateOutputs:
             return
         try:
             energy = joint.energy()
-            terms = joint.terms() if self._terms else None
+            terms = joint.terms() if self._to_terms else None
         except JointError as exc:
             joint.fail(str(exc))
             return
