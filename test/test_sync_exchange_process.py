@@ -3,8 +3,8 @@
 The node runs ``--scene controller_test`` in its own process. The controller is either the
 installed ``pendulum_pd_controller`` or a probe in this process that answers each state by a
 rule the test chooses (skip one, answer late, answer twice), so every applied command can be
-traced back to the state it answered: the answer to state k is ``0.01 k + 0.005`` N m, and the effort
-published with state k + 1 is the torque applied during period k.
+traced back to the state it answered: the answer to state k is ``0.01 k + 0.005`` N m, and
+the effort published with state k + 1 is the torque applied during period k.
 """
 from __future__ import annotations
 
