@@ -7,6 +7,7 @@ topic_based_ros2_control; MuJoCo's joint inertia equals I and its swing matches 
 from __future__ import annotations
 
 import math
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
@@ -106,18 +107,26 @@ def test_ros2_control_block(interface: str) -> None:
     """topic_based_ros2_control: plugin, this node's topics, 3 state and 1 command interface."""
     root = parse(pendulum_urdf(BODY, 'j', command_interface=interface, lower=-1.0, upper=1.0,
                                max_effort=5.0, max_velocity=6.0,
-                               joint_commands_topic='/ns/joint_commands'))
+                               joint_commands_topic='/ns/joint_commands', phi0=0.25,
+                               dphi0=-0.5))
     block = one(root, 'ros2_control')
     assert block.attrib == {'name': 'pendulum', 'type': 'system'}
     assert one(block, 'hardware/plugin').text == PLUGIN == (
         'topic_based_ros2_control/TopicBasedSystem')
     params = {p.get('name'): p.text for p in block.findall('hardware/param')}
     assert params == {'joint_commands_topic': '/ns/joint_commands',
-                      'joint_states_topic': 'joint_states',
+                      'joint_states_topic': '/pendulum/joint_states',
                       'trigger_joint_command_threshold': '-1'}
     joint = one(block, 'joint')
     assert [s.get('name') for s in joint.findall('state_interface')] == [
         'position', 'velocity', 'effort']
+    # The plugin's on_init copies each state interface's initial_value into the command of
+    # the same name: the initial state, so a position interface holds φ0 until commanded.
+    initial = {s.get('name'): [(p.get('name'), p.text) for p in s.findall('param')]
+               for s in joint.findall('state_interface')}
+    assert initial == {'position': [('initial_value', '0.25')],
+                       'velocity': [('initial_value', '-0.5')],
+                       'effort': [('initial_value', '0.0')]}
     command = one(joint, 'command_interface')
     assert command.get('name') == interface
     bounds = {'effort': ['-5.0', '5.0'], 'velocity': ['-6.0', '6.0'],
@@ -129,6 +138,30 @@ def test_ros2_control_block(interface: str) -> None:
 def test_shipped_urdf_is_the_default_scene() -> None:
     """urdf/pendulum.urdf is what the generator makes of config/default.yaml."""
     assert REPO_URDF.read_text() == default_urdf()
+
+
+def test_shipped_topics_do_not_collide_with_joint_state_broadcaster() -> None:
+    """Absolute topics in /pendulum: not /joint_states, wherever the controller manager runs.
+
+    The plugin's node lives in the controller manager's process (in / by default), where a
+    relative name would resolve to /joint_states, joint_state_broadcaster's output.
+    """
+    root = parse(REPO_URDF.read_text())
+    params = {p.get('name'): p.text for p in root.findall('ros2_control/hardware/param')}
+    assert params['joint_states_topic'] == '/pendulum/joint_states'
+    assert params['joint_commands_topic'] == '/pendulum/joint_commands'
+    state = one(root, "ros2_control/joint/state_interface[@name='position']/param")
+    assert float(state.text or '') == 0.3    # phi0 of the default scene
+
+
+@pytest.mark.parametrize(('lower', 'upper'), [(-1.0, None), (None, 2.0), (-1.0, math.inf),
+                                              (-math.inf, 0.5)])
+def test_a_one_sided_limit_is_refused(lower: float | None, upper: float | None) -> None:
+    """URDF has no one-sided limit (continuous: none; revolute: both): refused with why."""
+    msg = (f'position limits must be both finite (revolute) or both absent (continuous), got '
+           f'lower = {lower} and upper = {upper}: a URDF joint has no one-sided limit')
+    with pytest.raises(ParameterError, match=re.escape(msg)):
+        pendulum_urdf(BODY, lower=lower, upper=upper)
 
 
 def test_urdf_parser_py_reads_it() -> None:

@@ -44,6 +44,7 @@ from .parameters import (
     Value,
     check,
     declare_all,
+    effort_input_active,
     joint_config,
     merged,
     physics,
@@ -148,7 +149,7 @@ class PendulumNode(Node):
         cmd_qos = SYNC_COMMAND_QOS if self._sync else COMMAND_QOS
         self._cmd_subs: list[Any] = []
         self._cmd_topics: dict[str, str] = {}
-        if v['effort_input']:
+        if effort_input_active(v):
             self._cmd_subs.append(self._subscribe(Float64, 'effort_command', self._on_effort,
                                                   cmd_qos))
         if v['joint_commands_input']:
