@@ -92,6 +92,7 @@ def use_loopback_profile(environ: MutableMapping[str, str]) -> Path | None:
 
 
 def _same_file(path: str, other: Path) -> bool:
+    """Return True when ``path`` is ``other`` or holds the same bytes (an installed copy)."""
     try:
         return Path(path).samefile(other) or Path(path).read_bytes() == other.read_bytes()
     except OSError:
