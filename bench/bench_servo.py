@@ -65,7 +65,7 @@ class Response:
 def default_body() -> tuple[PendulumParams, dict[str, object]]:
     """Return the default scene's body and its parameter values."""
     values = read_params_file(find_scene('default'))
-    params = PendulumParams(**{k: float(values[k])  # type: ignore[arg-type]
+    params = PendulumParams(**{k: float(values[k])
                                for k in ('m', 'l', 'inertia', 'g', 'gamma', 'n')})
     return params, values
 

@@ -220,7 +220,7 @@ class SimulatedJoint:
                                    config.velocity_noise, config.resolution)
         self.counters = CommandCounters()
         self._base_steps = 0       # steps taken before the last reset
-        self._target = 0.0         # the command held, in the active interface's unit
+        self._target = self._initial_target()  # the command held, in the interface's unit
         self._target_step = 0      # the step at which it took effect
         self._pending: deque[tuple[int, float]] = deque()   # (effective step, command)
         self._history: deque[tuple[int, float, float, float]] = deque()
@@ -339,6 +339,15 @@ class SimulatedJoint:
         self._target_step = step
         self._commanded = True
 
+    def _initial_target(self) -> float:
+        """Return the command held before any arrives: the initial state (φ0, φ'0) or no torque.
+
+        The same values the URDF gives as ``initial_value`` (what topic_based_ros2_control
+        commands before a controller does), so the joint starts where it is, at the speed it has.
+        """
+        c = self._config
+        return {'effort': 0.0, 'velocity': c.dphi0, 'position': c.phi0}[c.command_interface]
+
     def _safe_target(self) -> float:
         """Return what a timed-out command returns to: no torque, no speed, or the same place."""
         return self._target if self._config.command_interface == 'position' else 0.0
@@ -441,7 +450,7 @@ class SimulatedJoint:
             self._guard_before_reset[key] = self._guard_before_reset.get(key, 0) + int(value)
         self._base_steps = self.steps
         self._stepper.reset(c.phi0, c.dphi0)
-        self._target = 0.0
+        self._target = self._initial_target()
         self._commanded = False
         self._torque = 0.0
         self._pending.clear()

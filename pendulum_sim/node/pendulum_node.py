@@ -198,6 +198,7 @@ class PendulumNode(Node):
         self._max_error = 0.0
         self._status = status if v['status_line'] else None
         self._js_bytes = JointStateBytes(self._joint_name)
+        self._last_js: Any = None      # the last joint_states message (synchronous reminders)
         self._clock_bytes = ClockBytes()
         self._float_bytes = Float64Bytes()
         self._js_topic = self._js_pub.topic_name
@@ -432,6 +433,8 @@ class PendulumNode(Node):
             return
         waited = (now - self._awaiting_since) / 1e9
         if waited < float(self._values['sync_timeout']):
+            if waited >= SYNC_WATCH_PERIOD:
+                self._sync_remind()
             return
         self._sync_stats['timeouts'] += 1
         count = self._sync_stats['timeouts']
@@ -451,6 +454,21 @@ class PendulumNode(Node):
                 f'{waited:.3g} s; holding the last command ({count} timeouts so far)')
         self._answered = math.nan   # hold: nothing new to apply
         self._sync_go()
+
+    def _sync_remind(self) -> None:
+        """Publish the awaited state again (until a first answer) and its /clock.
+
+        Best-effort subscribers matched only just now (TopicBasedSystem's SensorDataQoS state
+        subscription, ros2_control_node's ClockQoS /clock) can miss the first state and
+        /clock; the manager would then sleep until sync_timeout, or answer without the state.
+        Nothing is recorded again.
+        """
+        assert self._awaiting is not None
+        if self._sync_stats['answered'] == 0 and self._last_js is not None:
+            self._js_pub.publish(self._last_js)
+        if self._clock_pub is not None:
+            sec, nanosec = divmod(self._joint.stamp_ns(self._awaiting), 1_000_000_000)
+            self._clock_pub.publish(self._clock_bytes.pack(sec, nanosec))
 
     def _ready(self) -> bool:
         """Return True when joint_states and a command topic have a matched peer."""
@@ -516,9 +534,6 @@ class PendulumNode(Node):
         if joint.failed is not None:
             return
         stamp_ns = joint.stamp_ns()
-        if self._clock_pub is not None:
-            sec, nanosec = divmod(stamp_ns, 1_000_000_000)
-            self._clock_pub.publish(self._clock_bytes.pack(sec, nanosec))
         sample = joint.sample()
         rec = self._recorder
         if sample is not None:
@@ -526,8 +541,14 @@ class PendulumNode(Node):
             data = self._js_bytes.pack(sec, nanosec, sample.position, sample.velocity,
                                        sample.effort)
             self._js_pub.publish(data)
+            self._last_js = data
             if rec is not None:
                 self._record(self._js_topic, data, stamp_ns)
+        # /clock after the state: a controller manager woken by /clock (ros2_control_node on
+        # use_sim_time) finds the state of that time already sent when it reads.
+        if self._clock_pub is not None:
+            sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+            self._clock_pub.publish(self._clock_bytes.pack(sec, nanosec))
         if self._energy_pub is None and not self._terms_pubs:
             return
         try:
@@ -601,7 +622,7 @@ class PendulumNode(Node):
             return
         stamp = msg.header.stamp
         stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
-        self._guarded(self._take, topic, msg, float(values[i]), stamp_ns or None)
+        self._guarded(self._take, topic, msg, float(values[i]), stamp_ns)  # 0 is a stamp
 
     def _cmd_topic(self, name: str) -> str:
         """Return the resolved name of command topic ``name`` (looked up once)."""
