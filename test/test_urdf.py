@@ -287,3 +287,62 @@ def test_live_robot_description_loads_in_mujoco() -> None:
     assert joint_inertia(model) == pytest.approx(inertia, rel=1e-12, abs=0.0)
     assert model.body_mass[-1] == float(values['m'])
     assert model.dof_damping[0] == gamma * inertia
+
+
+# ---------------------------------------------------------------- PyBullet, measured
+def pybullet_swing(urdf_path: Path, flags: int, link_damping: float | None,
+                   h: float = 1e-4, t_end: float = 3.0, phi0: float = 0.5) -> np.ndarray:
+    """Swing the loaded URDF freely in PyBullet (no motor); return φ at every step."""
+    import pybullet as pb
+
+    cid = pb.connect(pb.DIRECT)
+    try:
+        body = pb.loadURDF(str(urdf_path), useFixedBase=True, flags=flags, physicsClientId=cid)
+        pb.setGravity(0, 0, -BODY.g, physicsClientId=cid)
+        pb.setTimeStep(h, physicsClientId=cid)
+        # PyBullet drives every joint with a velocity motor by default: switch it off.
+        pb.setJointMotorControl2(body, 0, pb.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+        if link_damping is not None:
+            pb.changeDynamics(body, 0, linearDamping=link_damping, angularDamping=link_damping,
+                              physicsClientId=cid)
+        pb.resetJointState(body, 0, phi0, physicsClientId=cid)
+        out = [phi0]
+        for _ in range(round(t_end / h)):
+            pb.stepSimulation(physicsClientId=cid)
+            out.append(pb.getJointState(body, 0, physicsClientId=cid)[0])
+        return np.array(out)
+    finally:
+        pb.disconnect(cid)
+
+
+def test_pybullet_needs_the_inertia_flag_and_no_link_damping(tmp_path: Path) -> None:
+    """PyBullet replaces the URDF's inertia unless URDF_USE_INERTIA_FROM_FILE is passed, and
+    adds a link damping of 0.04 by default; with the flag and that damping at 0 the free swing
+    follows simulate() (to its semi-implicit Euler error)."""
+    pb = pytest.importorskip('pybullet')
+    path = tmp_path / 'pendulum.urdf'
+    path.write_text(pendulum_urdf(BODY, 'hinge'))
+
+    def joint_inertia_pb(flags: int) -> float:
+        cid = pb.connect(pb.DIRECT)
+        try:
+            body = pb.loadURDF(str(path), useFixedBase=True, flags=flags, physicsClientId=cid)
+            assert pb.getJointInfo(body, 0, physicsClientId=cid)[6] == pytest.approx(
+                BODY.gamma * BODY.inertia, rel=1e-12)      # <dynamics damping> is read
+            return float(pb.calculateMassMatrix(body, [0.0], physicsClientId=cid)[0][0])
+        finally:
+            pb.disconnect(cid)
+
+    assert joint_inertia_pb(pb.URDF_USE_INERTIA_FROM_FILE) == pytest.approx(BODY.inertia,
+                                                                            rel=1e-12)
+    assert abs(joint_inertia_pb(0) - BODY.inertia) > 0.01 * BODY.inertia
+    flag = pb.URDF_USE_INERTIA_FROM_FILE
+    default = pybullet_swing(path, flag, None)
+    # The default link damping is 0.04: setting 0.04 changes nothing (to the round-off of its
+    # single-precision copy), 0.039 or 0.041 change the swing 1e6 times more.
+    assert np.max(np.abs(default - pybullet_swing(path, flag, 0.04))) < 1e-8
+    for other in (0.039, 0.041):
+        assert np.max(np.abs(default - pybullet_swing(path, flag, other))) > 1e-4
+    ours = simulate(BODY, 0.5, 0.0, 3.0, 1e-4, 'rk4').phi
+    assert np.max(np.abs(pybullet_swing(path, flag, 0.0) - ours)) < 2e-4
+    assert np.max(np.abs(default - ours)) > 1e-2
