@@ -346,3 +346,21 @@ def test_pybullet_needs_the_inertia_flag_and_no_link_damping(tmp_path: Path) -> 
     ours = simulate(BODY, 0.5, 0.0, 3.0, 1e-4, 'rk4').phi
     assert np.max(np.abs(pybullet_swing(path, flag, 0.0) - ours)) < 2e-4
     assert np.max(np.abs(default - ours)) > 1e-2
+
+
+def test_the_tutorial_shows_the_shipped_ros2_control_block() -> None:
+    """docs/tutorials/ros2-control.md's <ros2_control> example is the shipped URDF's block."""
+    doc = (REPO_URDF.parents[1] / 'docs' / 'tutorials' / 'ros2-control.md').read_text()
+    (example,) = [b for b in re.findall(r'```xml\n(.*?)```', doc, re.S) if '<ros2_control' in b]
+
+    def summary(block: ET.Element) -> object:
+        joint = one(block, 'joint')
+        return (block.attrib, one(block, 'hardware/plugin').text,
+                {p.get('name'): p.text for p in block.findall('hardware/param')},
+                joint.get('name'),
+                [(c.get('name'), [(p.get('name'), p.text) for p in c.findall('param')])
+                 for c in joint.findall('command_interface')],
+                [(s.get('name'), [(p.get('name'), p.text) for p in s.findall('param')])
+                 for s in joint.findall('state_interface')])
+
+    assert summary(parse(example)) == summary(one(parse(REPO_URDF.read_text()), 'ros2_control'))
