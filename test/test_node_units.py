@@ -187,6 +187,9 @@ def test_scene_files_declare_known_parameters_of_the_right_type(scene: str) -> N
      'position_min and position_max must be both finite (a revolute joint) or both infinite (a '
      'continuous joint), got -1.0 and inf: a URDF joint has no one-sided limit'),
     ({'position_min': -1.0, 'position_max': 1.0}, None),
+    ({'servo.velocity_i': math.nan}, 'servo.velocity_i must be a finite number >= 0, got nan'),
+    ({'servo.position_p': -2.0}, 'servo.position_p must be a finite number >= 0, got -2.0'),
+    ({'servo.gravity_feedforward': False, 'servo.velocity_i': 0.0}, None),
 ])
 def test_parameter_check_reasons(changes: dict[str, object], reason: str | None) -> None:
     """Cross-parameter validation names the value and the rule."""
