@@ -34,7 +34,16 @@ from .errors import JointError, ParameterError
 from .exchange import Gate, StepError, SyncExchange
 from .joint import SimulatedJoint
 from .outputs import Recording, StateOutputs
-from .parameters import SPEC_BY_NAME, Value, check, declare_all, joint_config, merged, physics
+from .parameters import (
+    SPEC_BY_NAME,
+    Value,
+    check,
+    declare_all,
+    effort_input_active,
+    joint_config,
+    merged,
+    physics,
+)
 from .qos import (
     COMMAND_QOS,
     JOINT_STATE_QOS,
@@ -90,11 +99,11 @@ class PendulumNode(Node):
             self._desc_pub.publish(String(data=self._urdf()))
         cmd_qos = SYNC_COMMAND_QOS if self._sync else COMMAND_QOS
         self._cmd_subs: list[Any] = []
-        for switch, msg_type, topic, callback in (
-                ('effort_input', Float64, 'effort_command', self._on_effort),
-                ('joint_commands_input', JointState, 'joint_commands', self._on_joint_command),
-                ('array_command_input', Float64MultiArray, 'commands', self._on_array)):
-            if v[switch]:
+        for enabled, msg_type, topic, callback in (
+                (effort_input_active(v), Float64, 'effort_command', self._on_effort),
+                (v['joint_commands_input'], JointState, 'joint_commands', self._on_joint_command),
+                (v['array_command_input'], Float64MultiArray, 'commands', self._on_array)):
+            if enabled:
                 self._cmd_subs.append(self._subscribe(msg_type, topic, callback, cmd_qos))
         self._topics = {str(s.topic_name).rsplit('/', 1)[-1]: str(s.topic_name)
                         for s in self._cmd_subs}
