@@ -11,15 +11,16 @@ import math
 import unicodedata
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
-
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from typing import TYPE_CHECKING, Any
 
 from pendulum_sim.core import METHODS, ModelError, PendulumParams
 from pendulum_sim.core.model import validate_state
 
 from .errors import JointError
 from .joint import INTERFACES, JointConfig, check_config
+
+if TYPE_CHECKING:
+    from rcl_interfaces.msg import ParameterDescriptor
 
 Value = bool | int | float | str
 
@@ -41,7 +42,13 @@ class Spec:
     unit: str = ''  # SI unit of a number ('1' if it has none); '' for a flag or a name
 
     def descriptor(self) -> ParameterDescriptor:
-        """Return the ParameterDescriptor declaring this parameter."""
+        """Return the ParameterDescriptor declaring this parameter.
+
+        The only use of ROS in this module: imported here, so the validation and
+        :func:`joint_config` serve the in-process test bench without rclpy.
+        """
+        from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
         text = self.description + (f' {FIXED}' if self.read_only and 'Read-only' not in
                                    self.description else '')
         desc = ParameterDescriptor(description=text, read_only=self.read_only,
