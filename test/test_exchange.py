@@ -278,3 +278,24 @@ def test_answers_while_a_period_is_advanced_are_late() -> None:
     assert loop.ex.stepping
     assert loop.ex.answer(2.0, 0) is Verdict.DUPLICATE
     assert loop.ex.answer(3.0, None) is Verdict.LATE
+
+
+def test_a_state_that_cannot_go_out_awaits_nothing_and_the_period_goes_on_at_once() -> None:
+    """A sensor delay still filling: no state is published, so no answer can come."""
+    ex = SyncExchange(Gate(), TIMEOUT, 'stop')
+    assert ex.poll(0, True, 1) is Action.PUBLISH
+    ex.unseen()
+    assert ex.awaiting is None and not ex.started and ex.stepping
+    assert ex.answer(1.0, None) is Verdict.AHEAD           # nothing was published to answer
+    assert ex.poll(0, True, 1) is Action.ADVANCE           # not after sync_timeout
+    ex.period_done()
+    ex.published(1, PERIOD, 0)
+    assert ex.answer(2.0, None) is Verdict.ANSWER          # the first state that went out
+    assert ex.poll(0, True, 1) is Action.ADVANCE and ex.take() == 2.0
+    ex.period_done()
+    ex.unseen()                                            # the next one cannot go out
+    assert ex.answer(3.0, None) is Verdict.AHEAD
+    assert ex.answer(3.0, PERIOD) is Verdict.LATE
+    assert ex.poll(0, True, 1) is Action.ADVANCE
+    assert ex.stats == {'answered': 1, 'late': 1, 'duplicates': 0, 'ahead': 2, 'timeouts': 0,
+                        'republished': 0}

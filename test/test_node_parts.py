@@ -162,7 +162,7 @@ def test_one_long_synchronous_period_is_advanced_over_many_wakes() -> None:
     j = joint(h=1e-5, period_steps=200_000)
     gate = Gate()
     ex = SyncExchange(gate, 10**12, 'hold')
-    driver = SyncDriver(j, ex, lambda with_clock: None, lambda level, text: None, 0,
+    driver = SyncDriver(j, ex, lambda with_clock: True, lambda level, text: None, 0,
                         lambda: (True, 1), 'waiting', clock=clock)
     driver.wake(0, 0)                                   # state 0 out
     ticks = iter(range(1, 10**9))
@@ -182,3 +182,28 @@ def test_one_long_synchronous_period_is_advanced_over_many_wakes() -> None:
     assert not ex.stepping and ex.awaiting is not None and ex.awaiting.step == 200_000
     assert wakes > 10
 
+
+
+def test_a_synchronous_state_held_back_by_the_sensor_delay_is_not_waited_for() -> None:
+    """sensor.delay 25 ms, 10 ms periods: the states at 0, 10 and 20 ms cannot go out; the
+    driver advances through them at once with the command held (no sync_timeout, even with
+    the stop action), and the first answer answers the first state that went out."""
+    clock = FakeClock()
+    j = joint(period_steps=10, sensor_delay_steps=25)
+    ex = SyncExchange(Gate(), 10**12, 'stop')
+    samples: list[tuple[int, int]] = []     # (step when published, the measurement's stamp)
+
+    def publish(with_clock: bool) -> bool:
+        sample = j.sample()
+        if sample is not None:
+            samples.append((j.steps, sample.stamp_ns))
+        return sample is not None
+
+    driver = SyncDriver(j, ex, publish, lambda level, text: None, 0, lambda: (True, 1),
+                        'waiting', clock=clock)
+    for _ in range(4):
+        driver.wake(0, 10**9)
+    assert samples == [(30, 5_000_000)] and j.steps == 30
+    assert ex.awaiting is not None and ex.awaiting.index == 0 and ex.stats['timeouts'] == 0
+    assert driver.command(2.0, None, 0) == 30_000_000    # recorded at the publication stamp
+    assert j.steps == 40 and j.target == 2.0 and samples[-1] == (40, 15_000_000)

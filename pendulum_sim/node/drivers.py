@@ -31,7 +31,9 @@ CHUNK_STEPS = 256
 CATCH_UP_SECONDS = 0.25
 REMIND_AFTER_NS = 20_000_000    # synchronous: /clock again after this long without an answer
 
-Publish = Callable[[bool], None]      # publish the joint's state now (True: with /clock)
+# Publish the joint's state now (True: with /clock); return whether a state went out (False
+# while a sensor delay fills or once the simulation stopped).
+Publish = Callable[[bool], bool]
 Log = Callable[[str, str], None]      # (level: 'info' | 'warning' | 'error', text)
 Clock = Callable[[], int]             # steady clock, ns
 
@@ -46,7 +48,7 @@ class Driver:
     gate : Gate
         Pause and step budget.
     publish : callable
-        ``publish(with_clock)``: send the joint's current state.
+        ``publish(with_clock)``: send the joint's current state; return True if one went out.
     log : callable
         ``log(level, text)``.
     now_ns : int
@@ -296,9 +298,11 @@ class SyncDriver(Driver):
             self._publish_awaited(now_ns, clock=False)
 
     def _publish_awaited(self, now_ns: int, clock: bool) -> None:
-        self.publish(clock)
         joint = self.joint
-        self.exchange.published(joint.steps, joint.stamp_ns(), now_ns)
+        if self.publish(clock):
+            self.exchange.published(joint.steps, joint.stamp_ns(), now_ns)
+        else:   # nothing to answer: the next period goes on with the last command
+            self.exchange.unseen()
 
     def wake(self, now_ns: int, deadline_ns: int) -> int:
         joint = self.joint

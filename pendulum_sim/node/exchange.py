@@ -30,6 +30,8 @@ Which command answers which state (the rules, also tabled in the reference docs)
   next publication it can see.
 - A reset publishes the reset state at the reset stamp as a new publication, awaited like any
   other.
+- A state that cannot go out (a sensor delay still filling) is no publication: nothing awaits
+  an answer, and the next period is advanced at once with the last command.
 
 Nothing here imports rclpy; time is passed in (steady-clock ns).
 """
@@ -257,6 +259,14 @@ class SyncExchange:
         while len(pubs) > KEPT_STAMPS:
             old, _ = pubs.popitem(last=False)
             self._stamp_answers.pop(old, None)
+
+    def unseen(self) -> None:
+        """Record that no state went out (after PUBLISH, REPUBLISH, a period or a reset: a
+        sensor delay still filling): nothing awaits an answer; the next period goes on with the
+        last command (ADVANCE, without :meth:`take`)."""
+        self._republish = False
+        self._stopped = False
+        self._stepping = True
 
     def answer(self, value: float, stamp_ns: int | None) -> Verdict:
         """Match a command (its stamp, or None if it has none); return what became of it."""

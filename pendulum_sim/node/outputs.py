@@ -143,11 +143,12 @@ class StateOutputs:
         if self._clock is not None:
             self._clock.publish(self._clock_bytes.pack(*divmod(stamp_ns, 1_000_000_000)))
 
-    def __call__(self, with_clock: bool) -> None:
-        """Publish the state now (and /clock when ``with_clock`` and lockstep)."""
+    def __call__(self, with_clock: bool) -> bool:
+        """Publish the state now (and /clock when ``with_clock`` and lockstep); return whether a
+        state went out (none while a sensor delay fills, nor once the simulation stopped)."""
         joint = self.joint
         if joint.failed is not None:
-            return
+            return False
         stamp_ns = joint.stamp_ns()
         sample = joint.sample()   # always: the sensor noise sequence must not depend on readers
         record = self._recording.recorder is not None
@@ -165,13 +166,13 @@ class StateOutputs:
         if with_clock and self._to_clock:
             self._clock.publish(self._clock_bytes.pack(*divmod(stamp_ns, 1_000_000_000)))
         if self._energy is None and not self._terms:
-            return
+            return sample is not None
         try:
             energy = joint.energy()
             terms = joint.terms() if self._to_terms else None
         except JointError as exc:
             joint.fail(str(exc))
-            return
+            return sample is not None
         pack = self._float_bytes.pack
         if self._energy is not None and (self._to_energy or record):
             e = pack(energy)
@@ -183,3 +184,4 @@ class StateOutputs:
             values = (terms.kinetic, terms.potential, terms.dissipated_power, terms.residual)
             for pub, value in zip(self._terms, values, strict=True):
                 pub.publish(pack(value))
+        return sample is not None

@@ -4,8 +4,9 @@ The in-process path runs a Python callable ``(t, position, velocity) -> command`
 :class:`~pendulum_sim.node.joint.SimulatedJoint` exactly as ``pendulum_node`` runs it in
 synchronous lockstep (``synchronous: true``): at the start of each control period the joint is
 measured (the state the node publishes, stamped ``epoch + k h``), the controller answers that
-state, the answer is applied as the node applies it (``SimulatedJoint.command``) and the joint
-advances to the next period boundary. No rclpy, no DDS. The command-line path
+state, and the node's synchronous driver and exchange (``pendulum_sim.node.drivers``,
+``pendulum_sim.node.exchange``, the same objects ``pendulum_node`` runs) apply the answer and
+advance the joint to the next period boundary. No rclpy, no DDS. The command-line path
 (:mod:`pendulum_sim.testing.ros`) runs the same exchange across processes; for the same law
 both give the same trajectory bit for bit (``test/test_testing_loop.py``).
 
@@ -156,34 +157,69 @@ def closed_loop(controller: Law | Sequence[str], *, scene: str = 'controller_tes
 
 
 def run_in_process(law: Law, values: Mapping[str, Value], periods: int) -> ClosedLoopRun:
-    """Run ``law`` against a :class:`SimulatedJoint` built from ``values`` (no ROS)."""
+    """Run ``law`` against a :class:`SimulatedJoint` built from ``values`` (no ROS).
+
+    The node's own synchronous driver (:class:`~pendulum_sim.node.drivers.SyncDriver` with its
+    :class:`~pendulum_sim.node.exchange.SyncExchange`) decides which answer is applied and when
+    the joint advances; here the controller is always connected, answers each state at once
+    (unstamped, counted as the node counts them) and the steady clock stands still, so no
+    timeout fires and every wake finishes its period.
+    """
+    from pendulum_sim.node.drivers import WAKE_BUDGET_NS, SyncDriver
     from pendulum_sim.node.errors import JointError
-    from pendulum_sim.node.joint import SimulatedJoint
+    from pendulum_sim.node.exchange import Gate, SyncExchange
+    from pendulum_sim.node.joint import Sample, SimulatedJoint
     from pendulum_sim.node.parameters import joint_config
 
     try:
         joint = SimulatedJoint(joint_config(values, epoch_ns(values)))
     except JointError as exc:
         raise TestingError(str(exc)) from None
-    k = joint.config.period_steps
+    sent: list[Sample] = []
+
+    def publish(with_clock: bool) -> bool:
+        """Send the state as the node's outputs do: one measurement per publication."""
+        if joint.failed is not None:
+            return False
+        sample = joint.sample()
+        if sample is not None:
+            sent.append(sample)
+        return sample is not None
+
+    exchange = SyncExchange(Gate(), round(float(values['sync_timeout']) * 1e9), 'hold')
+    driver = SyncDriver(joint, exchange, publish, _quiet, 0, _connected, '', clock=_still)
+    driver.wake(0, WAKE_BUDGET_NS)   # the first state
     out = np.full((5, periods), np.nan)
     n = 0
     for _ in range(periods):
         if joint.failed is not None:
             break
-        sample = joint.sample()
-        if sample is None:   # the sensor delay is filling: no state, the command holds
-            joint.advance(k - joint.steps % k)
+        if not sent:   # no state went out (a sensor delay filling): the command holds
+            driver.wake(0, WAKE_BUDGET_NS)
             continue
+        sample = sent.pop()
         t = sample.stamp_ns / 1e9
         value = _answer(law, t, sample.position, sample.velocity)
         out[:, n] = (t, sample.position, sample.velocity, sample.effort, value)
         n += 1
-        joint.command(value)
-        joint.advance(k - joint.steps % k)
+        driver.command(value, None, 0)   # answers the state, advances, sends the next
     times, position, velocity, effort, command = (np.ascontiguousarray(row[:n]) for row in out)
     return ClosedLoopRun(times, position, velocity, effort, command, parameters=dict(values),
                          failed=joint.failed)
+
+
+def _quiet(level: str, text: str) -> None:
+    """Log nothing: a stopped simulation is reported by ``ClosedLoopRun.failed``."""
+
+
+def _connected() -> tuple[bool, int]:
+    """Return that a controller is connected (one subscriber on the states)."""
+    return True, 1
+
+
+def _still() -> int:
+    """Return a steady clock that stands still (no timeout, no wake budget runs out)."""
+    return 0
 
 
 def answer_reason(value: object, t: float) -> ControllerFailed:
