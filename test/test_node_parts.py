@@ -207,3 +207,50 @@ def test_a_synchronous_state_held_back_by_the_sensor_delay_is_not_waited_for() -
     assert ex.awaiting is not None and ex.awaiting.index == 0 and ex.stats['timeouts'] == 0
     assert driver.command(2.0, None, 0) == 30_000_000    # recorded at the publication stamp
     assert j.steps == 40 and j.target == 2.0 and samples[-1] == (40, 15_000_000)
+
+
+# ---------------------------------------------------------------- what the node only wires
+def test_the_service_replies_say_what_happened_and_when() -> None:
+    from pendulum_sim.node.replies import pause_reply, reset_reply, step_reply
+
+    assert reset_reply({'phi0': 0.3, 'dphi0': 0.0}, 1.25, None) == (
+        'reset to phi = 0.3 rad, dphi = 0.0 rad/s at t = 1.25 s (simulated time goes on)')
+    assert reset_reply({'phi0': 0.3, 'dphi0': 0.0}, 1.25, 'non-finite state') == (
+        'reset to phi = 0.3 rad, dphi = 0.0 rad/s at t = 1.25 s (simulated time goes on) '
+        '(was stopped: non-finite state)')
+    assert pause_reply(True, True, 2.0) == 'paused at t = 2 s'
+    assert pause_reply(False, False, 2.0) == 'already running at t = 2 s'
+    j = joint(period_steps=10)
+    j.advance(25)                       # half-way through period 2
+    # 3 periods after a budget of 2: from the start of period 2 to the end of period 6.
+    assert step_reply(j, 2, 3) == 'stepping 3 control period(s) of 0.01 s to t = 0.07 s'
+
+
+def test_a_live_change_is_refused_by_the_whole_set_then_by_the_running_joint() -> None:
+    from pendulum_sim.node.parameters import joint_config, refusal
+
+    values = defaults(phi0=0.3)
+    j = SimulatedJoint(joint_config(values, 0))  # type: ignore[arg-type]
+    assert refusal(values, [('gamma', 0.5)], j) is None  # type: ignore[arg-type]
+    reason = refusal(values, [('integrator', 'euler2')], j)  # type: ignore[arg-type]
+    assert reason is not None and reason.startswith('integrator must be one of ')
+    assert reason.endswith(", got 'euler2'")
+    assert refusal(values, [('unknown', 1.0)], j) is None  # type: ignore[arg-type]
+
+
+def test_each_driver_applies_the_live_parameters_of_its_mode() -> None:
+    from pendulum_sim.node.parameters import joint_config
+
+    values = defaults(publish_rate=100.0, lockstep=True)
+    j = SimulatedJoint(joint_config(values, 0))  # type: ignore[arg-type]
+    rt = RealTimeDriver(j, Gate(), lambda c: True, lambda level, text: None, 0, 1.0,
+                        lockstep=True, clock=FakeClock())
+    rt.reconfigure({**values, 'real_time_factor': 0.0, 'gamma': 0.25}, {'real_time_factor',
+                                                                         'gamma'}, 0)
+    assert rt.asap and j.config.params.gamma == 0.25
+    ex = SyncExchange(Gate(), 10**9, 'hold')
+    sync = SyncDriver(j, ex, lambda c: True, lambda level, text: None, 0, lambda: (True, 1),
+                      'waiting', clock=FakeClock())
+    sync.reconfigure({**values, 'sync_timeout': 0.25, 'sync_timeout_action': 'stop'},
+                     {'sync_timeout', 'sync_timeout_action'}, 0)
+    assert (ex.timeout_ns, ex.action) == (250_000_000, 'stop')

@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from .exchange import Action, Gate, SyncExchange, Verdict
 from .joint import SimulatedJoint
+from .parameters import Value, joint_config
 from .realtime import RateMeter, Schedule
 
 WAKE_BUDGET_NS = 10_000_000
@@ -103,6 +104,10 @@ class Driver:
         else:
             self.rate.pause(now_ns)
 
+    def reconfigure(self, values: Mapping[str, Value], names: set[str], now_ns: int) -> None:
+        """Apply live parameters (``names`` changed in ``values``) to the joint and the mode."""
+        self.joint.reconfigure(joint_config(values, self.joint.config.epoch_ns))
+
     def after_reset(self, now_ns: int) -> None:
         """Publish the reset state at the reset stamp (no /clock: time did not move)."""
         self._failure_logged = False
@@ -174,6 +179,11 @@ class RealTimeDriver(Driver):
         self.asap = self.lockstep and rtf == 0.0
         self.schedule.rebase(now_ns, self.joint.steps, rtf if rtf > 0.0 else 1.0)
         self.cap = max(1, math.ceil(CATCH_UP_SECONDS * max(rtf, 1.0) / self.joint.config.h))
+
+    def reconfigure(self, values: Mapping[str, Value], names: set[str], now_ns: int) -> None:
+        super().reconfigure(values, names, now_ns)
+        if 'real_time_factor' in names:
+            self.set_rtf(float(values['real_time_factor']), now_ns)
 
     def rebase(self, now_ns: int) -> None:
         """Restart the schedule now (a reset, a resume)."""
@@ -291,6 +301,11 @@ class SyncDriver(Driver):
         self.exchange.step(periods)
         self.gate_changed(now_ns)
         self.wake(now_ns, now_ns + WAKE_BUDGET_NS)
+
+    def reconfigure(self, values: Mapping[str, Value], names: set[str], now_ns: int) -> None:
+        super().reconfigure(values, names, now_ns)
+        self.exchange.timeout_ns = round(float(values['sync_timeout']) * 1e9)
+        self.exchange.action = str(values['sync_timeout_action'])
 
     def after_reset(self, now_ns: int) -> None:
         self._failure_logged = False

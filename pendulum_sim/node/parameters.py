@@ -13,11 +13,11 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from pendulum_sim.core import METHODS, ModelError, PendulumParams
+from pendulum_sim.core import METHODS, ModelError, PendulumError, PendulumParams
 from pendulum_sim.core.model import validate_state
 
 from .errors import JointError
-from .joint import INTERFACES, JointConfig, check_config
+from .joint import INTERFACES, JointConfig, SimulatedJoint, check_config
 
 if TYPE_CHECKING:
     from rcl_interfaces.msg import ParameterDescriptor
@@ -259,3 +259,20 @@ def merged(current: Mapping[str, Value], changes: Iterable[tuple[str, Value]]) -
         if name in SPEC_BY_NAME:
             out[name] = value
     return out
+
+
+def refusal(current: Mapping[str, Value], changes: Iterable[tuple[str, Value]],
+            joint: SimulatedJoint) -> str | None:
+    """Return why a set of live parameter changes is refused, or None to accept it.
+
+    The whole proposed set is checked (cross-parameter rules hold), then the running joint
+    checks the new physics against its state.
+    """
+    proposed = merged(current, changes)
+    reason = check(proposed)
+    if reason is None:
+        try:
+            joint.check_params(physics(proposed))
+        except (JointError, PendulumError) as exc:
+            reason = str(exc)
+    return reason

@@ -25,12 +25,11 @@ from std_msgs.msg import Float64, Float64MultiArray, String, UInt32
 from std_srvs.srv import SetBool, Trigger
 
 from pendulum_sim import __version__
-from pendulum_sim.core import PendulumError
 
-from . import commands
+from . import commands, replies
 from . import diagnostics as diag
 from .drivers import WAKE_BUDGET_NS, Driver, RealTimeDriver, SyncDriver
-from .errors import JointError, ParameterError
+from .errors import ParameterError
 from .exchange import Gate, StepError, SyncExchange
 from .joint import SimulatedJoint
 from .outputs import Recording, StateOutputs
@@ -41,8 +40,7 @@ from .parameters import (
     declare_all,
     effort_input_active,
     joint_config,
-    merged,
-    physics,
+    refusal,
 )
 from .qos import (
     COMMAND_QOS,
@@ -262,14 +260,10 @@ class PendulumNode(Node):
         self._guarded(self._command, 'joint_commands', msg, decoded)
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
-        v = self._values
         was_failed = self._joint.reset()
-        stamp = self._joint.stamp_ns()
         response.success = True
-        response.message = (f'reset to phi = {v["phi0"]} rad, dphi = {v["dphi0"]} rad/s at '
-                            f't = {self._joint.time:.9g} s (simulated time goes on)'
-                            + (f' (was stopped: {was_failed})' if was_failed else ''))
-        self._recording.reset(stamp, response.message)
+        response.message = replies.reset_reply(self._values, self._joint.time, was_failed)
+        self._recording.reset(self._joint.stamp_ns(), response.message)
         self._guarded(self._driver.after_reset, time.monotonic_ns())
         return response
 
@@ -277,17 +271,14 @@ class PendulumNode(Node):
         t, paused = self._joint.time, bool(request.data)
         changed = self._guarded(self._driver.pause, paused, time.monotonic_ns())
         response.success = True
-        response.message = (f'{"paused" if paused else "resumed"} at t = {t:.9g} s' if changed
-                            else f'already {"paused" if paused else "running"} at t = {t:.9g} s')
+        response.message = replies.pause_reply(paused, bool(changed), t)
         return response
 
     def _step(self, count: int) -> str:
         """Queue ``count`` control periods while paused; raise StepError if it cannot."""
-        k = self._joint.config.period_steps
-        target = (self._joint.steps // k + self._gate.budget + count) * k
+        text = replies.step_reply(self._joint, self._gate.budget, count)
         self._guarded(self._driver.step, count, time.monotonic_ns())
-        h = self._joint.config.h
-        return f'stepping {count} control period(s) of {k * h:g} s to t = {target * h:.9g} s'
+        return text
 
     def _on_step_one(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         try:
@@ -305,13 +296,7 @@ class PendulumNode(Node):
                 self.get_logger().warning(line.replace('dropped a command on ', ''))
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        proposed = merged(self._values, ((p.name, p.value) for p in params))
-        reason = check(proposed)
-        if reason is None:
-            try:
-                self._joint.check_params(physics(proposed))
-            except (JointError, PendulumError) as exc:
-                reason = str(exc)
+        reason = refusal(self._values, ((p.name, p.value) for p in params), self._joint)
         return SetParametersResult(successful=reason is None, reason=reason or '')
 
     def _on_parameters_set(self, params: list[Parameter]) -> None:
@@ -321,18 +306,10 @@ class PendulumNode(Node):
         for p in params:
             if p.name in names:
                 self._values[p.name] = p.value
-        v = self._values
-        joint = self._joint
-        joint.reconfigure(joint_config(v, joint.config.epoch_ns))
-        now = time.monotonic_ns()
-        if 'real_time_factor' in names and isinstance(self._driver, RealTimeDriver):
-            self._driver.set_rtf(float(v['real_time_factor']), now)
-        self._telemetry.rtf_target = float(v['real_time_factor'])
-        if isinstance(self._driver, SyncDriver):
-            self._driver.exchange.timeout_ns = round(float(v['sync_timeout']) * 1e9)
-            self._driver.exchange.action = str(v['sync_timeout_action'])
+        self._driver.reconfigure(self._values, names, time.monotonic_ns())
+        self._telemetry.rtf_target = float(self._values['real_time_factor'])
         if self._recording.recorder is not None:
-            stamp = joint.stamp_ns()
+            stamp = self._joint.stamp_ns()
             event = ParameterEvent(node=self.get_fully_qualified_name(), stamp=_stamp(stamp))
             event.changed_parameters = [p.to_parameter_msg() for p in params if p.name in names]
             self._recording.write('/parameter_events', event, stamp)
