@@ -101,6 +101,8 @@ KEYS: tuple[Key, ...] = (
     Key('sync_duplicates', 'int', '',
         'Second commands for a state already answered, dropped.', SYNC),
     Key('sync_ahead', 'int', '', 'Stamped commands for a later state, dropped.', SYNC),
+    Key('sync_republished', 'int', '',
+        'Awaited states published again after a stop timeout, when stepping resumed.', SYNC),
     Key('incompatible_qos[<topic>]', 'int', '',
         "Publishers or subscribers on a topic whose QoS cannot match the node's.",
         'once such an endpoint was seen'),
