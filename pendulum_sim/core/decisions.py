@@ -13,6 +13,9 @@ import functools
 import math
 from typing import Any
 
+import numpy as np
+import numpy.typing as npt
+
 from .codegen import define
 from .explicit import SCALAR_ENV, damping_expression, step_source
 from .tableaus import Tableau
@@ -143,6 +146,12 @@ def ain_bound(ain: float) -> float:
     return 0.0 if a == 0.0 else 2.0 ** math.frexp(a)[1]
 
 
+def ain_bounds(ain: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Return :func:`ain_bound` element-wise: the same floats (frexp and 2**e are exact)."""
+    a = np.abs(ain)
+    return np.where(a == 0.0, 0.0, np.ldexp(1.0, np.frexp(a)[1]))
+
+
 __all__ = [
     'CROSS_SRC',
     'ENERGY_SRC',
@@ -156,6 +165,7 @@ __all__ = [
     'STIFF_TOL',
     'accuracy_speed',
     'ain_bound',
+    'ain_bounds',
     'compile_fast_step',
     'energy_rose',
     'reversal_suspect',
