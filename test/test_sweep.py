@@ -339,9 +339,10 @@ def test_the_sweep_imports_numpy_and_the_core_only() -> None:
 
 @pytest.mark.parametrize('vary', ['none', 'gamma', 'all'])
 def test_per_pendulum_constants_are_the_engines_own(vary: str) -> None:
-    # The sweep computes the guard's speed range, the stiff-transient speed and the grading
-    # window once per distinct (ω0², γ, τ/I) and maps them back: each pendulum must get exactly
-    # what its own Engine computes, whichever columns vary and however rows repeat.
+    # The sweep computes the stiff-transient speed and the grading window once per distinct
+    # (ω0², γ) and maps them back, and the guard's speed range per pendulum and torque octave,
+    # remade where the octave moved: each pendulum must get exactly what its own Engine
+    # computes, whichever columns vary and however rows repeat.
     from pendulum_sim.core.engine import Engine
     from pendulum_sim.core.methods import METHODS
 
