@@ -36,6 +36,7 @@ from .decisions import (
     REVERSAL_SRC,
     accuracy_speed,
     ain_bounds,
+    compile_kernel,
     energy_rose,
     specific_energy,
     stiff_transient,
@@ -44,6 +45,9 @@ from .engine import Engine, guard_for
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step
 from .guard import GuardStats, safe_speed_ranges
+from .jit import INSTALL_HINT
+from .jit import available as jit_available
+from .jit import compile_kernel as compile_jit_kernel
 from .methods import METHODS
 from .model import (
     MAX_INPUT_ACCEL,
@@ -63,6 +67,7 @@ from .model import (
 )
 from .reversal import grade_window, graded_law
 from .simulate import step_count
+from .tableaus import Tableau
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -270,6 +275,8 @@ class _Group:
         self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self.kernel: Any = None  # the compiled fast path (``jit=True``), or None: numpy
+        self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
         self.p = self.v = self.e = np.empty(0)
         self.w2: Any = 0.0
         self.gamma: Any = 0.0
@@ -279,6 +286,7 @@ class _Group:
         """Take the input τ/I of the n-sorted array ``tau`` for the next steps."""
         sl = self.sl
         self.ain = _uniform(tau[sl])
+        self.ain_col = tau[sl]
         self.check = self.damped & (tau[sl] == 0.0) & energy_check
         self.any_check = bool(self.check.any())
         self.all_check = bool(self.check.all())
@@ -314,6 +322,11 @@ class _Group:
         sl = self.sl
         self.p, self.v, self.e = phi[sl].copy(), v[sl].copy(), energy[sl].copy()
         self.w2, self.gamma = _uniform(om2[sl]), _uniform(gam[sl])
+        self.w2_col, self.gamma_col = om2[sl], gam[sl]
+
+    def columns(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Return a_in, ω0² and γ as arrays over the group (the compiled kernel's columns)."""
+        return self.ain_col, self.w2_col, self.gamma_col
 
     def store(self, phi: FloatArray, v: FloatArray, energy: FloatArray) -> None:
         """Write the group's state back into the n-sorted arrays."""
@@ -368,6 +381,13 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool) -> None:
     """Advance one group by a step of hh: the plain step, the decisions, the careful path."""
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
+    if grp.kernel is not None:
+        p1, v1, e1 = np.empty_like(p), np.empty_like(p), np.empty_like(p)
+        ok = np.empty(p.shape, dtype=np.bool_)
+        grp.kernel(p, vv, grp.e, hh, *grp.columns(), grp.n, grp.lo, grp.hi, grp.reach,
+                   grp.v_acc, grp.check, grp.nonsmooth, grp.coulomb, p1, v1, e1, ok)
+        _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1)
+        return
     p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
     av = np.abs(vv)
     ok = av <= grp.hi
@@ -400,6 +420,14 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
         ok &= ~rose
     else:
         e1 = grp.e
+    _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1)
+
+
+def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
+             stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
+             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray) -> None:
+    """Redo every step the fast path refused (``~ok``) on the careful path; keep the states."""
+    p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     refused = np.flatnonzero(~ok)
     if refused.size:
         consts = [np.broadcast_to(c, p.shape)[refused] for c in (ain, w2, ga)]
@@ -457,7 +485,7 @@ class Sweep:
 
     Parameters
     ----------
-    omega0_sq, gamma, n, phi0, dphi0, torque, guard, energy_check, max_steps
+    omega0_sq, gamma, n, phi0, dphi0, torque, guard, energy_check, max_steps, jit
         As for :func:`sweep`; ``torque`` is the input of the first advance.
     h : float
         Step in s (> 0).
@@ -467,10 +495,15 @@ class Sweep:
 
     def __init__(self, omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, h: float,
                  *, method: str = 'rk4', torque: Any = 0.0, guard: bool = True,
-                 energy_check: bool = True, max_steps: int = MAX_STEPS) -> None:
+                 energy_check: bool = True, max_steps: int = MAX_STEPS,
+                 jit: bool = False) -> None:
         om2, gam, nn, p0, v0, tau = _validate(omega0_sq, gamma, n, phi0, dphi0, torque)
         self.guard = check_flag('guard', guard)
         self.energy_check = check_flag('energy_check', energy_check)
+        self.jit = check_flag('jit', jit)
+        if self.jit and not jit_available():
+            raise IntegratorError(f'jit=True needs numba, which is not installed: '
+                                  f'{INSTALL_HINT}')
         if method not in SWEEP_METHODS:
             raise IntegratorError(f'sweep supports the explicit methods '
                                   f'{", ".join(SWEEP_METHODS)}, got {method!r}')
@@ -489,6 +522,11 @@ class Sweep:
         self._vmax = (_each(run_speed_limit, self._gam, self._nn, self._om2) if self.guard
                       else np.full(order.size, np.inf))
         self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard)
+        if self.jit:
+            tab = METHODS[method].tableau
+            assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
+            for grp in self._groups:
+                grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n))
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
         self._bounds = ain_bounds(self._tau)
         for grp in self._groups:
@@ -621,7 +659,7 @@ class Sweep:
 def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: float, h: float,
           *, method: str = 'rk4', torque: Any = 0.0, guard: bool = True,
           energy_check: bool = True, record_every: int | None = None,
-          max_steps: int = MAX_STEPS) -> SweepResult:
+          max_steps: int = MAX_STEPS, jit: bool = False) -> SweepResult:
     """Advance N pendulums from their initial states to ``t_end`` with a fixed step ``h``.
 
     One :meth:`Sweep.advance` of a :class:`Sweep` made for the call.
@@ -648,6 +686,9 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         Record the states every this many steps (and at t_end).
     max_steps : int
         Refuse runs of more steps than this.
+    jit : bool
+        Run the fast path compiled by numba (the ``jit`` extra) instead of with numpy: the
+        same generated step and decisions (``decisions.kernel_source``) in one loop.
 
     Returns
     -------
@@ -655,5 +696,5 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         Scalars broadcast to the common length N.
     """
     prepared = Sweep(omega0_sq, gamma, n, phi0, dphi0, h, method=method, torque=torque,
-                     guard=guard, energy_check=energy_check, max_steps=max_steps)
+                     guard=guard, energy_check=energy_check, max_steps=max_steps, jit=jit)
     return prepared.advance(t_end, record_every=record_every)
