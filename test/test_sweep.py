@@ -339,9 +339,10 @@ def test_the_sweep_imports_numpy_and_the_core_only() -> None:
 
 @pytest.mark.parametrize('vary', ['none', 'gamma', 'all'])
 def test_per_pendulum_constants_are_the_engines_own(vary: str) -> None:
-    # The sweep computes the guard's speed range, the stiff-transient speed and the grading
-    # window once per distinct (ω0², γ, τ/I) and maps them back: each pendulum must get exactly
-    # what its own Engine computes, whichever columns vary and however rows repeat.
+    # The sweep computes the stiff-transient speed and the grading window once per distinct
+    # (ω0², γ) and maps them back, and the guard's speed range per pendulum and torque octave,
+    # remade where the octave moved: each pendulum must get exactly what its own Engine
+    # computes, whichever columns vary and however rows repeat.
     from pendulum_sim.core.engine import Engine
     from pendulum_sim.core.methods import METHODS
 
@@ -357,14 +358,17 @@ def test_per_pendulum_constants_are_the_engines_own(vary: str) -> None:
         tau = rng.choice([0.0, -3.0, 0.4, 9.0], size)
     h = 2e-2
     for n in (0.5, 2.0, 5.0):
-        nn = np.full(size, n)
-        (grp,) = sweep_module._groups(nn, gam, om2, tau, 'rk4', h, True, True)
-        for i in range(size):
-            eng = Engine(float(om2[i]), float(gam[i]), n, METHODS['rk4'])
-            assert (grp.lo[i], grp.hi[i]) == eng.fast_range(h, float(tau[i])), (n, i)
-            assert grp.v_acc[i] == eng.v_acc, (n, i)
-            if gam[i] > 0.0:  # the window is used only where the damping is not smooth
-                assert grp.reach[i] == eng.reach, (n, i)
+        prepared = sweep_module.Sweep(om2, gam, n, 0.0, 0.0, h, torque=tau)
+        (grp,) = prepared._groups
+        engines = [Engine(float(om2[i]), float(gam[i]), n, METHODS['rk4']) for i in range(size)]
+        # Then a second torque: the ranges are remade where the torque's octave moved.
+        for torque in (tau, tau * rng.choice([1.0, 0.3, 5.0], size)):
+            prepared.advance(h, torque)
+            for i, eng in enumerate(engines):
+                assert (grp.lo[i], grp.hi[i]) == eng.fast_range(h, float(torque[i])), (n, i)
+                assert grp.v_acc[i] == eng.v_acc, (n, i)
+                if gam[i] > 0.0:  # the window is used only where the damping is not smooth
+                    assert grp.reach[i] == eng.reach, (n, i)
 
 
 def test_array_safe_speed_ranges_are_the_scalar_ones_exactly() -> None:
@@ -443,3 +447,65 @@ def test_stiff_test_on_the_last_bit_decides_as_the_stepper() -> None:
         assert res.phi[0] == st.phi and res.dphi[0] == st.dphi, (v, ain)
     if not cases[True]:  # the case a numpy threshold alone would get wrong
         pytest.skip("numpy's power is never above the C library's pow here")
+
+
+def test_a_prepared_sweep_advances_as_a_chain_of_sweeps_to_the_bit() -> None:
+    # Stretches of one control period under a torque that changes each time, over every kind
+    # of law (dry, near-Coulomb, viscous, fractional, quadratic, stiff), each one the sweep
+    # that starts from the stretch's first state: states, recordings and counters alike.
+    rng = np.random.default_rng(31)
+    size = 120
+    ns = rng.choice([0.0, 0.3, 1.0, 1.5, 2.0, 3.0, 5.0], size)
+    gs = rng.choice([0.0, 0.2, 1.0, 30.0, 1000.0], size)
+    om2 = rng.choice([0.0, W2, 40.0], size)
+    p = rng.uniform(-3.0, 3.0, size)
+    v = rng.uniform(-4.0, 4.0, size)
+    v[::7] = 0.0
+    h, period = 1e-2, 0.05
+    prepared = sweep_module.Sweep(om2, gs, ns, p, v, h)
+    careful = 0
+    for k in range(12):
+        tau = rng.uniform(-20.0, 20.0, size) * (rng.uniform(size=size) < 0.7)
+        if k == 5:
+            tau = np.zeros(size)  # the energy check applies where the input is zero
+        got = prepared.advance(period, tau, record_every=2)
+        want = sweep(om2, gs, ns, p, v, period, h, torque=tau, record_every=2)
+        for name in ('phi', 'dphi', 'energy', 'phi_record', 'dphi_record', 't_record',
+                     'substeps', 'fallbacks', 'reversals', 'sticks'):
+            a, b = getattr(got, name), getattr(want, name)
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), (k, name)
+        assert prepared.phi.tobytes() == want.phi.tobytes()
+        assert prepared.dphi.tobytes() == want.dphi.tobytes()
+        careful += int(np.sum(want.substeps + want.fallbacks + want.reversals + want.sticks))
+        p, v = want.phi, want.dphi
+    assert careful > 0  # the careful path took part
+    # No torque: the last one is kept.
+    again = prepared.advance(period)
+    want = sweep(om2, gs, ns, p, v, period, h, torque=tau)
+    assert again.phi.tobytes() == want.phi.tobytes()
+
+
+def test_array_torque_bounds_are_the_scalar_ones_exactly() -> None:
+    from pendulum_sim.core.decisions import ain_bound, ain_bounds
+
+    rng = np.random.default_rng(2)
+    ain = np.concatenate((rng.uniform(-1e4, 1e4, 500), 10.0 ** rng.uniform(-320, 5, 500),
+                          [0.0, -0.0, 5e-324, 1.0, -1.0, 2.0, 0.5, 1e5, np.nextafter(1.0, 2)]))
+    want = np.array([ain_bound(a) for a in ain.tolist()])
+    assert ain_bounds(ain).tobytes() == want.tobytes()
+
+
+@pytest.mark.parametrize(('torque', 'message'), [
+    ([1.0, math.nan, 1.0], 'torque must be finite, got nan at index 1'),
+    (math.inf, 'torque must be finite, got inf'),
+    ([1.0, 2.0], 'torque must be a scalar or an array of length N = 3, got shape (2,)'),
+    ([0.0, 0.0, 2e8], 'torque must be within +-1e+08 N m (|torque/I| <= 1e+08 rad/s^2), got 2e+08'
+     ' at index 2'),
+])
+def test_a_new_torque_is_validated_with_exact_messages(torque: object, message: str) -> None:
+    prepared = sweep_module.Sweep(W2, 1.0, 1.0, [0.1, 0.2, 0.3], 0.0, 1e-2)
+    with pytest.raises(ModelError) as info:
+        prepared.advance(0.1, torque)
+    assert str(info.value) == message
+    # The refused torque changed nothing: the next advance starts where the sweep stood.
+    assert prepared.phi.tolist() == [0.1, 0.2, 0.3]

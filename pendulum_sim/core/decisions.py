@@ -13,6 +13,9 @@ import functools
 import math
 from typing import Any
 
+import numpy as np
+import numpy.typing as npt
+
 from .codegen import define
 from .explicit import SCALAR_ENV, damping_expression, step_source
 from .tableaus import Tableau
@@ -137,16 +140,67 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
     return define('\n'.join(lines) + '\n', 'fast', env, f'<fast {tableau.name}>')
 
 
+KERNEL_ARGS = ('P', 'V', 'E', 'h', 'AIN', 'W2', 'GAMMA', 'n', 'LO', 'HI', 'REACH', 'V_ACC',
+               'CHECK', 'NONSMOOTH', 'COULOMB', 'P1', 'V1', 'E1', 'OK')
+"""The arguments of a fast-path kernel (:func:`kernel_source`), arrays in capitals."""
+
+
+@functools.lru_cache(maxsize=256)
+def kernel_source(tableau: Tableau, n: float) -> str:
+    """Return the sweep's fast path for one exponent as a loop over arrays, as source text.
+
+    ``kernel(P, V, E, h, AIN, W2, GAMMA, n, LO, HI, REACH, V_ACC, CHECK, NONSMOOTH, COULOMB,
+    P1, V1, E1, OK)`` takes for every pendulum i the plain step of ``explicit.step_source``
+    from ``(P[i], V[i])`` into ``(P1[i], V1[i])``, and sets ``OK[i]`` where the decisions
+    accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite result, not a Coulomb
+    pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the stiff-transient test and,
+    where ``CHECK[i]``, the energy test from ``E[i]`` (E₁/I into ``E1[i]``). The texts are the
+    ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`; the exponent is an
+    argument, so one text serves every exponent whose law it spells the same.
+    """
+    body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
+    lines = [f'def kernel({", ".join(KERNEL_ARGS)}):', '    for i in range(P.shape[0]):',
+             '        p0 = P[i]', '        v0 = V[i]', '        ain = AIN[i]',
+             '        w2 = W2[i]', '        gamma = GAMMA[i]', *('    ' + line for line in body),
+             '        P1[i] = p1', '        V1[i] = v1', '        v = v0', '        a0 = a_0',
+             '        av = abs(v)',
+             '        ok = LO[i] <= av <= HI[i] and -INF < p1 < INF and -INF < v1 < INF',
+             '        if ok and COULOMB[i] and v == 0.0:', '            ok = False',
+             '        reach = REACH[i]',
+             f'        if ok and NONSMOOTH[i] and ({_scalar(REVERSAL_SRC)}):',
+             '            ok = False',
+             '        v_acc = V_ACC[i]',
+             f'        if ok and av > v_acc and {_scalar(STIFF_SRC)}:', '            ok = False',
+             '        e1 = E[i]', '        if CHECK[i]:', '            e0 = e1',
+             '            v = v1', '            s = sin(0.5 * p1)',
+             f'            e1 = {ENERGY_SRC}', f'            if ok and {ROSE_SRC}:',
+             '                ok = False', '        E1[i] = e1', '        OK[i] = ok']
+    return '\n'.join(lines) + '\n'
+
+
+def compile_kernel(tableau: Tableau, n: float) -> Any:
+    """Return the Python function of :func:`kernel_source` (``jit.compile_kernel`` compiles it)."""
+    env: dict[str, object] = dict(SCALAR_ENV, INF=math.inf, ENERGY_TOL=ENERGY_TOL)
+    return define(kernel_source(tableau, n), 'kernel', env, f'<kernel {tableau.name}>')
+
+
 def ain_bound(ain: float) -> float:
     """Return the power of two just above |a_in| (0 for 0): the torque octave of a fast range."""
     a = abs(ain)
     return 0.0 if a == 0.0 else 2.0 ** math.frexp(a)[1]
 
 
+def ain_bounds(ain: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Return :func:`ain_bound` element-wise: the same floats (frexp and 2**e are exact)."""
+    a = np.abs(ain)
+    return np.where(a == 0.0, 0.0, np.ldexp(1.0, np.frexp(a)[1]))
+
+
 __all__ = [
     'CROSS_SRC',
     'ENERGY_SRC',
     'ENERGY_TOL',
+    'KERNEL_ARGS',
     'NEAR_SRC',
     'REVERSAL_SRC',
     'ROSE_SRC',
@@ -156,8 +210,11 @@ __all__ = [
     'STIFF_TOL',
     'accuracy_speed',
     'ain_bound',
+    'ain_bounds',
     'compile_fast_step',
+    'compile_kernel',
     'energy_rose',
+    'kernel_source',
     'reversal_suspect',
     'specific_energy',
     'stiff_transient',

@@ -35,7 +35,8 @@ from .decisions import (
     CROSS_SRC,
     REVERSAL_SRC,
     accuracy_speed,
-    ain_bound,
+    ain_bounds,
+    compile_kernel,
     energy_rose,
     specific_energy,
     stiff_transient,
@@ -44,6 +45,9 @@ from .engine import Engine, guard_for
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step
 from .guard import GuardStats, safe_speed_ranges
+from .jit import INSTALL_HINT
+from .jit import available as jit_available
+from .jit import compile_kernel as compile_jit_kernel
 from .methods import METHODS
 from .model import (
     MAX_INPUT_ACCEL,
@@ -63,6 +67,7 @@ from .model import (
 )
 from .reversal import grade_window, graded_law
 from .simulate import step_count
+from .tableaus import Tableau
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -240,9 +245,11 @@ def _uniform(x: FloatArray) -> Any:
 class _Group:
     """Pendulums with one exponent n: a contiguous run of the n-sorted arrays.
 
-    While a piece of the run (steps of one length) is integrated, the group holds its own
-    state arrays ``p``, ``v``, ``e`` (φ, φ', E/I), and its constants as one float where they
-    are uniform.
+    What the pendulums fix (the step, the reversal and stiffness constants) is set once; what
+    the torque fixes (the guard's speed range, the energy check, the input) is set by
+    :meth:`use_torque` and :meth:`use_step` before each piece of a run (steps of one length).
+    While a piece is integrated, the group holds its own state arrays ``p``, ``v``, ``e``
+    (φ, φ', E/I), and its constants as one float where they are uniform.
     """
 
     sl: slice
@@ -250,9 +257,7 @@ class _Group:
     step: Any
     nonsmooth: BoolArray
     coulomb: BoolArray
-    check: BoolArray
-    lo: FloatArray
-    hi: FloatArray
+    damped: BoolArray
     reach: FloatArray
     v_acc: FloatArray
 
@@ -263,20 +268,65 @@ class _Group:
         # reach = 0 makes the near-reversal test false everywhere: the crossing test decides.
         self.graded = bool(self.reach.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
-        self.any_check = bool(self.check.any())
-        self.all_check = bool(self.check.all())
-        self.any_lo = bool(self.lo.any())  # lo = 0 everywhere: |φ'| >= lo needs no test
+        size = self.sl.stop - self.sl.start
+        self.check = np.zeros(size, dtype=bool)
+        self.any_check = self.all_check = False
+        self.lo, self.hi = np.zeros(size), np.full(size, math.inf)
+        self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
+        # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
+        self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self.kernel: Any = None  # the compiled fast path (``jit=True``), or None: numpy
+        self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
         self.p = self.v = self.e = np.empty(0)
         self.w2: Any = 0.0
         self.gamma: Any = 0.0
         self.ain: Any = 0.0
 
+    def use_torque(self, tau: FloatArray, energy_check: bool) -> None:
+        """Take the input τ/I of the n-sorted array ``tau`` for the next steps."""
+        sl = self.sl
+        self.ain = _uniform(tau[sl])
+        self.ain_col = tau[sl]
+        self.check = self.damped & (tau[sl] == 0.0) & energy_check
+        self.any_check = bool(self.check.any())
+        self.all_check = bool(self.check.all())
+
+    def use_step(self, guard: Any, hh: float, om2: FloatArray, gam: FloatArray,
+                 bounds: FloatArray) -> None:
+        """Set the guard's safe speed ranges for steps of ``hh`` under the torque ``bounds``.
+
+        The ranges are kept per step length and remade only for the pendulums whose torque
+        octave (:func:`ain_bounds`) moved: each element is the scalar range's float, so a
+        range made alone is the one made among all.
+        """
+        sl = self.sl
+        bound = bounds[sl]
+        old = self.ranges.get(hh)
+        if old is None:
+            lo, hi = safe_speed_ranges(guard, om2[sl], gam[sl], self.n, hh, bound)
+            if len(self.ranges) > 8:
+                self.ranges.clear()
+        else:
+            lo, hi = old[1], old[2]
+            moved = np.flatnonzero(old[0] != bound)
+            if moved.size:
+                lo[moved], hi[moved] = safe_speed_ranges(
+                    guard, om2[sl][moved], gam[sl][moved], self.n, hh, bound[moved])
+        self.ranges[hh] = (bound, lo, hi)
+        self.lo, self.hi = lo, hi
+        self.any_lo = bool(lo.any())
+
     def load(self, phi: FloatArray, v: FloatArray, energy: FloatArray, om2: FloatArray,
-             gam: FloatArray, tau: FloatArray) -> None:
+             gam: FloatArray) -> None:
         """Take the group's state and constants from the n-sorted arrays."""
         sl = self.sl
         self.p, self.v, self.e = phi[sl].copy(), v[sl].copy(), energy[sl].copy()
-        self.w2, self.gamma, self.ain = _uniform(om2[sl]), _uniform(gam[sl]), _uniform(tau[sl])
+        self.w2, self.gamma = _uniform(om2[sl]), _uniform(gam[sl])
+        self.w2_col, self.gamma_col = om2[sl], gam[sl]
+
+    def columns(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Return a_in, ω0² and γ as arrays over the group (the compiled kernel's columns)."""
+        return self.ain_col, self.w2_col, self.gamma_col
 
     def store(self, phi: FloatArray, v: FloatArray, energy: FloatArray) -> None:
         """Write the group's state back into the n-sorted arrays."""
@@ -304,12 +354,11 @@ def _on_unique(fn: Any, *cols: FloatArray) -> FloatArray:
     return np.array([fn(*row) for row in rows], dtype=np.float64)[inv.ravel()]
 
 
-def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, method: str,
-            h: float, guard: bool, energy_check: bool) -> list[_Group]:
+def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str,
+            guard: bool) -> list[_Group]:
+    """Split the n-sorted pendulums into groups of one n (blocks of at most BLOCK)."""
     tab = METHODS[method].tableau
-    g = guard_for(tab)
     out = []
-    bounds = _on_unique(ain_bound, tau)
     vals, starts = np.unique(nn, return_index=True)
     ends = [*starts[1:].tolist(), nn.size]
     pieces = [(val, a0, min(a0 + BLOCK, b)) for val, a, b in
@@ -317,15 +366,11 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, tau: FloatArray, m
     for val, a, b in pieces:
         sl = slice(a, b)
         smooth = smooth_law(val)
-        lo = np.zeros(b - a)
-        hi = np.full(b - a, math.inf)
         omega0 = np.sqrt(om2[sl])
-        if guard:
-            lo, hi = safe_speed_ranges(g, om2[sl], gam[sl], val, h, bounds[sl])
         out.append(_Group(
             sl=sl, n=val, step=compile_step(tab, val, vector=True),
             nonsmooth=(gam[sl] > 0.0) & (not smooth), coulomb=(gam[sl] > 0.0) & (val == 0.0),
-            check=(gam[sl] > 0.0) & (tau[sl] == 0.0) & energy_check, lo=lo, hi=hi,
+            damped=gam[sl] > 0.0,
             reach=_on_unique(grade_window, omega0) if graded_law(val) else np.zeros(b - a),
             v_acc=(_on_unique(lambda ga, w0, n=val: accuracy_speed(ga, n, w0), gam[sl], omega0)
                    if guard and val > 1.0 else np.full(b - a, math.inf))))
@@ -336,6 +381,13 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool) -> None:
     """Advance one group by a step of hh: the plain step, the decisions, the careful path."""
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
+    if grp.kernel is not None:
+        p1, v1, e1 = np.empty_like(p), np.empty_like(p), np.empty_like(p)
+        ok = np.empty(p.shape, dtype=np.bool_)
+        grp.kernel(p, vv, grp.e, hh, *grp.columns(), grp.n, grp.lo, grp.hi, grp.reach,
+                   grp.v_acc, grp.check, grp.nonsmooth, grp.coulomb, p1, v1, e1, ok)
+        _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1)
+        return
     p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
     av = np.abs(vv)
     ok = av <= grp.hi
@@ -368,6 +420,14 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
         ok &= ~rose
     else:
         e1 = grp.e
+    _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1)
+
+
+def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
+             stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
+             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray) -> None:
+    """Redo every step the fast path refused (``~ok``) on the careful path; keep the states."""
+    p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     refused = np.flatnonzero(~ok)
     if refused.size:
         consts = [np.broadcast_to(c, p.shape)[refused] for c in (ain, w2, ga)]
@@ -397,11 +457,212 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     grp.p, grp.v, grp.e = p1, v1, e1
 
 
+def _torque(torque: Any, size: int, params: Any) -> FloatArray:
+    """Validate a new torque for N = ``size`` pendulums as :func:`_validate` does.
+
+    ``params(i)`` returns the ``PendulumParams`` of pendulum ``i`` (for the model's message).
+    """
+    arr = _as_vector('torque', torque)
+    if arr.ndim == 1 and arr.shape[0] != size:
+        raise ModelError(f'torque must be a scalar or an array of length N = {size}, got shape '
+                         f'{arr.shape}')
+    tau = np.ascontiguousarray(np.broadcast_to(arr, (size,)), dtype=np.float64)
+    bad = ~(np.abs(tau) <= MAX_INPUT_ACCEL)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        _one({'torque': arr}, i, lambda: check_torque(tau[i], params(i)))
+    return tau
+
+
+class Sweep:
+    """N pendulums prepared once and advanced many times, each step as :func:`sweep` takes it.
+
+    What the pendulums fix (validation, the order by n, the generated steps, the reversal and
+    stiffness constants, the run's speed bound) is prepared here once; :meth:`advance` takes
+    the next stretch under a new torque, remaking only what the torque changes (the guard's
+    speed ranges of the pendulums whose torque octave moved). An advance takes the steps a
+    ``sweep`` from the current states with that torque takes, to the bit.
+
+    Parameters
+    ----------
+    omega0_sq, gamma, n, phi0, dphi0, torque, guard, energy_check, max_steps, jit
+        As for :func:`sweep`; ``torque`` is the input of the first advance.
+    h : float
+        Step in s (> 0).
+    method : str
+        ``'rk4'`` (default, the paper's), ``'midpoint'`` or ``'euler'``.
+    """
+
+    def __init__(self, omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, h: float,
+                 *, method: str = 'rk4', torque: Any = 0.0, guard: bool = True,
+                 energy_check: bool = True, max_steps: int = MAX_STEPS,
+                 jit: bool = False) -> None:
+        om2, gam, nn, p0, v0, tau = _validate(omega0_sq, gamma, n, phi0, dphi0, torque)
+        self.guard = check_flag('guard', guard)
+        self.energy_check = check_flag('energy_check', energy_check)
+        self.jit = check_flag('jit', jit)
+        if self.jit and not jit_available():
+            raise IntegratorError(f'jit=True needs numba, which is not installed: '
+                                  f'{INSTALL_HINT}')
+        if method not in SWEEP_METHODS:
+            raise IntegratorError(f'sweep supports the explicit methods '
+                                  f'{", ".join(SWEEP_METHODS)}, got {method!r}')
+        self.method = method
+        self.h = check_step(h)
+        for w2 in np.unique(om2).tolist():
+            check_step(self.h, PendulumParams.from_omega0_sq(w2, 0.0, 1.0))
+        self.max_steps = check_count('max_steps', max_steps)
+        order = self._order = np.argsort(nn, kind='stable')
+        self._inv = np.empty_like(order)
+        self._inv[order] = np.arange(order.size)
+        self._om2, self._gam, self._nn = om2[order], gam[order], nn[order]
+        self._phi, self._v = p0[order].copy(), v0[order].copy()
+        self._tau = tau[order]
+        # The state bound, held along the run where the guard is on (as in the Stepper).
+        self._vmax = (_each(run_speed_limit, self._gam, self._nn, self._om2) if self.guard
+                      else np.full(order.size, np.inf))
+        self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard)
+        if self.jit:
+            tab = METHODS[method].tableau
+            assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
+            for grp in self._groups:
+                grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n))
+        self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
+        self._bounds = ain_bounds(self._tau)
+        for grp in self._groups:
+            grp.use_torque(self._tau, self.energy_check)
+
+    @property
+    def size(self) -> int:
+        """Return the number of pendulums N."""
+        return int(self._order.size)
+
+    @property
+    def phi(self) -> FloatArray:
+        """Return the current angles (rad), in the order the pendulums were given."""
+        return self._phi[self._inv]
+
+    @property
+    def dphi(self) -> FloatArray:
+        """Return the current angular velocities (rad/s), in the order given."""
+        return self._v[self._inv]
+
+    def advance(self, t_end: float, torque: Any = None, *,
+                record_every: int | None = None) -> SweepResult:
+        """Advance every pendulum by ``t_end`` seconds; return the stretch's result.
+
+        Parameters
+        ----------
+        t_end : float
+            Length of the stretch in s (> 0); its times run from 0 to ``t_end`` (the step count
+            by rounding, a last shorter step if it is not a multiple of h, as ``sweep``).
+        torque : float or array_like, shape (N,), optional
+            Input acceleration τ/I in rad/s², constant over the stretch; None keeps the last.
+        record_every : int, optional
+            Record the states every this many steps (and at ``t_end``).
+
+        Returns
+        -------
+        SweepResult
+            The states at the stretch's end, its recording and what its careful path did.
+        """
+        h = self.h
+        t_end = check_run_length(t_end, h, self.max_steps)
+        if record_every is not None:
+            record_every = check_count('record_every', record_every)
+        if torque is not None:
+            self._tau = _torque(torque, self.size, self._params)[self._order]
+            self._bounds = ain_bounds(self._tau)
+            for grp in self._groups:
+                grp.use_torque(self._tau, self.energy_check)
+        k_full, last = step_count(t_end, h)
+        steps = [(h, k_full)] + ([(last, 1)] if last > 0.0 else [])
+        total = k_full + (1 if last > 0.0 else 0)
+        om2, gam, phi, v = self._om2, self._gam, self._phi, self._v
+        energy = specific_energy(v, np.sin(0.5 * phi), om2)
+        stats: dict[int, GuardStats] = {}
+        meth = METHODS[self.method]
+        groups = self._groups
+        rec_t: list[float] = []
+        rec_p: list[FloatArray] = []
+        rec_v: list[FloatArray] = []
+        loaded = False
+
+        def record(t: float) -> None:
+            rec_t.append(t)
+            rec_p.append(np.concatenate([grp.p for grp in groups]) if loaded else phi.copy())
+            rec_v.append(np.concatenate([grp.v for grp in groups]) if loaded else v.copy())
+
+        if record_every is not None:
+            record(0.0)
+        done = 0
+        g = guard_for(meth.tableau)
+        with np.errstate(all='ignore'):
+            for hh, count in steps:
+                for grp in groups:
+                    if self.guard:
+                        grp.use_step(g, hh, om2, gam, self._bounds)
+                    grp.load(phi, v, energy, om2, gam)
+                loaded = True
+                for _ in range(count):
+                    for grp in groups:
+                        _advance(grp, hh, self._engines, stats, meth, self.guard,
+                                 self.energy_check)
+                        self._check_speed(grp, t_end if done + 1 == total else (done + 1) * h)
+                    done += 1
+                    if record_every is not None and (done % record_every == 0 or done == total):
+                        record(t_end if done == total else done * h)
+                for grp in groups:
+                    grp.store(phi, v, energy)
+                loaded = False
+        return self._result(stats, rec_t, rec_p, rec_v, record_every is not None, total, t_end)
+
+    def _params(self, i: int) -> PendulumParams:
+        """Return the parameters of pendulum ``i`` (in the order given)."""
+        j = int(self._inv[i])
+        cols = {'omega0_sq': self._om2, 'gamma': self._gam, 'n': self._nn}
+        return _params(cols, j)
+
+    def _check_speed(self, grp: _Group, t: float) -> None:
+        """Refuse to go on from a state beyond the run's speed bound, naming the pendulum."""
+        fast = np.flatnonzero(~(np.abs(grp.v) <= self._vmax[grp.sl]))
+        if fast.size:
+            j = grp.sl.start + int(fast[0])
+            try:
+                check_speed(float(grp.v[fast[0]]), float(self._gam[j]), float(self._nn[j]),
+                            float(self._om2[j]), t)
+            except IntegratorError as exc:
+                raise IntegratorError(f'{exc} (index {int(self._order[j])})') from None
+
+    def _result(self, stats: dict[int, GuardStats], rec_t: list[float], rec_p: list[FloatArray],
+                rec_v: list[FloatArray], rec: bool, total: int, t_end: float) -> SweepResult:
+        """Return the stretch's result in the order the pendulums were given."""
+        inv, size = self._inv, self.size
+        counters = {k: np.zeros(size, dtype=np.int64)
+                    for k in ('substeps', 'fallbacks', 'reversals', 'sticks')}
+        for i, st in stats.items():
+            for k, arr in counters.items():
+                arr[i] = getattr(st, k)
+        phi_out, v_out = self._phi[inv], self._v[inv]
+        return SweepResult(
+            phi=phi_out, dphi=v_out,
+            energy=specific_energy(v_out, np.sin(0.5 * phi_out), self._om2[inv]),
+            t_record=np.array(rec_t) if rec else None,
+            phi_record=np.array(rec_p)[:, inv] if rec else None,
+            dphi_record=np.array(rec_v)[:, inv] if rec else None,
+            substeps=counters['substeps'][inv], fallbacks=counters['fallbacks'][inv],
+            reversals=counters['reversals'][inv], sticks=counters['sticks'][inv],
+            steps=total, h=self.h, t_end=t_end, method=self.method,
+        )
+
+
 def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: float, h: float,
           *, method: str = 'rk4', torque: Any = 0.0, guard: bool = True,
           energy_check: bool = True, record_every: int | None = None,
-          max_steps: int = MAX_STEPS) -> SweepResult:
+          max_steps: int = MAX_STEPS, jit: bool = False) -> SweepResult:
     """Advance N pendulums from their initial states to ``t_end`` with a fixed step ``h``.
+
+    One :meth:`Sweep.advance` of a :class:`Sweep` made for the call.
 
     Parameters
     ----------
@@ -425,88 +686,15 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         Record the states every this many steps (and at t_end).
     max_steps : int
         Refuse runs of more steps than this.
+    jit : bool
+        Run the fast path compiled by numba (the ``jit`` extra) instead of with numpy: the
+        same generated step and decisions (``decisions.kernel_source``) in one loop.
 
     Returns
     -------
     SweepResult
         Scalars broadcast to the common length N.
     """
-    om2, gam, nn, p0, v0, tau = _validate(omega0_sq, gamma, n, phi0, dphi0, torque)
-    guard = check_flag('guard', guard)
-    energy_check = check_flag('energy_check', energy_check)
-    if method not in SWEEP_METHODS:
-        raise IntegratorError(f'sweep supports the explicit methods '
-                              f'{", ".join(SWEEP_METHODS)}, got {method!r}')
-    h = check_step(h)
-    for w2 in np.unique(om2).tolist():
-        check_step(h, PendulumParams.from_omega0_sq(w2, 0.0, 1.0))
-    max_steps = check_count('max_steps', max_steps)
-    t_end = check_run_length(t_end, h, max_steps)
-    if record_every is not None:
-        record_every = check_count('record_every', record_every)
-    k_full, last = step_count(t_end, h)
-    size = om2.size
-    order = np.argsort(nn, kind='stable')
-    om2, gam, nn, tau = om2[order], gam[order], nn[order], tau[order]
-    phi, v = p0[order].copy(), v0[order].copy()
-    energy = specific_energy(v, np.sin(0.5 * phi), om2)
-    # The state bound, held along the run where the guard is on (as in the Stepper).
-    vmax = _each(run_speed_limit, gam, nn, om2) if guard else np.full(size, np.inf)
-    stats: dict[int, GuardStats] = {}
-    engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
-    meth = METHODS[method]
-    steps = [(h, k_full)] + ([(last, 1)] if last > 0.0 else [])
-    total = k_full + (1 if last > 0.0 else 0)
-    rec_t: list[float] = []
-    rec_p: list[FloatArray] = []
-    rec_v: list[FloatArray] = []
-    groups: list[_Group] = []
-
-    def record(t: float) -> None:
-        rec_t.append(t)
-        rec_p.append(np.concatenate([grp.p for grp in groups]) if groups else phi.copy())
-        rec_v.append(np.concatenate([grp.v for grp in groups]) if groups else v.copy())
-
-    if record_every is not None:
-        record(0.0)
-    done = 0
-    with np.errstate(all='ignore'):
-        for hh, count in steps:
-            groups = _groups(nn, gam, om2, tau, method, hh, guard, energy_check)
-            for grp in groups:
-                grp.load(phi, v, energy, om2, gam, tau)
-            for _ in range(count):
-                for grp in groups:
-                    _advance(grp, hh, engines, stats, meth, guard, energy_check)
-                    fast = np.flatnonzero(~(np.abs(grp.v) <= vmax[grp.sl]))
-                    if fast.size:
-                        j = grp.sl.start + int(fast[0])
-                        try:
-                            check_speed(float(grp.v[fast[0]]), float(gam[j]), float(nn[j]),
-                                        float(om2[j]),
-                                        t_end if done + 1 == total else (done + 1) * h)
-                        except IntegratorError as exc:
-                            raise IntegratorError(f'{exc} (index {int(order[j])})') from None
-                done += 1
-                if record_every is not None and (done % record_every == 0 or done == total):
-                    record(t_end if done == total else done * h)
-            for grp in groups:
-                grp.store(phi, v, energy)
-    inv = np.empty_like(order)
-    inv[order] = np.arange(size)
-    counters = {k: np.zeros(size, dtype=np.int64)
-                for k in ('substeps', 'fallbacks', 'reversals', 'sticks')}
-    for i, st in stats.items():
-        for k, arr in counters.items():
-            arr[i] = getattr(st, k)
-    phi_out, v_out = phi[inv], v[inv]
-    rec = record_every is not None
-    return SweepResult(
-        phi=phi_out, dphi=v_out, energy=specific_energy(v_out, np.sin(0.5 * phi_out), om2[inv]),
-        t_record=np.array(rec_t) if rec else None,
-        phi_record=np.array(rec_p)[:, inv] if rec else None,
-        dphi_record=np.array(rec_v)[:, inv] if rec else None,
-        substeps=counters['substeps'][inv], fallbacks=counters['fallbacks'][inv],
-        reversals=counters['reversals'][inv], sticks=counters['sticks'][inv],
-        steps=total, h=h, t_end=t_end, method=method,
-    )
+    prepared = Sweep(omega0_sq, gamma, n, phi0, dphi0, h, method=method, torque=torque,
+                     guard=guard, energy_check=energy_check, max_steps=max_steps, jit=jit)
+    return prepared.advance(t_end, record_every=record_every)

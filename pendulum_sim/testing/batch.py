@@ -4,8 +4,8 @@ A law declared :func:`~pendulum_sim.testing.vectorised` answers all episodes' st
 ``(t, position[], velocity[]) -> command[]``. Each control period the answers are saturated at
 each episode's ``max_effort`` as :meth:`SimulatedJoint.command` does, and the N pendulums, each
 with its own ω0², γ, n, inertia, advance one period together through the core's vectorized
-driver :func:`pendulum_sim.core.sweep.sweep` (the Stepper's numerics on arrays: the same
-decisions, the same results to round-off).
+driver, a :class:`pendulum_sim.core.sweep.Sweep` prepared once and advanced a period at a time
+(the Stepper's numerics on arrays: the same decisions, the same results to round-off).
 
 The batch takes the common path of the joint only: effort commands, an ideal sensor, no
 command or sensor delay, a command timeout longer than a period, an explicit method the sweep
@@ -32,10 +32,15 @@ BatchLaw = Callable[[float, Any, Any], Any]
 
 def batchable(values: Mapping[str, Value]) -> str:
     """Return why the episode with parameters ``values`` cannot be batched ('' if it can)."""
-    from pendulum_sim.core.sweep import SWEEP_METHODS
     from pendulum_sim.node.parameters import joint_config
 
-    c = joint_config(values, epoch_ns(values))
+    return _why_not(joint_config(values, epoch_ns(values)))
+
+
+def _why_not(c: Any) -> str:
+    """Return why the episode with the joint configuration ``c`` cannot be batched."""
+    from pendulum_sim.core.sweep import SWEEP_METHODS
+
     checks = [
         (c.command_interface == 'effort', f'command_interface is {c.command_interface}'),
         (c.command_delay_steps == 0, 'command_delay is not 0'),
@@ -62,12 +67,12 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]],
               periods: int) -> list[ClosedLoopRun | TestingError]:
     """Run one episode per parameter set in ``episodes``; return each run or its failure."""
     from pendulum_sim.core.errors import PendulumError
-    from pendulum_sim.core.sweep import sweep
+    from pendulum_sim.core.sweep import Sweep
     from pendulum_sim.node.parameters import joint_config
 
     results: list[ClosedLoopRun | TestingError | None] = [None] * len(episodes)
     configs = [joint_config(v, epoch_ns(v)) for v in episodes]
-    batch = [i for i, v in enumerate(episodes) if not batchable(v)]
+    batch = [i for i, c in enumerate(configs) if not _why_not(c)]
     if batch:
         first = configs[batch[0]]
         same = (first.h, first.period_steps, first.method, first.guard, first.epoch_ns)
@@ -76,7 +81,7 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]],
     redo = sorted(set(range(len(episodes))) - set(batch))
     if batch:
         redo += _lockstep(law, [configs[i] for i in batch], [episodes[i] for i in batch],
-                          batch, periods, results, sweep, PendulumError)
+                          batch, periods, results, Sweep, PendulumError)
     for i in sorted(redo):
         try:
             results[i] = run_in_process(_scalar(law), episodes[i], periods)
@@ -87,8 +92,13 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]],
 
 def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value]],
               ids: list[int], periods: int,
-              results: list[Any], sweep: Any, pendulum_error: type[Exception]) -> list[int]:
-    """Step the episodes ``ids`` together; store their runs; return the ids to redo."""
+              results: list[Any], prepare: Any, pendulum_error: type[Exception]) -> list[int]:
+    """Step the episodes ``ids`` together; store their runs; return the ids to redo.
+
+    The live episodes' pendulums are one prepared :class:`~pendulum_sim.core.sweep.Sweep`,
+    advanced a period at a time under the period's torques; it is prepared again only when
+    the set of live episodes changes.
+    """
     first = configs[0]
     h, k = first.h, first.period_steps
     n_ep = len(ids)
@@ -106,6 +116,8 @@ def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value
     out = np.full((5, n_ep, periods), np.nan)
     active = np.ones(n_ep, dtype=bool)
     redo: list[int] = []
+    prepared: Any = None
+    prepared_for = np.empty(0, dtype=np.int64)
     for step in range(periods):
         t = (first.epoch_ns + step * k * round(h * 1e9)) / 1e9 if _whole_ns(h) else math.nan
         if math.isnan(t):
@@ -141,9 +153,14 @@ def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value
         out[4, live, step] = cmd
         tau[live] = np.minimum(np.maximum(cmd, -limit[live]), limit[live])
         try:
-            res = sweep(om2[live], gam[live], nn[live], phi[live], vel[live], k * h, h,
-                        method=first.method, torque=tau[live] * inv_i[live],
-                        guard=first.guard)
+            ain = tau[live] * inv_i[live]
+            if prepared is None or not np.array_equal(live, prepared_for):
+                prepared = prepare(om2[live], gam[live], nn[live], phi[live], vel[live], h,
+                                   method=first.method, torque=ain, guard=first.guard)
+                prepared_for = live
+                res = prepared.advance(k * h)
+            else:
+                res = prepared.advance(k * h, ain)
         except pendulum_error:
             redo.extend(ids[j] for j in live.tolist())
             active[live] = False
