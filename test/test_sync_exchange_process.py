@@ -203,8 +203,9 @@ def test_stamp_0_is_a_stamp_and_a_second_copy_is_a_duplicate() -> None:
 def test_a_reset_publishes_the_reset_state_and_its_answer_at_the_reset_stamp(
         tmp_path: Path) -> None:
     path = tmp_path / 'reset.mcap'
-    params = {'start_paused': True, 'recording.path': str(path)}
+    params = {'start_paused': True, 'recording.path': str(path), 'diagnostics': True}
     with NodeProcess('controller_test', params) as node, Probe() as probe:
+        diags = probe.subscribe(DiagnosticArray, '/diagnostics')
         ctl = ProbeController(probe, node, stamped=False)
         step = probe.node.create_publisher(UInt32, f'{node.fqn}/step_periods', RELIABLE)
         probe.spin_until(lambda: step.get_subscription_count() >= 1, 30.0, '~/step_periods')
@@ -217,6 +218,9 @@ def test_a_reset_publishes_the_reset_state_and_its_answer_at_the_reset_stamp(
         probe.spin_until(lambda: len(ctl.states) >= 7, 30.0, 'the reset state')
         step.publish(UInt32(data=3))
         probe.spin_until(lambda: len(ctl.states) >= 10, 30.0, 'three more states')
+        # Every state so far is answered (6 before the reset, the reset state, 3 after) before
+        # the node stops, or the last answer could still be on its way.
+        last_diagnostics(probe, diags, node, lambda d: int(d.get('sync_answered', 0)) >= 10)
         stop_clean(node)
     rec: dict[str, list[tuple[int, Any]]] = {}
     for m in read_ros2_messages(str(path)):
