@@ -31,7 +31,7 @@ setup(
     extras_require={
         'ros': ROS_WHEELS,
         'plots': ['matplotlib>=3.7'],
-        'peers': ['scipy>=1.10', 'mujoco>=3.2'],
+        'peers': ['scipy>=1.10', 'mujoco>=3.2', 'pybullet>=3.2'],
         'jit': ['numba>=0.59'],
         'docs': ['sphinx>=8', 'myst-parser>=4'],
         'test': [

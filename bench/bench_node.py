@@ -1,4 +1,17 @@
-"""Benchmark pendulum_node from a separate subscriber process; print the figures.
+"""Benchmark pendulum_node: the cost of a tick, and the node beside the first release's.
+
+Phase 0 (default), the tick and the comparison:
+
+- the per-tick cost breakdown of this node at 1 kHz (one step of h = 1 ms per tick), measured in
+  this process on the node's own parts: stepping (the core's RK4 step), joint bookkeeping
+  (``SimulatedJoint.advance`` and ``sample`` beyond the step, stamps, energy), serialization
+  (the CDR templates of joint_states, /clock and energy), publish (rclpy ``publish`` of the
+  bytes, no subscriber) and executor (one timer wake of the EventsExecutor);
+- this node and the first release's (a checkout of commit e07fe85, ``--first``) run the same
+  scenes interleaved, each in its own process: the paper scene at 1 kHz (CPU share of one
+  core from /proc, start-up excluded) and free lockstep (``--scene lockstep``, the summary's
+  achieved real-time factor), with nothing subscribed and with this process subscribed to
+  joint_states and /clock (the node skips publications nobody receives, so both are shown).
 
 Phase 1, real time (1 kHz physics, 1 kHz publishing by default): the publish period seen by the
 subscriber, the stamp-to-receive age, the drift of simulated against wall time over the run,
@@ -209,6 +222,182 @@ def print_real_time(args: argparse.Namespace, rt: dict[str, Any]) -> None:
     print('\n  node shutdown summary:\n' + textwrap.indent('\n'.join(lines), '    '))
 
 
+def per_tick(n: int) -> dict[str, float]:
+    """Return the cost of one 1 kHz tick's parts in us (mean over ``n`` ticks)."""
+    from rclpy.context import Context
+    from rclpy.experimental import EventsExecutor
+    from std_msgs.msg import Float64
+
+    from pendulum_sim.core import PendulumParams, Stepper
+    from pendulum_sim.node.joint import JointConfig, SimulatedJoint
+    from pendulum_sim.node.serialized import ClockBytes, Float64Bytes, JointStateBytes
+
+    params = PendulumParams(gamma=1.0, n=1.0)
+    clock = time.perf_counter
+    st = Stepper(params, 2.0, 0.0, 1e-3, 'rk4', guard=True)
+    t0 = clock()
+    for _ in range(n):
+        st.step(0.0)
+    stepping = (clock() - t0) / n
+    joint = SimulatedJoint(JointConfig(params=params, h=1e-3, phi0=2.0))
+    t0 = clock()
+    for _ in range(n):
+        joint.advance(1)
+        joint.sample()
+        joint.stamp_ns()
+        joint.energy()
+    bookkeeping = (clock() - t0) / n - stepping
+    js, ck, f64 = JointStateBytes('pendulum_joint'), ClockBytes(), Float64Bytes()
+    t0 = clock()
+    for k in range(n):
+        data = js.pack(k, k, 0.1, 0.2, 0.0)
+        tick = ck.pack(k, k)
+        energy = f64.pack(0.5)
+    serialization = (clock() - t0) / n
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node(f'bench_tick_{os.getpid()}', context=context)
+        pubs = [node.create_publisher(t, f'bench_tick/{name}', 10)
+                for t, name in ((JointState, 'joint_states'), (Clock, 'clock'),
+                                (Float64, 'energy'))]
+        t0 = clock()
+        for _ in range(n):
+            pubs[0].publish(data)
+            pubs[1].publish(tick)
+            pubs[2].publish(energy)
+        publish = (clock() - t0) / n
+        wakes = [0]
+
+        def on_timer() -> None:
+            wakes[0] += 1
+
+        node.create_timer(1e-4, on_timer)
+        executor = EventsExecutor(context=context)
+        executor.add_node(node)
+        t0 = time.process_time()
+        while wakes[0] < n:
+            executor.spin_once(timeout_sec=0.1)
+        wake = (time.process_time() - t0) / wakes[0]
+        executor.remove_node(node)
+        executor.shutdown()
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+    return {'stepping': stepping * 1e6, 'joint bookkeeping': bookkeeping * 1e6,
+            'serialization': serialization * 1e6, 'publish': publish * 1e6,
+            'executor (one timer wake)': wake * 1e6}
+
+
+def node_cmd(first: Path | None) -> tuple[list[str], dict[str, str]]:
+    """Return the command starting a node (this one, or the first release's) and its env."""
+    env = dict(os.environ)
+    if first is None:
+        return [sys.executable, '-m', 'pendulum_sim.node.cli'], env
+    env['PYTHONPATH'] = str(first)
+    code = ('import sys; from pendulum_sim.node.pendulum_node import main; '
+            "sys.argv[0] = 'pendulum_node'; sys.exit(main())")
+    return [sys.executable, '-c', code], env
+
+
+def run_node(first: Path | None, scene: str, params: dict[str, str], seconds: float,
+             warmup: float, listen: bool = False) -> tuple[float, str]:
+    """Run a node for ``warmup + seconds``; return its CPU share after the warm-up and its
+    shutdown summary. ``listen``: a subscriber in this process takes its joint_states and
+    /clock meanwhile."""
+    import signal
+    import subprocess
+
+    root = first if first is not None else Path(__file__).resolve().parents[1]
+    cmd, env = node_cmd(first)
+    namespace = unique_namespace()
+    cmd += ['--ros-args', '-r', f'__ns:={namespace}', '-r', f'/clock:={namespace}/clock',
+            '--params-file', str(root / 'config' / f'{scene}.yaml'),
+            *[x for k, v in params.items() for x in ('-p', f'{k}:={v}')]]
+    # cwd: ``python -c`` puts it first on sys.path, so each node imports its own package.
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, cwd=root)
+    probe = Probe('bench_listener', executor='events') if listen else None
+    try:
+        if probe is not None:
+            best_effort = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+            probe.subscribe(JointState, f'{namespace}/joint_states', best_effort)
+            probe.subscribe(Clock, f'{namespace}/clock', best_effort)
+        wait = probe.spin_for if probe is not None else time.sleep
+        wait(warmup)   # a benchmark: start-up excluded by time, not asserted
+        c0, w0 = cpu_seconds(proc.pid), time.monotonic()
+        wait(seconds)
+        share = (cpu_seconds(proc.pid) - c0) / (time.monotonic() - w0)
+        if proc.poll() is not None:
+            raise RuntimeError(f'the node ended early: {proc.communicate()[1][-2000:]}')
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if probe is not None:
+            probe.close()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return share, err
+
+
+def summary_value(text: str, key: str) -> float:
+    """Return a number from a node's shutdown summary."""
+    for line in text.splitlines():
+        if line.strip().startswith(key):
+            return float(line.strip()[len(key):].split()[0])
+    return float('nan')
+
+
+def compare(args: argparse.Namespace) -> None:
+    """Print the tick breakdown and the two nodes side by side, interleaved."""
+    parts = per_tick(args.ticks)
+    total = sum(parts.values())
+    print(f'\nper-tick cost at 1 kHz (this node, mean of {args.ticks} ticks, us):')
+    for name, us in parts.items():
+        print(f'  {name:<28} {us:7.1f}')
+    print(f'  {"sum":<28} {total:7.1f}  (= {total / 10:.1f} % of a core at 1 kHz)')
+    first = Path(args.first) if args.first else None
+    if first is not None and not (first / 'pendulum_sim' / 'node').is_dir():
+        print(f'\n(no first release at {first}: git worktree add {first} e07fe85)')
+        first = None
+    nodes = [('first release e07fe85', first), ('this node', None)] if first else [
+        ('this node', None)]
+    cpu: dict[str, list[float]] = {name: [] for name, _ in nodes}
+    rtf: dict[str, list[float]] = {name: [] for name, _ in nodes}
+    heard: dict[str, list[float]] = {name: [] for name, _ in nodes}
+    for _ in range(args.rounds):
+        for name, path in nodes:
+            share, _ = run_node(path, 'paper', {'publish_rate': '1000.0',
+                                                'status_line': 'false'}, args.cpu_seconds, 3.0)
+            cpu[name].append(100.0 * share)
+            _, err = run_node(path, 'lockstep', {'status_line': 'false'},
+                              args.lockstep_duration, 0.0)
+            rtf[name].append(summary_value(err, 'achieved real-time factor'))
+            _, err = run_node(path, 'lockstep', {'status_line': 'false'},
+                              args.lockstep_duration, 2.0, listen=True)
+            heard[name].append(summary_value(err, 'achieved real-time factor'))
+    print(f'\nside by side, interleaved, {args.rounds} rounds (machine shared with other '
+          f'work: read the ratios):')
+    for name, _ in nodes:
+        c, r = np.array(cpu[name]), np.array(rtf[name])
+        ok_c = 'ok' if np.median(c) <= 25.0 else 'MISSED'
+        ok_r = 'ok' if np.median(r) >= 50.0 else 'MISSED'
+        print(f'  {name:<22} paper scene at 1 kHz: CPU median {np.median(c):5.1f} % of a core '
+              f'({", ".join(f"{x:.1f}" for x in c)})  [target <= 25 %: {ok_c}]')
+        print(f'  {"":<22} free lockstep {args.lockstep_duration:g} s: RTF median '
+              f'{np.median(r):6.1f}x ({", ".join(f"{x:.1f}" for x in r)})  '
+              f'[target >= 50x: {ok_r}]')
+        hr = np.array(heard[name])
+        print(f'  {"":<22} the same with this process subscribed to joint_states and /clock: '
+              f'RTF median {np.median(hr):6.1f}x ({", ".join(f"{x:.1f}" for x in hr)})')
+    if first is not None:
+        a, b = nodes[0][0], nodes[1][0]
+        print(f'  ratio this/first: CPU {np.median(cpu[b]) / np.median(cpu[a]):.2f}, '
+              f'lockstep RTF {np.median(rtf[b]) / np.median(rtf[a]):.2f}, with a subscriber '
+              f'{np.median(heard[b]) / np.median(heard[a]):.2f}')
+
+
 def main() -> int:
     """Run the phases and print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
@@ -219,12 +408,26 @@ def main() -> int:
     parser.add_argument('--lockstep-duration', type=float, default=10.0, help='s')
     parser.add_argument('--skip-lockstep', action='store_true')
     parser.add_argument('--skip-realtime', action='store_true')
+    parser.add_argument('--skip-compare', action='store_true')
+    parser.add_argument('--only-compare', action='store_true',
+                        help='only the tick breakdown and the side-by-side comparison')
+    parser.add_argument('--first', default='/tmp/pendulum_first',
+                        help='a checkout of the first release (git worktree add PATH e07fe85)')
+    parser.add_argument('--rounds', type=int, default=2, help='comparison rounds')
+    parser.add_argument('--ticks', type=int, default=20000, help='ticks in the breakdown')
+    parser.add_argument('--cpu-seconds', type=float, default=10.0,
+                        help='CPU measurement per comparison run, s')
     parser.add_argument('--executor', choices=('events', 'single'), default='events')
     parser.add_argument('--rt-priority', type=int, default=0,
                         help="the node's SCHED_FIFO priority (0 = normal scheduler)")
     args = parser.parse_args()
     print(f'machine: {machine()}')
     print(f'node executor: {args.executor}; ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}')
+    if not args.skip_compare:
+        compare(args)
+    if args.only_compare:
+        rclpy.try_shutdown()
+        return 0
     if not args.skip_realtime:
         print_real_time(args, real_time_phase(args))
     if not args.skip_lockstep:

@@ -65,23 +65,38 @@ def loopback_profile() -> Path | None:
 
 
 def use_loopback_profile(environ: MutableMapping[str, str]) -> Path | None:
-    """Point Fast DDS at the loopback profile when discovery is LOCALHOST and none is chosen.
+    """Keep every DDS socket on 127.0.0.1 when discovery is LOCALHOST; return the profile used.
 
-    Sets both ``FASTRTPS_DEFAULT_PROFILES_FILE`` (Fast DDS 2.x, ROS 2 Jazzy) and
-    ``FASTDDS_DEFAULT_PROFILES_FILE`` (Fast DDS 3.x) in ``environ`` unless either is set, or
-    ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is not ``LOCALHOST``. Call it before ``rclpy.init``.
-    Returns the profile set, or None when nothing was changed.
+    With ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and no Fast DDS profile chosen, points both
+    ``FASTRTPS_DEFAULT_PROFILES_FILE`` (Fast DDS 2.x, ROS 2 Jazzy) and
+    ``FASTDDS_DEFAULT_PROFILES_FILE`` (Fast DDS 3.x) in ``environ`` at the shipped loopback
+    profile. With that profile (set here or by the user) the discovery range becomes
+    ``SYSTEM_DEFAULT``: the profile does LOCALHOST's discovery itself (unicast announcements to
+    127.0.0.1, no multicast), and rmw_fastrtps then adds no UDPv4 transport of its own, whose
+    send-only sockets would bind 0.0.0.0. Processes left in LOCALHOST still discover these.
+    Nothing changes for another range (``SUBNET`` across hosts) or another profile. Call it
+    before ``rclpy.init``.
     """
     if environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '') != 'LOCALHOST':
         return None
-    if any(environ.get(var) for var in PROFILE_VARIABLES):
+    shipped = loopback_profile()
+    if shipped is None:
         return None
-    path = loopback_profile()
-    if path is None:
+    chosen = [environ[var] for var in PROFILE_VARIABLES if environ.get(var)]
+    if chosen and not all(_same_file(path, shipped) for path in chosen):
         return None
     for var in PROFILE_VARIABLES:
-        environ[var] = str(path)
-    return path
+        environ[var] = str(shipped)
+    environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'SYSTEM_DEFAULT'
+    return shipped
+
+
+def _same_file(path: str, other: Path) -> bool:
+    """Return True when ``path`` is ``other`` or holds the same bytes (an installed copy)."""
+    try:
+        return Path(path).samefile(other) or Path(path).read_bytes() == other.read_bytes()
+    except OSError:
+        return False
 
 
 EXECUTORS = ('events', 'single')

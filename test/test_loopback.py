@@ -1,4 +1,4 @@
-"""DDS on 127.0.0.1: the node's UDP sockets, read from outside through /proc (issue 11 item 15).
+"""DDS on 127.0.0.1: UDP sockets of the node, the controller and replay, read through /proc.
 
 The node runs in its own process; its sockets are the UDP entries of /proc/<pid>/net/udp{,6}
 whose inodes are among /proc/<pid>/fd. Each test also checks that a probe in another process
@@ -7,6 +7,7 @@ still receives joint_states (pub/sub across processes works on the loopback).
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -14,6 +15,7 @@ import pytest
 from node_harness import NodeProcess, Probe
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
 
 from pendulum_sim.dds import PROFILE_VARIABLES
 
@@ -97,14 +99,15 @@ def start_and_read(env: dict[str, str | None]) -> tuple[list[tuple[str, int]], s
 def test_rtps_sockets_are_loopback_by_default() -> None:
     """No profile variable set: pendulum_node picks the shipped profile itself (LOCALHOST).
 
-    Every socket on the domain's RTPS ports (where DDS listens) is bound to 127.0.0.1; without
-    the profile these are bound to 0.0.0.0.
+    Every UDP socket is bound to 127.0.0.1, among them those on the domain's RTPS ports (where
+    DDS listens); without the profile these are bound to 0.0.0.0.
     """
     sockets, log = start_and_read({var: None for var in PROFILE_VARIABLES})
     domain = int(os.environ['ROS_DOMAIN_ID'])
     listening = [s for s in sockets if s[1] in rtps_ports(domain)]
     assert len(listening) >= 2, (sockets, log)
-    assert all(is_loopback(addr) for addr, _ in listening), sockets
+    # Every socket, the send-only ones too.
+    assert [s for s in sockets if not is_loopback(s[0])] == [], sockets
 
 
 def test_a_profile_the_user_chose_is_kept(tmp_path: Path) -> None:
@@ -133,11 +136,88 @@ def test_the_profile_alone_binds_every_socket_to_loopback() -> None:
     assert [s for s in sockets if not is_loopback(s[0])] == [], sockets
 
 
-@pytest.mark.xfail(strict=True, reason='rmw_fastrtps 8.4 (Jazzy) adds its own UDPv4 transport '
-                   'without an interface list when ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST; its '
-                   'send-only sockets bind 0.0.0.0 and the host address (rmw_fastrtps_shared_cpp '
-                   'participant.cpp)')
 def test_every_socket_is_loopback_in_localhost_range() -> None:
-    """LOCALHOST and the profile: every UDP socket of the node on 127.0.0.1 (not yet)."""
-    sockets, _ = start_and_read({var: str(PROFILE) for var in PROFILE_VARIABLES})
+    """LOCALHOST and the shipped profile chosen explicitly: every UDP socket on 127.0.0.1.
+
+    The profile does LOCALHOST's discovery itself, so the node runs it under SYSTEM_DEFAULT,
+    where rmw_fastrtps adds no UDPv4 transport of its own (whose send-only sockets would bind
+    0.0.0.0 and the host address).
+    """
+    sockets, log = start_and_read({var: str(PROFILE) for var in PROFILE_VARIABLES})
+    assert sockets, log
     assert [s for s in sockets if not is_loopback(s[0])] == [], sockets
+
+
+def without_profile_variables() -> dict[str, str]:
+    """Return this environment without the Fast DDS profile variables (LOCALHOST kept)."""
+    return {k: v for k, v in os.environ.items() if k not in PROFILE_VARIABLES}
+
+
+def test_the_controller_binds_every_socket_to_loopback() -> None:
+    """pendulum_pd_controller, no profile variable set: every UDP socket on 127.0.0.1."""
+    from test_controller_node import RELIABLE, Controller
+
+    ctl = Controller()
+    saved = os.environ.copy()
+    os.environ.clear()
+    os.environ.update(without_profile_variables())
+    try:
+        ctl.start()
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+    with ctl, Probe() as probe:
+        pub = probe.node.create_publisher(JointState, f'{ctl.namespace}/joint_states', RELIABLE)
+        probe.spin_until(lambda: pub.get_subscription_count() >= 1 or not ctl.alive(), 30.0,
+                         "the controller's joint_states subscription")
+        assert ctl.alive(), ctl.output()
+        assert ctl.proc is not None
+        sockets = udp_sockets(ctl.proc.pid)
+    assert sockets, ctl.output()
+    assert [s for s in sockets if not is_loopback(s[0])] == [], sockets
+
+
+def test_replay_binds_every_socket_to_loopback(tmp_path: Path) -> None:
+    """pendulum_replay, no profile variable set: every UDP socket on 127.0.0.1."""
+    import subprocess
+
+    from test_recording_support import record, scripted_messages
+
+    path = tmp_path / 'run.mcap'
+    record(path, scripted_messages(50, period_ns=2_000_000, t0_ns=0), chunk_size=4096)
+    replay = Path(sys.executable).parent / 'pendulum_replay'
+    proc = subprocess.Popen([str(replay), str(path), '--loop', '--topics', '/energy'],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            env=without_profile_variables())
+    try:
+        with Probe() as probe:
+            got = probe.subscribe(Float64, '/energy')
+            probe.spin_until(lambda: len(got) >= 3 or proc.poll() is not None, 30.0,
+                             'replayed energy')
+            assert proc.poll() is None
+            sockets = udp_sockets(proc.pid)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+    assert sockets
+    assert [s for s in sockets if not is_loopback(s[0])] == [], sockets
+
+
+def test_the_environment_rule() -> None:
+    """LOCALHOST: the shipped profile, run as SYSTEM_DEFAULT; another range or profile: kept."""
+    from pendulum_sim.dds import use_loopback_profile
+
+    env = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    shipped = use_loopback_profile(env)
+    assert shipped is not None and shipped.read_bytes() == PROFILE.read_bytes()
+    assert env == {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SYSTEM_DEFAULT',
+                   **{var: str(shipped) for var in PROFILE_VARIABLES}}
+    chosen = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', PROFILE_VARIABLES[0]: str(PROFILE)}
+    assert use_loopback_profile(chosen) is not None
+    assert chosen['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
+    for kept in ({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'}, {},
+                 {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
+                  PROFILE_VARIABLES[0]: '/elsewhere/profile.xml'}):
+        before = dict(kept)
+        assert use_loopback_profile(kept) is None
+        assert kept == before

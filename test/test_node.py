@@ -244,7 +244,10 @@ def test_effort_timeout_reset() -> None:
     assert abs(float(report['energy_residual'])) < 1e-9
     # After the reset: at rest at the bottom again, while simulated time goes on.
     later = [steps_of(m) for m in states.msgs[n_before_reset:]]
-    assert later == sorted(later) and later[0] > k_before_reset
+    assert later == sorted(later) and later[0] >= k_before_reset
+    # The reset state is published at the reset stamp (the last state before may share it).
+    at_reset = [m for m in states.msgs[n_before_reset:] if steps_of(m) == reset_k]
+    assert at_reset and list(at_reset[-1].position) == [0.0]
     after = [m for m in states.msgs[n_before_reset:] if steps_of(m) > reset_k]
     assert len(after) >= 10
     assert all(list(m.position) == [0.0] and list(m.velocity) == [0.0] for m in after)

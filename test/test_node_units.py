@@ -164,6 +164,20 @@ def test_scene_files_declare_known_parameters_of_the_right_type(scene: str) -> N
     ({'joint_name': ' '}, "joint_name must be a non-empty name, got ' '"),
     ({'real_time_factor': 0.0}, 'real_time_factor must be > 0 unless lockstep is true, got 0.0'),
     ({'real_time_factor': 0.0, 'lockstep': True}, None),
+    # Velocity or position commands start without switching effort input off.
+    ({'command_interface': 'velocity', 'joint_commands_input': True}, None),
+    ({'command_interface': 'position', 'array_command_input': True}, None),
+    ({'command_interface': 'velocity'},
+     "command_interface 'velocity' takes commands on joint_commands or commands: set "
+     'joint_commands_input or array_command_input to true (effort_command carries N m, effort '
+     'only)'),
+    ({'position_min': -1.0},
+     'position_min and position_max must be both finite (a revolute joint) or both infinite (a '
+     'continuous joint), got -1.0 and inf: a URDF joint has no one-sided limit'),
+    ({'position_min': -1.0, 'position_max': 1.0}, None),
+    ({'servo.velocity_i': math.nan}, 'servo.velocity_i must be a finite number >= 0, got nan'),
+    ({'servo.position_p': -2.0}, 'servo.position_p must be a finite number >= 0, got -2.0'),
+    ({'servo.gravity_feedforward': False, 'servo.velocity_i': 0.0}, None),
 ])
 def test_parameter_check_reasons(changes: dict[str, object], reason: str | None) -> None:
     """Cross-parameter validation names the value and the rule."""

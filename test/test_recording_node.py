@@ -231,12 +231,16 @@ def test_a_reset_is_recorded_and_the_run_loads_as_two_segments(tmp_path: Path) -
     reset_ns = int(rec.resets[0])
     js = rec.joint_states
     assert js is not None
-    # Simulated time goes on through the reset: stamps never go back, in write order.
-    assert np.all(np.diff(js.stamp_ns) > 0)
+    # Simulated time goes on through the reset: stamps never go back, in write order; the
+    # reset state is published at the reset stamp (the last state before it may share it).
+    assert np.all(np.diff(js.stamp_ns) >= 0)
     first, second = (s.joint_states for s in rec.segments)
     assert first is not None and second is not None
+    assert np.all(np.diff(first.stamp_ns) > 0) and np.all(np.diff(second.stamp_ns) > 0)
     assert len(first.t) >= 100 and len(second.t) >= 100
-    assert first.stamp_ns[-1] <= reset_ns <= second.stamp_ns[0]
+    assert first.stamp_ns[-1] <= reset_ns == second.stamp_ns[0]
+    assert second.position[0] == float(rec.scene['phi0'])
+    assert second.velocity[0] == float(rec.scene['dphi0'])
     np.testing.assert_array_equal(np.concatenate([first.position, second.position]),
                                   js.position)
     # After the reset the state starts over from the initial state at the reset stamp: the

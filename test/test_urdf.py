@@ -7,6 +7,7 @@ topic_based_ros2_control; MuJoCo's joint inertia equals I and its swing matches 
 from __future__ import annotations
 
 import math
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
@@ -106,18 +107,26 @@ def test_ros2_control_block(interface: str) -> None:
     """topic_based_ros2_control: plugin, this node's topics, 3 state and 1 command interface."""
     root = parse(pendulum_urdf(BODY, 'j', command_interface=interface, lower=-1.0, upper=1.0,
                                max_effort=5.0, max_velocity=6.0,
-                               joint_commands_topic='/ns/joint_commands'))
+                               joint_commands_topic='/ns/joint_commands', phi0=0.25,
+                               dphi0=-0.5))
     block = one(root, 'ros2_control')
     assert block.attrib == {'name': 'pendulum', 'type': 'system'}
     assert one(block, 'hardware/plugin').text == PLUGIN == (
         'topic_based_ros2_control/TopicBasedSystem')
     params = {p.get('name'): p.text for p in block.findall('hardware/param')}
     assert params == {'joint_commands_topic': '/ns/joint_commands',
-                      'joint_states_topic': 'joint_states',
+                      'joint_states_topic': '/pendulum/joint_states',
                       'trigger_joint_command_threshold': '-1'}
     joint = one(block, 'joint')
     assert [s.get('name') for s in joint.findall('state_interface')] == [
         'position', 'velocity', 'effort']
+    # The plugin's on_init copies each state interface's initial_value into the command of
+    # the same name: the initial state, so a position interface holds φ0 until commanded.
+    initial = {s.get('name'): [(p.get('name'), p.text) for p in s.findall('param')]
+               for s in joint.findall('state_interface')}
+    assert initial == {'position': [('initial_value', '0.25')],
+                       'velocity': [('initial_value', '-0.5')],
+                       'effort': [('initial_value', '0.0')]}
     command = one(joint, 'command_interface')
     assert command.get('name') == interface
     bounds = {'effort': ['-5.0', '5.0'], 'velocity': ['-6.0', '6.0'],
@@ -129,6 +138,30 @@ def test_ros2_control_block(interface: str) -> None:
 def test_shipped_urdf_is_the_default_scene() -> None:
     """urdf/pendulum.urdf is what the generator makes of config/default.yaml."""
     assert REPO_URDF.read_text() == default_urdf()
+
+
+def test_shipped_topics_do_not_collide_with_joint_state_broadcaster() -> None:
+    """Absolute topics in /pendulum: not /joint_states, wherever the controller manager runs.
+
+    The plugin's node lives in the controller manager's process (in / by default), where a
+    relative name would resolve to /joint_states, joint_state_broadcaster's output.
+    """
+    root = parse(REPO_URDF.read_text())
+    params = {p.get('name'): p.text for p in root.findall('ros2_control/hardware/param')}
+    assert params['joint_states_topic'] == '/pendulum/joint_states'
+    assert params['joint_commands_topic'] == '/pendulum/joint_commands'
+    state = one(root, "ros2_control/joint/state_interface[@name='position']/param")
+    assert float(state.text or '') == 0.3    # phi0 of the default scene
+
+
+@pytest.mark.parametrize(('lower', 'upper'), [(-1.0, None), (None, 2.0), (-1.0, math.inf),
+                                              (-math.inf, 0.5)])
+def test_a_one_sided_limit_is_refused(lower: float | None, upper: float | None) -> None:
+    """URDF has no one-sided limit (continuous: none; revolute: both): refused with why."""
+    msg = (f'position limits must be both finite (revolute) or both absent (continuous), got '
+           f'lower = {lower} and upper = {upper}: a URDF joint has no one-sided limit')
+    with pytest.raises(ParameterError, match=re.escape(msg)):
+        pendulum_urdf(BODY, lower=lower, upper=upper)
 
 
 def test_urdf_parser_py_reads_it() -> None:
@@ -254,3 +287,80 @@ def test_live_robot_description_loads_in_mujoco() -> None:
     assert joint_inertia(model) == pytest.approx(inertia, rel=1e-12, abs=0.0)
     assert model.body_mass[-1] == float(values['m'])
     assert model.dof_damping[0] == gamma * inertia
+
+
+# ---------------------------------------------------------------- PyBullet, measured
+def pybullet_swing(urdf_path: Path, flags: int, link_damping: float | None,
+                   h: float = 1e-4, t_end: float = 3.0, phi0: float = 0.5) -> np.ndarray:
+    """Swing the loaded URDF freely in PyBullet (no motor); return φ at every step."""
+    import pybullet as pb
+
+    cid = pb.connect(pb.DIRECT)
+    try:
+        body = pb.loadURDF(str(urdf_path), useFixedBase=True, flags=flags, physicsClientId=cid)
+        pb.setGravity(0, 0, -BODY.g, physicsClientId=cid)
+        pb.setTimeStep(h, physicsClientId=cid)
+        # PyBullet drives every joint with a velocity motor by default: switch it off.
+        pb.setJointMotorControl2(body, 0, pb.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+        if link_damping is not None:
+            pb.changeDynamics(body, 0, linearDamping=link_damping, angularDamping=link_damping,
+                              physicsClientId=cid)
+        pb.resetJointState(body, 0, phi0, physicsClientId=cid)
+        out = [phi0]
+        for _ in range(round(t_end / h)):
+            pb.stepSimulation(physicsClientId=cid)
+            out.append(pb.getJointState(body, 0, physicsClientId=cid)[0])
+        return np.array(out)
+    finally:
+        pb.disconnect(cid)
+
+
+def test_pybullet_needs_the_inertia_flag_and_no_link_damping(tmp_path: Path) -> None:
+    """PyBullet replaces the URDF's inertia unless URDF_USE_INERTIA_FROM_FILE is passed, and
+    adds a link damping of 0.04 by default; with the flag and that damping at 0 the free swing
+    follows simulate() (to its semi-implicit Euler error)."""
+    pb = pytest.importorskip('pybullet')
+    path = tmp_path / 'pendulum.urdf'
+    path.write_text(pendulum_urdf(BODY, 'hinge'))
+
+    def joint_inertia_pb(flags: int) -> float:
+        cid = pb.connect(pb.DIRECT)
+        try:
+            body = pb.loadURDF(str(path), useFixedBase=True, flags=flags, physicsClientId=cid)
+            assert pb.getJointInfo(body, 0, physicsClientId=cid)[6] == pytest.approx(
+                BODY.gamma * BODY.inertia, rel=1e-12)      # <dynamics damping> is read
+            return float(pb.calculateMassMatrix(body, [0.0], physicsClientId=cid)[0][0])
+        finally:
+            pb.disconnect(cid)
+
+    assert joint_inertia_pb(pb.URDF_USE_INERTIA_FROM_FILE) == pytest.approx(BODY.inertia,
+                                                                            rel=1e-12)
+    assert abs(joint_inertia_pb(0) - BODY.inertia) > 0.01 * BODY.inertia
+    flag = pb.URDF_USE_INERTIA_FROM_FILE
+    default = pybullet_swing(path, flag, None)
+    # The default link damping is 0.04: setting 0.04 changes nothing (to the round-off of its
+    # single-precision copy), 0.039 or 0.041 change the swing 1e6 times more.
+    assert np.max(np.abs(default - pybullet_swing(path, flag, 0.04))) < 1e-8
+    for other in (0.039, 0.041):
+        assert np.max(np.abs(default - pybullet_swing(path, flag, other))) > 1e-4
+    ours = simulate(BODY, 0.5, 0.0, 3.0, 1e-4, 'rk4').phi
+    assert np.max(np.abs(pybullet_swing(path, flag, 0.0) - ours)) < 2e-4
+    assert np.max(np.abs(default - ours)) > 1e-2
+
+
+def test_the_tutorial_shows_the_shipped_ros2_control_block() -> None:
+    """docs/tutorials/ros2-control.md's <ros2_control> example is the shipped URDF's block."""
+    doc = (REPO_URDF.parents[1] / 'docs' / 'tutorials' / 'ros2-control.md').read_text()
+    (example,) = [b for b in re.findall(r'```xml\n(.*?)```', doc, re.S) if '<ros2_control' in b]
+
+    def summary(block: ET.Element) -> object:
+        joint = one(block, 'joint')
+        return (block.attrib, one(block, 'hardware/plugin').text,
+                {p.get('name'): p.text for p in block.findall('hardware/param')},
+                joint.get('name'),
+                [(c.get('name'), [(p.get('name'), p.text) for p in c.findall('param')])
+                 for c in joint.findall('command_interface')],
+                [(s.get('name'), [(p.get('name'), p.text) for p in s.findall('param')])
+                 for s in joint.findall('state_interface')])
+
+    assert summary(parse(example)) == summary(one(parse(REPO_URDF.read_text()), 'ros2_control'))

@@ -31,7 +31,8 @@ from typing import TYPE_CHECKING, Any, NoReturn
 class Signals:
     """SIGINT and SIGTERM: remember them, and raise KeyboardInterrupt only while starting up.
 
-    Installed before rclpy, which chains its own handlers (shut the context down) to these.
+    rclpy is initialised without signal handlers of its own, so a signal never shuts the
+    context down under a running callback.
     ``abort`` is True only between the start of ``main`` and the start of the loop.
     """
 
@@ -269,9 +270,13 @@ def _main(argv: list[str], signals: Signals) -> int:
             print(f'{PROG}: cannot use SCHED_FIFO priority {opts.rt_priority} ({exc}); '
                   'running with the normal scheduler', file=sys.stderr)
     import rclpy
+    from rclpy.signals import SignalHandlerOptions
 
     try:
-        rclpy.init(args=ros_argv)
+        # rclpy's own handlers would shut the context down at once, from another thread, in
+        # the middle of a callback that is publishing (a FATAL log and a traceback): the
+        # handlers installed above only ask the loop to stop, between callbacks.
+        rclpy.init(args=ros_argv, signal_handler_options=SignalHandlerOptions.NO)
     except rcl_error as exc:
         return _fail(f'invalid ROS arguments: {_rcl_reason(exc)}')
     except KeyboardInterrupt:
@@ -298,9 +303,9 @@ def _run(executor_kind: str, signals: Signals) -> int:
         executor.add_node(node)
         signals.abort = False
         # spin_once in a loop rather than spin(): the EventsExecutor's spin() does not return
-        # to Python, so it would miss Ctrl-C. rclpy's handler shuts the context down and wakes
-        # the executor; ours records the signal, so the loop ends either way (as it does when
-        # the node saw a KeyboardInterrupt inside a callback, raised by another handler).
+        # to Python, so it would miss Ctrl-C. A signal is recorded by our handler and the loop
+        # ends between callbacks (as it does when the node saw a KeyboardInterrupt inside a
+        # callback, raised by another handler).
         while rclpy.ok() and signals.received is None and not node.stop_requested:
             executor.spin_once(timeout_sec=0.25)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -6,8 +6,8 @@ transport does:
 
 - the command path: non-finite commands refused, limits and saturation, a command delay of
   ``round(command_delay / h)`` steps, a hold of ``command_timeout`` after which the command
-  returns to its safe value, and the joint-level servo of the velocity and position interfaces
-  (gains as parameters, as gz_ros2_control's joint servo has them);
+  returns to its safe value, and the drive of the velocity and position interfaces (a cascaded
+  servo with gravity feed-forward, ``servo.py``);
 - the sensor path: a delay of ``round(sensor.delay / h)`` steps, seeded Gaussian noise, encoder
   quantisation;
 - the stamp grid: step ``k`` is stamped ``epoch + k h``; the step count never goes back, not even
@@ -37,9 +37,11 @@ from pendulum_sim.core import (
     kinetic_energy,
     potential_energy,
 )
+from pendulum_sim.core.model import speed_limit
 
 from .errors import JointError
 from .sensors import SensorModel
+from .servo import Servo, ServoGains
 
 INTERFACES = ('effort', 'velocity', 'position')
 # Steps of delay are kept in memory (one entry per step), so a delay is bounded.
@@ -62,19 +64,6 @@ def timeout_steps(seconds: float, h: float) -> int:
     """Return the command timeout in steps: 0 only for 0 s (hold for ever), else at least 1."""
     steps = steps_of('command_timeout', seconds, h)
     return max(1, steps) if seconds > 0.0 else 0
-
-
-@dataclass(frozen=True)
-class ServoGains:
-    """Gains of the joint-level servo that tracks velocity and position commands.
-
-    Position: τ = kp (φ_ref − φ) − kd φ'; velocity: τ = kv (φ'_ref − φ'); both saturated at
-    ``max_effort`` and applied through the same physics as an effort command.
-    """
-
-    position_p: float = 20.0
-    position_d: float = 2.0
-    velocity_p: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -140,8 +129,8 @@ class JointConfig:
             velocity_noise=num('sensor.velocity_noise'),
             resolution=num('sensor.resolution'),
             command_interface=str(values.get('command_interface', 'effort')),
-            servo=ServoGains(*(num(f'servo.{k}') for k in ('position_p', 'position_d',
-                                                           'velocity_p'))
+            servo=ServoGains(num('servo.position_p'), num('servo.velocity_p'),
+                             num('servo.velocity_i'), bool(values['servo.gravity_feedforward'])
                              ) if 'servo.position_p' in values else ServoGains(),
             max_velocity=num('max_velocity') if 'max_velocity' in values else math.inf,
             position_min=lo, position_max=hi,
@@ -232,7 +221,7 @@ class SimulatedJoint:
                                    config.velocity_noise, config.resolution)
         self.counters = CommandCounters()
         self._base_steps = 0       # steps taken before the last reset
-        self._target = 0.0         # the command held, in the active interface's unit
+        self._target = self._initial_target()  # the command held, in the interface's unit
         self._target_step = 0      # the step at which it took effect
         self._pending: deque[tuple[int, float]] = deque()   # (effective step, command)
         self._history: deque[tuple[int, float, float, float]] = deque()
@@ -240,9 +229,13 @@ class SimulatedJoint:
         self._failed: str | None = None
         self._guard_before_reset: dict[str, int] = {}
         self._commanded = False
+        self._servo = Servo(config.servo, config.params, config.max_effort,
+                            config.max_velocity, config.h)
         h_ns = config.h * NS
         self._h_ns_int = round(h_ns) if abs(h_ns - round(h_ns)) < 1e-6 else 0
         self._epoch_ns = config.epoch_ns
+        self._vmax = self._speed_bound(config)
+        self._inertia_per_h = config.params.inertia / config.h
 
     # ------------------------------------------------------------------ state
     @property
@@ -349,26 +342,48 @@ class SimulatedJoint:
         self._target_step = step
         self._commanded = True
 
+    def _initial_target(self) -> float:
+        """Return the command held before any arrives: the initial state (φ0, φ'0) or no torque.
+
+        The same values the URDF gives as ``initial_value`` (what topic_based_ros2_control
+        commands before a controller does), so the joint starts where it is, at the speed it has.
+        """
+        c = self._config
+        return {'effort': 0.0, 'velocity': c.dphi0, 'position': c.phi0}[c.command_interface]
+
     def _safe_target(self) -> float:
         """Return what a timed-out command returns to: no torque, no speed, or the same place."""
         return self._target if self._config.command_interface == 'position' else 0.0
 
     def _torque_for(self, phi: float, dphi: float) -> float:
         c = self._config
-        kind = c.command_interface
-        if kind == 'effort':
-            tau = self._target
-        elif kind == 'velocity':
-            tau = c.servo.velocity_p * (self._target - dphi)
+        if c.command_interface == 'effort':
+            tau = min(max(self._target, -c.max_effort), c.max_effort)
         else:
-            tau = c.servo.position_p * (self._target - phi) - c.servo.position_d * dphi
-        return self._velocity_limited(min(max(tau, -c.max_effort), c.max_effort), dphi)
+            tau = self._servo.torque(c.command_interface, self._target, phi, dphi)
+        return self._velocity_limited(tau, dphi)
+
+    @staticmethod
+    def _speed_bound(config: JointConfig) -> float:
+        """Return the speed no torque may drive the joint past: max_velocity, or the core's
+        state bound for the damping (``speed_limit``) if that is lower."""
+        p = config.params
+        return min(config.max_velocity, speed_limit(p.gamma, p.n))
 
     def _velocity_limited(self, tau: float, dphi: float) -> float:
-        """Return ``tau``, or 0 (counted) if it would drive the joint further past max_velocity."""
-        if tau * dphi > 0.0 and abs(dphi) >= self._config.max_velocity:
+        """Return ``tau``, limited (counted) so that it drives the joint no faster than the
+        speed bound: 0 at or past it, and never more than one step of it takes to reach it."""
+        vmax = self._vmax
+        speed = abs(dphi)
+        pushing = tau * dphi > 0.0
+        if pushing and speed >= vmax:
             self.counters.limited += 1
             return 0.0
+        room = vmax - speed if pushing or dphi == 0.0 else vmax + speed
+        most = room * self._inertia_per_h
+        if abs(tau) > most:
+            self.counters.limited += 1
+            return math.copysign(most, tau)
         return tau
 
     # ------------------------------------------------------------------ stepping
@@ -435,9 +450,10 @@ class SimulatedJoint:
         else:
             want = now - d
             hist = self._history
-            if not hist or hist[0][0] > want:
+            # The history holds consecutive steps, the oldest d + 1 steps back at most; it
+            # fills again after a reset or a change of the delay.
+            if not hist or hist[0][0] > want or want - hist[0][0] >= len(hist):
                 return None
-            # The history holds consecutive steps, the oldest d + 1 steps back at most.
             step, phi, dphi, tau = hist[want - hist[0][0]]
         if not self._sensor.ideal:
             phi, dphi = self._sensor.measure(phi, dphi)
@@ -454,11 +470,12 @@ class SimulatedJoint:
             self._guard_before_reset[key] = self._guard_before_reset.get(key, 0) + int(value)
         self._base_steps = self.steps
         self._stepper.reset(c.phi0, c.dphi0)
-        self._target = 0.0
+        self._target = self._initial_target()
         self._commanded = False
         self._torque = 0.0
         self._pending.clear()
         self._history.clear()
+        self._servo.reset()
         was, self._failed = self._failed, None
         return was
 
@@ -486,7 +503,15 @@ class SimulatedJoint:
                 raise JointError(f'{name} is fixed for the joint lifetime')
         if config.params != old.params:
             self._stepper.set_params(config.params)
+        if config.sensor_delay_steps != old.sensor_delay_steps:
+            self._history.clear()   # its steps were kept for the old delay
         self._config = config
+        self._vmax = self._speed_bound(config)
+        servo = self._servo
+        servo.gains = config.servo
+        servo.max_effort = config.max_effort
+        servo.max_velocity = config.max_velocity
+        servo.set_params(config.params)
         if config.command_interface == 'effort':
             self._target = min(max(self._target, -config.max_effort), config.max_effort)
         s = self._sensor

@@ -8,6 +8,7 @@ cross-parameter rules hold; its messages are the reasons the set is rejected wit
 from __future__ import annotations
 
 import math
+import unicodedata
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -124,12 +125,15 @@ SPECS: tuple[Spec, ...] = (
          'none). Live.', unit='rad'),
     Spec('position_max', math.inf, 'Upper position limit of position commands, rad (.inf = '
          'none). Live.', unit='rad'),
-    Spec('servo.position_p', 20.0, 'Position servo stiffness, N m/rad. Live.', low=0.0,
-         high=1e6, unit='N m/rad'),
-    Spec('servo.position_d', 2.0, 'Position servo damping, N m s/rad. Live.', low=0.0, high=1e6,
-         unit='N m s/rad'),
-    Spec('servo.velocity_p', 2.0, 'Velocity servo gain, N m s/rad. Live.', low=0.0, high=1e6,
-         unit='N m s/rad'),
+    Spec('servo.position_p', 8.0, 'Position loop gain of the servo, 1/s: the speed demanded '
+         'per rad of position error (limited to max_velocity). Live.', low=0.0, high=1e6,
+         unit='1/s'),
+    Spec('servo.velocity_p', 4.0, 'Velocity loop proportional gain of the servo, N m s/rad. '
+         'Live.', low=0.0, high=1e6, unit='N m s/rad'),
+    Spec('servo.velocity_i', 20.0, 'Velocity loop integral gain of the servo, N m/rad (with '
+         'anti-windup at max_effort). Live.', low=0.0, high=1e6, unit='N m/rad'),
+    Spec('servo.gravity_feedforward', True, "Add the joint's own gravity torque m g l sin(phi) "
+         'to the servo torque. Live.'),
     # Sensor realism.
     Spec('sensor.position_noise', 0.0, 'Standard deviation of Gaussian noise on the published '
          'angle, rad. Live.', low=0.0, high=10.0, unit='rad'),
@@ -147,8 +151,9 @@ SPECS: tuple[Spec, ...] = (
          read_only=True),
     Spec('publish_energy_terms', False, 'Publish energy_terms/{kinetic,potential,'
          'dissipated_power,residual}. ' + SWITCH, read_only=True),
-    Spec('effort_input', True, 'Subscribe to effort_command (std_msgs/Float64, N m; effort '
-         'interface only). ' + SWITCH, read_only=True),
+    Spec('effort_input', True, 'Subscribe to effort_command (std_msgs/Float64, N m) when '
+         'command_interface is effort; ignored for the velocity and position interfaces. '
+         + SWITCH, read_only=True),
     Spec('joint_commands_input', False, 'Subscribe to joint_commands (sensor_msgs/JointState '
          'matched by joint name, the field of command_interface; topic_based_ros2_control). '
          + SWITCH, read_only=True),
@@ -168,6 +173,7 @@ SPECS: tuple[Spec, ...] = (
 
 SPEC_BY_NAME: dict[str, Spec] = {s.name: s for s in SPECS}
 PHYSICS = ('m', 'l', 'inertia', 'g', 'gamma', 'n')
+COMMAND_INPUTS = ('effort_input', 'joint_commands_input', 'array_command_input')
 LIVE = frozenset(s.name for s in SPECS if not s.read_only)
 
 
@@ -191,28 +197,47 @@ def check(values: Mapping[str, Value]) -> str | None:
     if values['integrator'] not in METHODS:
         known = ', '.join(sorted(METHODS))
         return f"integrator must be one of {known}, got '{values['integrator']}'"
-    if not str(values['joint_name']).strip():
-        return f"joint_name must be a non-empty name, got '{values['joint_name']}'"
+    name = str(values['joint_name'])
+    if not name.strip():
+        return f"joint_name must be a non-empty name, got '{name}'"
+    control = next((c for c in name if unicodedata.category(c) == 'Cc'), None)
+    if control is not None:
+        return (f'joint_name must hold no control characters (a URDF or a log would not show '
+                f'them), got {name!r} with {control!r}')
     rtf = float(values['real_time_factor'])
     if rtf == 0.0 and not values['lockstep']:
         return 'real_time_factor must be > 0 unless lockstep is true, got 0.0'
     if values['synchronous'] and not values['lockstep']:
         return 'synchronous needs lockstep: true'
+    if values['synchronous'] and not any(values[k] for k in COMMAND_INPUTS):
+        return ('synchronous needs a command input to answer each state: set one of '
+                + ', '.join(COMMAND_INPUTS) + ' to true')
     if values['sync_timeout_action'] not in ('hold', 'stop'):
         action = values['sync_timeout_action']
         return f"sync_timeout_action must be one of hold, stop, got '{action}'"
-    if values['effort_input'] and values['command_interface'] != 'effort':
-        return (f"effort_input takes N m on effort_command; with command_interface "
-                f"'{values['command_interface']}' switch it off and use joint_commands_input or "
-                'array_command_input')
+    if values['command_interface'] != 'effort' and not (
+            values['joint_commands_input'] or values['array_command_input']):
+        return (f"command_interface '{values['command_interface']}' takes commands on "
+                'joint_commands or commands: set joint_commands_input or array_command_input '
+                'to true (effort_command carries N m, effort only)')
     for name in ('position_min', 'position_max'):
         if math.isnan(float(values[name])):
             return f'{name} must be a number or an infinity, got nan'
+    lo, hi = float(values['position_min']), float(values['position_max'])
+    if math.isfinite(lo) != math.isfinite(hi):
+        return ('position_min and position_max must be both finite (a revolute joint) or both '
+                f'infinite (a continuous joint), got {lo} and {hi}: a URDF joint has no '
+                'one-sided limit')
     try:
         check_config(joint_config(values))
     except (JointError, ModelError) as exc:
         return str(exc)
     return None
+
+
+def effort_input_active(values: Mapping[str, Value]) -> bool:
+    """Return True when the node subscribes to effort_command (effort_input, effort interface)."""
+    return bool(values['effort_input']) and values['command_interface'] == 'effort'
 
 
 def joint_config(values: Mapping[str, Value], epoch_ns: int = 0) -> JointConfig:

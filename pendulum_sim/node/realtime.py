@@ -128,8 +128,8 @@ class WakeStats:
         self.steps += steps
         self._window_steps += steps
         self.max_steps = max(self.max_steps, steps)
-        if end_ns > sched_ns + self.period_ns:
-            self.overruns += 1
+        if self.period_ns > 0 and end_ns > sched_ns + self.period_ns:   # 0: no period to
+            self.overruns += 1                                             # overrun (lockstep)
 
     def summary(self) -> LatencySummary:
         """Return the latency percentiles over the whole run."""

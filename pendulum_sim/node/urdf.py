@@ -16,7 +16,11 @@ The ``<ros2_control>`` block declares the joint for ``topic_based_ros2_control``
 (https://github.com/PickNikRobotics/topic_based_ros2_control: plugin
 ``topic_based_ros2_control/TopicBasedSystem``, hardware parameters ``joint_commands_topic`` and
 ``joint_states_topic``, see its ``doc/user.md``), so a controller manager drives this node's
-``joint_commands`` topic and reads its ``joint_states``.
+``joint_commands`` topic and reads its ``joint_states``. The topics are absolute, in the node's
+namespace (``/pendulum`` by default): the plugin's node lives in the controller manager's process,
+where relative names would resolve to ``/joint_states``, joint_state_broadcaster's topic. The
+state interfaces carry ``initial_value`` (φ0, φ'0, 0 N m): the plugin's ``on_init`` copies them
+into its commands, so a position interface commands φ0, not 0, before any controller runs.
 
 Regenerate the shipped ``urdf/pendulum.urdf`` (the default scene) with::
 
@@ -34,6 +38,10 @@ from pendulum_sim.core import PendulumParams
 from .errors import ParameterError
 
 INTERFACES = ('effort', 'velocity', 'position')
+# The namespace the shipped URDF expects the node in (run it with -r __ns:=/pendulum).
+NAMESPACE = '/pendulum'
+COMMANDS_TOPIC = f'{NAMESPACE}/joint_commands'
+STATES_TOPIC = f'{NAMESPACE}/joint_states'
 PLUGIN = 'topic_based_ros2_control/TopicBasedSystem'
 # Characters XML 1.0 cannot hold at all, escaped or not.
 _NOT_XML = re.compile('[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]')
@@ -72,8 +80,9 @@ def pendulum_urdf(params: PendulumParams, joint_name: str = 'pendulum_joint', *,
                   max_effort: float = 10.0, max_velocity: float = 100.0,
                   lower: float | None = None, upper: float | None = None,
                   command_interface: str = 'effort',
-                  joint_commands_topic: str = 'joint_commands',
-                  joint_states_topic: str = 'joint_states') -> str:
+                  joint_commands_topic: str = COMMANDS_TOPIC,
+                  joint_states_topic: str = STATES_TOPIC,
+                  phi0: float = 0.0, dphi0: float = 0.0) -> str:
     """Return the URDF of a pendulum swinging about the y axis of ``base_link``.
 
     Parameters
@@ -85,11 +94,13 @@ def pendulum_urdf(params: PendulumParams, joint_name: str = 'pendulum_joint', *,
     max_effort, max_velocity : float
         ``<limit effort=… velocity=…>`` in N m and rad/s (finite, >= 0).
     lower, upper : float, optional
-        Position limits in rad; given both, the joint is revolute, otherwise continuous.
+        Position limits in rad: both finite (a revolute joint) or neither (continuous).
     command_interface : str
         The command interface declared in ``<ros2_control>``: effort, velocity or position.
     joint_commands_topic, joint_states_topic : str
-        This node's topics, given to topic_based_ros2_control.
+        This node's topics, given to topic_based_ros2_control (absolute names).
+    phi0, dphi0 : float
+        The initial state: ``initial_value`` of the position and velocity state interfaces.
 
     Returns
     -------
@@ -99,8 +110,8 @@ def pendulum_urdf(params: PendulumParams, joint_name: str = 'pendulum_joint', *,
     Raises
     ------
     ParameterError
-        A non-finite or negative limit, ``lower >= upper``, an unknown interface
-        or a name XML cannot hold.
+        A non-finite or negative limit, a one-sided position limit, ``lower >= upper``, an
+        unknown interface or a name XML cannot hold.
     """
     if command_interface not in INTERFACES:
         raise ParameterError(f"command_interface must be one of {', '.join(INTERFACES)}, got "
@@ -112,8 +123,16 @@ def pendulum_urdf(params: PendulumParams, joint_name: str = 'pendulum_joint', *,
     state_topic = _attr(joint_states_topic, 'joint_states_topic')
     effort = _finite('max_effort', max_effort)
     velocity = _finite('max_velocity', max_velocity)
-    limited = lower is not None and upper is not None and math.isfinite(lower) and \
-        math.isfinite(upper)
+    has_lower = lower is not None and math.isfinite(lower)
+    has_upper = upper is not None and math.isfinite(upper)
+    if has_lower != has_upper:
+        raise ParameterError(f'position limits must be both finite (revolute) or both absent '
+                             f'(continuous), got lower = {lower} and upper = {upper}: a URDF '
+                             'joint has no one-sided limit')
+    limited = has_lower and has_upper
+    for what, value in (('phi0', phi0), ('dphi0', dphi0)):
+        if not math.isfinite(value):
+            raise ParameterError(f'{what} must be finite for the URDF, got {value}')
     if limited:
         assert lower is not None and upper is not None
         if not lower < upper:
@@ -185,8 +204,9 @@ izz="{_num(i_com)}"/>
   <!-- ros2_control through topic_based_ros2_control
        (github.com/PickNikRobotics/topic_based_ros2_control, doc/user.md): it publishes
        sensor_msgs/JointState commands on joint_commands_topic and reads joint_states_topic.
-       trigger_joint_command_threshold -1 sends every command (its default skips commands
-       whose position equals the measured one, which drops effort and velocity commands). -->
+       trigger_joint_command_threshold -1 sends every command (its default 1e-5 skips commands
+       whose position equals the measured one, which drops effort and velocity commands).
+       initial_value: what the plugin commands before a controller does (the initial state). -->
   <ros2_control name="pendulum" type="system">
     <hardware>
       <plugin>{PLUGIN}</plugin>
@@ -196,9 +216,15 @@ izz="{_num(i_com)}"/>
     </hardware>
     <joint name="{name}">
       {cmd_open}{cmd_params}{cmd_close}
-      <state_interface name="position"/>
-      <state_interface name="velocity"/>
-      <state_interface name="effort"/>
+      <state_interface name="position">
+        <param name="initial_value">{_num(phi0)}</param>
+      </state_interface>
+      <state_interface name="velocity">
+        <param name="initial_value">{_num(dphi0)}</param>
+      </state_interface>
+      <state_interface name="effort">
+        <param name="initial_value">0.0</param>
+      </state_interface>
     </joint>
   </ros2_control>
 </robot>
@@ -206,8 +232,8 @@ izz="{_num(i_com)}"/>
 
 
 def urdf_from_values(values: Mapping[str, object], *,
-                     joint_commands_topic: str = 'joint_commands',
-                     joint_states_topic: str = 'joint_states') -> str:
+                     joint_commands_topic: str = COMMANDS_TOPIC,
+                     joint_states_topic: str = STATES_TOPIC) -> str:
     """Return the URDF of a node parameter set (names as the node declares them).
 
     Missing names take the declared defaults (``pendulum_sim.node.parameters.SPECS``); the
@@ -229,7 +255,8 @@ def urdf_from_values(values: Mapping[str, object], *,
                          lower=lower, upper=upper,
                          command_interface=str(full.get('command_interface', 'effort')),
                          joint_commands_topic=joint_commands_topic,
-                         joint_states_topic=joint_states_topic)
+                         joint_states_topic=joint_states_topic,
+                         phi0=num('phi0'), dphi0=num('dphi0'))
 
 
 def default_urdf() -> str:

@@ -27,6 +27,7 @@ import json
 import math
 import os
 import secrets
+import select
 import stat
 import struct
 import subprocess
@@ -52,6 +53,9 @@ from pendulum_sim.recording.schemas import ros2msg_schema, type_hash, type_name_
 
 LIBRARY: Final = f'pendulum_sim {__version__}; mcap-python {mcap.__version__}'
 PIPE_SIZE: Final = 1 << 20          # bytes the pipe holds while the writer is busy
+# At most this long for a running writer process to finish the file at close (a stopped one,
+# SIGSTOP, is not waited for).
+CLOSE_TIMEOUT = 10.0
 MAX_BACKLOG: Final = 64 << 20       # bytes kept here beyond that before giving up
 _F_SETPIPE_SZ: Final = getattr(fcntl, 'F_SETPIPE_SZ', 1031)
 _CREATE: Final = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
@@ -306,8 +310,13 @@ class McapRecorder:
             self._send(self._frame(sink.CHANNEL, json.dumps(channel.spec).encode()))
         return self
 
-    def close(self) -> None:
-        """Have the writer finalise the file (rosbag2 metadata, summary, footer); idempotent."""
+    def close(self, timeout: float = CLOSE_TIMEOUT) -> None:
+        """Have the writer finalise the file (rosbag2 metadata, summary, footer); idempotent.
+
+        Waits at most ``timeout`` seconds for the writer process: one that does not run (say,
+        stopped with SIGSTOP) is left to finish the file by itself when it runs again (it
+        finalises what it was handed at the end of its input), and :attr:`error` says so.
+        """
         if self._state == 'closed':
             return
         was_open, self._state = self._state == 'open', 'closed'
@@ -315,20 +324,58 @@ class McapRecorder:
             return
         process = self._process
         assert process is not None and process.stdin is not None
+        deadline = time.monotonic() + timeout
+        unsent = bytes(self._backlog) + self._frame(sink.CLOSE, b'')
+        self._backlog.clear()
         try:
-            os.set_blocking(self._fd, True)
-            self._send_blocking(bytes(self._backlog) + self._frame(sink.CLOSE, b''))
-            self._backlog.clear()
+            unsent = self._send_until(unsent, deadline)
         except OSError:
-            pass   # the writer process is gone; its exit code tells below
+            unsent = b''   # the writer process is gone; its exit code tells below
         process.stdin.close()
-        code = process.wait()
+        code = process.poll()
+        while code is None and time.monotonic() < deadline and not self._writer_stopped():
+            try:
+                code = process.wait(timeout=0.02)
+            except subprocess.TimeoutExpired:
+                pass
+        if code is None:
+            lost = (f'; {len(unsent)} bytes were not handed over, so the file ends earlier'
+                    if unsent else '')
+            state = 'is stopped' if self._writer_stopped() else f'did not finish in {timeout:g} s'
+            self._error = RecorderError(
+                f'recording {self._path}: the writer process (pid {process.pid}) {state}; it '
+                f'finalises the file when it runs again{lost}')
+            return
         assert self._reader is not None and process.stdout is not None
         self._reader.join()
         process.stdout.close()
         if code != 0 and self._error is None:
             self._error = RecorderError(f'recording {self._path}: the writer process exited '
                                         f'with code {code}')
+
+    def _writer_stopped(self) -> bool:
+        """Return True if the writer process is stopped (SIGSTOP, a debugger), from /proc."""
+        process = self._process
+        try:
+            stat_line = Path(f'/proc/{process.pid}/stat').read_text() if process else ''
+        except OSError:
+            return False
+        return stat_line.rsplit(')', 1)[-1].split()[:1] in (['T'], ['t'])
+
+    def _send_until(self, data: bytes, deadline: float) -> bytes:
+        """Write ``data`` to the writer until it is all sent or ``deadline``; return the rest."""
+        view = memoryview(data)
+        while view:
+            left = deadline - time.monotonic()
+            if left <= 0.0 or self._writer_stopped():
+                break
+            _, ready, _ = select.select([], [self._fd], [], min(left, 0.02))
+            if ready:
+                try:
+                    view = view[os.write(self._fd, view):]
+                except BlockingIOError:
+                    continue
+        return bytes(view)
 
     # -- channels and messages ------------------------------------------------------------------
 
