@@ -64,6 +64,9 @@ bench: setup
 	$(PY) bench/record.py bench/bench_recording.py --seconds 10 --node
 	$(PY) bench/record.py bench/bench_sync.py --seconds 10
 	$(PY) bench/record.py bench/bench_work_precision.py
+	$(PY) bench/record.py bench/bench_near_coulomb.py
+	$(PY) bench/record.py bench/bench_servo.py --png bench/results/servo_tracking.png
+	$(PY) bench/record.py bench/bench_testbench.py
 
 clean:
 	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache docs/_build
