@@ -138,6 +138,16 @@ def test_a_live_change_moves_the_window_from_the_next_step() -> None:
     assert ROTOR.inertia * (j.stepper.dphi - before) == pytest.approx(0.2 * 10 * H, abs=1e-15)
 
 
+def test_the_pulse_acts_once_per_run_not_again_after_a_reset() -> None:
+    j = rotor(0.3, 100, 250)
+    j.advance(400)
+    j.reset()    # simulated time goes on at step 400: the window 100..349 is past
+    j.advance(400)
+    free = rotor()
+    free.advance(400)
+    assert (j.stepper.phi, j.stepper.dphi) == (free.stepper.phi, free.stepper.dphi)
+
+
 # ------------------------------------------------------------------ closed loops and campaigns
 PULSE = {'disturbance.torque': 1.5, 'disturbance.start': 3.0, 'disturbance.duration': 0.2}
 
