@@ -10,6 +10,12 @@ transport does:
   servo with gravity feed-forward, ``servo.py``);
 - the sensor path: a delay of ``round(sensor.delay / h)`` steps, seeded Gaussian noise, encoder
   quantisation;
+- the disturbance: a torque pulse ``disturbance.torque`` added to the actuator's torque in the
+  steps ``k`` with ``round(start / h) <= k < round(start / h) + round(duration / h)`` (step
+  ``k`` runs from ``k h`` to ``(k + 1) h`` of simulated time since the start, which goes on
+  through resets). It is an external torque: the effort published is the actuator's torque
+  alone (what a joint's torque sensor reports), while the energy balance counts the pulse's
+  work as input work (the core integrates the sum);
 - the stamp grid: step ``k`` is stamped ``epoch + k h``; the step count never goes back, not even
   at a reset, so simulated time (and ``/clock``) is monotonic;
 - the values to publish: the measured joint state and the energy terms of the true state.
@@ -91,8 +97,14 @@ class JointConfig:
     max_velocity: float = math.inf
     position_min: float = -math.inf
     position_max: float = math.inf
+    disturbance_torque: float = 0.0
+    disturbance_start_step: int = 0
+    disturbance_steps: int = 0
 
     def __post_init__(self) -> None:
+        if not math.isfinite(self.disturbance_torque):
+            raise JointError(f'disturbance.torque must be a finite number of N m, got '
+                             f'{self.disturbance_torque}')
         if self.command_interface not in INTERFACES:
             raise JointError(f"command_interface must be one of {', '.join(INTERFACES)}, "
                              f"got '{self.command_interface}'")
@@ -134,12 +146,34 @@ class JointConfig:
                              ) if 'servo.position_p' in values else ServoGains(),
             max_velocity=num('max_velocity') if 'max_velocity' in values else math.inf,
             position_min=lo, position_max=hi,
+            disturbance_torque=num('disturbance.torque') if 'disturbance.torque' in values
+            else 0.0,
+            disturbance_start_step=steps_of('disturbance.start', num('disturbance.start'), h)
+            if 'disturbance.start' in values else 0,
+            disturbance_steps=steps_of('disturbance.duration', num('disturbance.duration'), h)
+            if 'disturbance.duration' in values else 0,
         )
 
     @property
     def has_position_limits(self) -> bool:
         """Return True when the position command is limited."""
         return math.isfinite(self.position_min) or math.isfinite(self.position_max)
+
+    @property
+    def has_disturbance(self) -> bool:
+        """Return True when a disturbance pulse acts in some step (a torque for >= 1 step)."""
+        return self.disturbance_torque != 0.0 and self.disturbance_steps > 0
+
+    def disturbance_at(self, step: int) -> float:
+        """Return the disturbance torque in step ``step`` (from ``step h`` to ``(step + 1) h``).
+
+        The one rule of the pulse: ``disturbance.torque`` in the steps ``k`` with
+        ``start_step <= k < start_step + steps``, 0 in every other step.
+        """
+        start = self.disturbance_start_step
+        if start <= step < start + self.disturbance_steps:
+            return self.disturbance_torque
+        return 0.0
 
 
 class Sample(NamedTuple):
@@ -255,7 +289,7 @@ class SimulatedJoint:
 
     @property
     def torque(self) -> float:
-        """Return the torque applied in the last step, N m."""
+        """Return the actuator's torque in the last step, N m (without the disturbance)."""
         return self._torque
 
     @property
@@ -399,6 +433,8 @@ class SimulatedJoint:
         history = self._history if c.sensor_delay_steps else None
         effort_mode = c.command_interface == 'effort'
         base = self._base_steps
+        disturbed = c.has_disturbance
+        disturbance_at = c.disturbance_at
         done = 0
         tau = self._torque
         try:
@@ -417,7 +453,10 @@ class SimulatedJoint:
                         tau = self._velocity_limited(tau, st.dphi)
                 else:
                     tau = self._torque_for(st.phi, st.dphi)
-                step(tau)
+                if disturbed:   # an external torque: on the pendulum, not in the effort
+                    step(tau + disturbance_at(base + st.steps))
+                else:
+                    step(tau)
                 done += 1
                 if history is not None:
                     history.append((base + st.steps, st.phi, st.dphi, tau))

@@ -153,6 +153,17 @@ SPECS: tuple[Spec, ...] = (
          'measured. Live.', low=0.0, high=1.0, unit='s'),
     Spec('sensor.seed', 0, 'Seed of the sensor noise.', read_only=True, low=0, high=2**31 - 1,
          unit='1'),
+    # Disturbance: an external torque pulse on the joint.
+    Spec('disturbance.torque', 0.0, 'Torque of the disturbance pulse in N m, added to the '
+         "actuator's torque on the pendulum (an external torque: not in the published effort; "
+         'its work counts as input in the energy balance). Live.', low=-1e6, high=1e6,
+         unit='N m'),
+    Spec('disturbance.start', 0.0, 'Start of the disturbance pulse in s of simulated time since '
+         'the node started (it goes on through resets), rounded to steps of h. Live.', low=0.0,
+         high=1e9, unit='s'),
+    Spec('disturbance.duration', 0.0, 'Duration of the disturbance pulse in s, rounded to steps '
+         'of h: it acts in the steps k with round(start/h) <= k < round(start/h) + '
+         'round(duration/h) (0 = no pulse). Live.', low=0.0, high=1e9, unit='s'),
     # Feature switches.
     Spec('publish_energy', True, 'Publish the energy (J, true state) on energy. ' + SWITCH,
          read_only=True),

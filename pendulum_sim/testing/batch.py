@@ -49,6 +49,7 @@ def _why_not(c: Any) -> str:
          'the sensor is not ideal'),
         (c.timeout_steps == 0 or c.timeout_steps > c.period_steps,
          'command_timeout is shorter than a period'),
+        (not c.has_disturbance, 'a disturbance pulse is set'),
         (c.method in SWEEP_METHODS, f'integrator {c.method} is not one of '
          f'{", ".join(SWEEP_METHODS)}'),
     ]
