@@ -57,8 +57,8 @@ def test_a_writer_that_falls_behind_cuts_the_recording_short_and_the_file_says_s
     path = tmp_path / 'behind.mcap'
     rec, cut = _record_until_stopped(path)
     stop_ns = cut * STEP_NS
-    reason = (f'the writer process fell {LIMIT} bytes behind; nothing from {stop_ns} ns on '
-              f'is recorded')
+    reason = (f'the writer process fell {LIMIT} bytes behind at the message stamped {stop_ns} '
+              f'ns; that message and every later one are not recorded')
     assert cut > LIMIT // 27   # the backlog filled: at least LIMIT bytes of 27-byte frames
     assert str(rec.error) == f'recording {path} stopped: {reason}'
     assert rec.messages_written == cut + 1   # every message before the stop, and the stop event

@@ -150,8 +150,8 @@ class Recording(Segment):
 
     ``segments`` splits the run at each reset event (one segment without resets); ``resets``
     holds the reset stamps (ns) and ``reset_messages`` their texts, in write order.
-    ``stopped_ns`` is the stamp from which a recording cut short holds nothing (its stop event,
-    :data:`~pendulum_sim.recording.events.STOPPED_TOPIC`), None for one that ran to its end;
+    ``stopped_ns`` is the log time of the stop event of a recording cut short
+    (:data:`~pendulum_sim.recording.events.STOPPED_TOPIC`), None for one that ran to its end;
     ``complete`` is False for a file cut short or not closed, and ``problems`` says why.
     """
 

@@ -173,7 +173,6 @@ class McapRecorder:
         self._fd = -1
         self._backlog = bytearray()
         self._stopped = False
-        self._last_stamp = 0
         self._reader: threading.Thread | None = None
 
     # -- public state -------------------------------------------------------------------------
@@ -409,8 +408,7 @@ class McapRecorder:
             raise RecorderError(f'topic {topic} already has a channel')
         channel = self._new_channel(topic, msg_type, qos)
         if self._state == 'open' and not self._stopped:
-            if not self._send(self._frame(sink.CHANNEL, json.dumps(channel.spec).encode())):
-                self._stop(self._last_stamp)
+            self._send(self._frame(sink.CHANNEL, json.dumps(channel.spec).encode()), force=True)
 
     def _new_channel(self, topic: str, msg_type: type, qos: QoSProfile | int) -> _Channel:
         profile = qos if isinstance(qos, QoSProfile) else QoSProfile(depth=qos)
@@ -451,16 +449,14 @@ class McapRecorder:
         self._record(self._message(channel.id, data, stamp_ns), stamp_ns)
 
     def _record(self, frame: bytes, stamp_ns: int) -> None:
-        if self._send(frame):
-            self._last_stamp = stamp_ns
-        else:
+        if not self._send(frame):
             self._stop(stamp_ns)
 
     def _stop(self, stamp_ns: int) -> None:
-        """Stop the recording at ``stamp_ns``: the stop event goes behind the backlog."""
+        """Stop the recording at the message stamped ``stamp_ns``: the stop event goes last."""
         self._stopped = True
-        reason = (f'the writer process fell {_size(self._max_backlog)} behind; '
-                  f'nothing from {stamp_ns} ns on is recorded')
+        reason = (f'the writer process fell {_size(self._max_backlog)} behind at the message '
+                  f'stamped {stamp_ns} ns; that message and every later one are not recorded')
         self._error = RecorderError(f'recording {self._path} stopped: {reason}')
         frames = b''
         if STOPPED_TOPIC not in self._channels:
@@ -501,16 +497,17 @@ class McapRecorder:
     def _frame(kind: int, payload: bytes) -> bytes:
         return sink.FRAME.pack(kind, len(payload)) + payload
 
-    def _send(self, frame: bytes) -> bool:
+    def _send(self, frame: bytes, force: bool = False) -> bool:
         """Write a frame without blocking; what the pipe does not take waits in the backlog.
 
         Return False, sending nothing, if the frame would take the backlog beyond
-        ``max_backlog`` bytes. Frames are only ever added whole and taken from the front, so
-        the bytes the writer process reads are always whole frames in order.
+        ``max_backlog`` bytes, unless ``force`` (a channel: small, rare, and the messages
+        already in the backlog may need it). Frames are only ever added whole and taken from
+        the front, so the bytes the writer process reads are always whole frames in order.
         """
         backlog = self._backlog
         if backlog:   # keep the order: the backlog goes first, the new frame behind it
-            if len(backlog) + len(frame) > self._max_backlog:
+            if len(backlog) + len(frame) > self._max_backlog and not force:
                 return False
             backlog += frame
             self._drain()
@@ -522,7 +519,7 @@ class McapRecorder:
         except OSError as exc:
             self._gone(exc)
             return True
-        if sent == 0 and len(frame) > self._max_backlog:
+        if sent == 0 and len(frame) > self._max_backlog and not force:
             return False
         backlog += memoryview(frame)[sent:]   # a frame the pipe took part of is completed
         return True
