@@ -10,14 +10,16 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from pendulum_sim.recording.errors import RecorderError
-    from pendulum_sim.recording.events import RESET_TOPIC
+    from pendulum_sim.recording.events import RESET_TOPIC, STOPPED_TOPIC
     from pendulum_sim.recording.loader import Recording, Segment, load
     from pendulum_sim.recording.writer import McapRecorder
 
-__all__ = ['RESET_TOPIC', 'McapRecorder', 'RecorderError', 'Recording', 'Segment', 'load']
+__all__ = ['RESET_TOPIC', 'STOPPED_TOPIC', 'McapRecorder', 'RecorderError', 'Recording', 'Segment',
+           'load']
 
 _WHERE = {'McapRecorder': 'writer', 'RecorderError': 'errors', 'Recording': 'loader',
-          'Segment': 'loader', 'load': 'loader', 'RESET_TOPIC': 'events'}
+          'Segment': 'loader', 'load': 'loader', 'RESET_TOPIC': 'events',
+          'STOPPED_TOPIC': 'events'}
 
 
 def __getattr__(name: str) -> Any:

@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from rclpy.serialization import deserialize_message
 
 from pendulum_sim.recording.errors import RecorderError
-from pendulum_sim.recording.events import RESET_TOPIC, RESET_TYPE
+from pendulum_sim.recording.events import RESET_TOPIC, RESET_TYPE, STOPPED_TOPIC, STOPPED_TYPE
 from pendulum_sim.recording.reader import (
     MESSAGE_HEAD,
     RECORD_HEAD,
@@ -77,7 +77,7 @@ _TEMPLATES: Final = 8                     # layouts tried per chunk before decod
 
 
 class TruncatedRecordingWarning(UserWarning):
-    """A recording was not closed (killed, disk full): only its readable part was loaded."""
+    """A recording does not hold the whole run: not closed (killed, disk full), or stopped."""
 
 
 class SkippedChannelWarning(UserWarning):
@@ -150,6 +150,9 @@ class Recording(Segment):
 
     ``segments`` splits the run at each reset event (one segment without resets); ``resets``
     holds the reset stamps (ns) and ``reset_messages`` their texts, in write order.
+    ``stopped_ns`` is the log time of the stop event of a recording cut short
+    (:data:`~pendulum_sim.recording.events.STOPPED_TOPIC`), None for one that ran to its end;
+    ``complete`` is False for a file cut short or not closed, and ``problems`` says why.
     """
 
     path: Path
@@ -161,6 +164,7 @@ class Recording(Segment):
     reset_messages: tuple[str, ...]
     complete: bool
     problems: tuple[str, ...]
+    stopped_ns: int | None = None
 
     @property
     def scene(self) -> dict[str, str]:
@@ -482,6 +486,8 @@ class _Load:
     skipped: dict[int, str] = field(default_factory=dict)
     reset_channels: set[int] = field(default_factory=set)
     resets: list[tuple[int, str, dict[str, int]]] = field(default_factory=list)
+    stop_channels: set[int] = field(default_factory=set)
+    stops: list[tuple[int, str]] = field(default_factory=list)
     seen: set[int] = field(default_factory=set)
 
     def channel(self, cid: int) -> None:
@@ -502,6 +508,9 @@ class _Load:
             return
         if channel.topic == RESET_TOPIC and schema.name == RESET_TYPE:
             self.reset_channels.add(cid)
+            return
+        if channel.topic == STOPPED_TOPIC and schema.name == STOPPED_TYPE:
+            self.stop_channels.add(cid)
             return
         basename = channel.topic.rsplit('/', 1)[-1]
         if _KINDS.get(basename) == schema.name and basename not in self.kinds:
@@ -528,7 +537,15 @@ class _Load:
                 self.channel(cid)
             self.counts[cid] += count
         selected = {cid: np.flatnonzero(channels == cid) for cid in present.tolist()
-                    if cid in self.decoded or cid in self.reset_channels}
+                    if cid in self.decoded or cid in self.reset_channels
+                    or cid in self.stop_channels}
+        for cid in self.stop_channels & selected.keys():
+            for row in selected[cid].tolist():
+                at, length = int(offsets[row]), int(lengths[row])
+                log_time = int.from_bytes(data[at + _LOG_TIME:at + _LOG_TIME + 8], 'little')
+                msg = _decode(self.walker.path, STOPPED_TOPIC, message_class(STOPPED_TYPE),
+                              data[at + _DATA:at + 9 + length], log_time)
+                self.stops.append((log_time, msg.data))
         for cid in self.reset_channels & selected.keys():
             for row in selected[cid].tolist():
                 at, length = int(offsets[row]), int(lengths[row])
@@ -684,7 +701,8 @@ def load(path: str | Path, *, fast: bool = True) -> Recording:
     """Load a recording made by :class:`McapRecorder` (or any ROS 2 MCAP file) into numpy.
 
     A truncated file is loaded as far as it is readable, with a
-    :class:`TruncatedRecordingWarning`, ``complete`` False and the reason in ``problems``.
+    :class:`TruncatedRecordingWarning`, ``complete`` False and the reason in ``problems``; so is
+    a recording cut short (its stop event), with ``stopped_ns`` where it stopped.
     A file that is not MCAP, from another profile, or corrupted raises :class:`RecorderError`.
     ``fast=False`` decodes every message with rclpy (see the module docstring); the result is
     the same.
@@ -705,7 +723,11 @@ def load(path: str | Path, *, fast: bool = True) -> Recording:
     if walker.profile != 'ros2':
         raise RecorderError(f"{walker.path} has MCAP profile '{walker.profile}', expected "
                             f"'ros2'")
-    for problem in walker.problems:
+    problems = list(walker.problems)
+    for stamp_ns, reason in state.stops:
+        problems.append(f'{walker.path} was cut short at {stamp_ns} ns '
+                        f'(t = {stamp_ns / 1e9:.9g} s): {reason}')
+    for problem in problems:
         warnings.warn(problem, TruncatedRecordingWarning, stacklevel=2)
     for cid in walker.channels:
         if cid not in state.seen:
@@ -737,4 +759,5 @@ def load(path: str | Path, *, fast: bool = True) -> Recording:
         path=walker.path, profile=walker.profile, metadata=walker.metadata, topics=topics,
         segments=segments, resets=np.array([ns for ns, _, _ in state.resets], dtype=np.int64),
         reset_messages=tuple(text for _, text, _ in state.resets),
-        complete=walker.complete, problems=tuple(walker.problems))
+        complete=walker.complete and not state.stops, problems=tuple(problems),
+        stopped_ns=state.stops[0][0] if state.stops else None)

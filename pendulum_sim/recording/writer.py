@@ -13,6 +13,14 @@ channels, statistics, chunk, metadata and summary-offset indexes) and the footer
 (full disk, file size limit) stops the recording only: it shows in :attr:`McapRecorder.error`,
 further writes are dropped, and the chunks already written stay readable.
 
+What the writer process has not taken yet waits in a backlog here, whole frames only. When a
+frame would take it beyond ``max_backlog`` bytes (the writer process fell that far behind), the
+recording stops there: that message and every later one are dropped whole, and a stop event
+(:data:`~pendulum_sim.recording.events.STOPPED_TOPIC`, its log time the stamp of the first
+message left out, its text why) goes behind the backlog, which is still handed over; so the file
+holds every message written before the stop, intact, then says it was cut short, and
+:func:`~pendulum_sim.recording.load` reports it.
+
 The file is created exclusively (``O_CREAT | O_EXCL | O_NOFOLLOW``) and ``flock``-ed while it
 is written; in a folder its name (:func:`generated_name`) is unique per process. Every
 file-system error is a :class:`RecorderError` naming the path and the reason.
@@ -47,7 +55,7 @@ from std_msgs.msg import String
 from pendulum_sim import __version__
 from pendulum_sim.recording import sink
 from pendulum_sim.recording.errors import RecorderError
-from pendulum_sim.recording.events import RESET_TOPIC
+from pendulum_sim.recording.events import RESET_TOPIC, STOPPED_TOPIC
 from pendulum_sim.recording.rosbag2 import offered_qos, qos_profiles_yaml
 from pendulum_sim.recording.schemas import ros2msg_schema, type_hash, type_name_of
 
@@ -61,6 +69,7 @@ _F_SETPIPE_SZ: Final = getattr(fcntl, 'F_SETPIPE_SZ', 1031)
 _CREATE: Final = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
 _NAME_TRIES: Final = 16
 RESET_QOS: Final = QoSProfile(depth=10)
+STOPPED_QOS: Final = QoSProfile(depth=1)
 
 
 @dataclass(frozen=True)
@@ -84,6 +93,11 @@ def _reason(exc: OSError) -> str:
     return exc.strerror or str(exc)
 
 
+def _size(count: int) -> str:
+    """Return a byte count as people read it: ``'64 MiB'``, ``'1000 bytes'``."""
+    return f'{count >> 20} MiB' if count % (1 << 20) == 0 else f'{count} bytes'
+
+
 class McapRecorder:
     """Record messages of several topics to one MCAP file, written by a separate process.
 
@@ -105,12 +119,15 @@ class McapRecorder:
         Close a chunk when its uncompressed size exceeds this many bytes.
     compression
         Chunk compression: ``'zstd'``, ``'lz4'`` or ``'none'``.
+    max_backlog
+        Bytes kept here for a writer process that falls behind (beyond what the pipe holds);
+        a message that would exceed it stops the recording (see the module docstring).
     """
 
     def __init__(self, path: str | Path, overwrite: bool = False,
                  metadata: dict[str, dict[str, str]] | None = None, *,
                  chunk_interval: float = 0.25, chunk_size: int = 1024 * 1024,
-                 compression: str = 'zstd') -> None:
+                 compression: str = 'zstd', max_backlog: int = MAX_BACKLOG) -> None:
         requested = Path(path)
         self._folder = requested.suffix != '.mcap'
         if self._folder:
@@ -141,6 +158,9 @@ class McapRecorder:
         if compression not in sink.COMPRESSIONS:
             raise RecorderError(f"compression must be one of 'zstd', 'lz4', 'none', got "
                                 f'{compression!r}')
+        if isinstance(max_backlog, bool) or not isinstance(max_backlog, int) or max_backlog < 1:
+            raise RecorderError(f'max_backlog must be an integer >= 1 byte, got {max_backlog!r}')
+        self._max_backlog = max_backlog
         self._overwrite = overwrite
         self._settings = {'chunk_interval': float(chunk_interval), 'chunk_size': int(chunk_size),
                           'compression': compression, 'library': LIBRARY, 'metadata': metadata}
@@ -152,6 +172,7 @@ class McapRecorder:
         self._process: subprocess.Popen[bytes] | None = None
         self._fd = -1
         self._backlog = bytearray()
+        self._stopped = False
         self._reader: threading.Thread | None = None
 
     # -- public state -------------------------------------------------------------------------
@@ -385,6 +406,11 @@ class McapRecorder:
             raise RecorderError(f'recording {self._path} is closed')
         if topic in self._channels:
             raise RecorderError(f'topic {topic} already has a channel')
+        channel = self._new_channel(topic, msg_type, qos)
+        if self._state == 'open' and not self._stopped:
+            self._send(self._frame(sink.CHANNEL, json.dumps(channel.spec).encode()), force=True)
+
+    def _new_channel(self, topic: str, msg_type: type, qos: QoSProfile | int) -> _Channel:
         profile = qos if isinstance(qos, QoSProfile) else QoSProfile(depth=qos)
         type_name = type_name_of(msg_type)
         serialize_message(msg_type())   # loads the type support now, not in the first write()
@@ -397,8 +423,7 @@ class McapRecorder:
             'metadata': {'offered_qos_profiles': qos_profiles_yaml([offer]),
                          'topic_type_hash': type_hash(type_name)}})
         self._channels[topic] = channel
-        if self._state == 'open':
-            self._send(self._frame(sink.CHANNEL, json.dumps(channel.spec).encode()))
+        return channel
 
     def write(self, topic: str, msg: Any, stamp_ns: int) -> None:
         """Record one message with log and publish time ``stamp_ns``; cheap, never blocks.
@@ -406,20 +431,41 @@ class McapRecorder:
         The message is serialized at once, so the caller may reuse it right away.
         """
         if self._error is not None:
+            self._drain()
             return
         channel = self._channels.get(topic)
         if channel is None or self._state != 'open':
             self._refuse(topic)
-        self._send(self._message(channel.id, serialize_message(msg), stamp_ns))
+        self._record(self._message(channel.id, serialize_message(msg), stamp_ns), stamp_ns)
 
     def write_serialized(self, topic: str, data: bytes, stamp_ns: int) -> None:
         """Record one already serialized (CDR) message; cheap, never blocks."""
         if self._error is not None:
+            self._drain()
             return
         channel = self._channels.get(topic)
         if channel is None or self._state != 'open':
             self._refuse(topic)
-        self._send(self._message(channel.id, data, stamp_ns))
+        self._record(self._message(channel.id, data, stamp_ns), stamp_ns)
+
+    def _record(self, frame: bytes, stamp_ns: int) -> None:
+        if not self._send(frame):
+            self._stop(stamp_ns)
+
+    def _stop(self, stamp_ns: int) -> None:
+        """Stop the recording at the message stamped ``stamp_ns``: the stop event goes last."""
+        self._stopped = True
+        reason = (f'the writer process fell {_size(self._max_backlog)} behind at the message '
+                  f'stamped {stamp_ns} ns; that message and every later one are not recorded')
+        self._error = RecorderError(f'recording {self._path} stopped: {reason}')
+        frames = b''
+        if STOPPED_TOPIC not in self._channels:
+            channel = self._new_channel(STOPPED_TOPIC, String, STOPPED_QOS)
+            frames = self._frame(sink.CHANNEL, json.dumps(channel.spec).encode())
+        frames += self._message(self._channels[STOPPED_TOPIC].id,
+                                serialize_message(String(data=reason)), stamp_ns)
+        self._backlog += frames
+        self._drain()
 
     @staticmethod
     def _message(channel_id: int, data: bytes, stamp_ns: int) -> bytes:
@@ -451,29 +497,53 @@ class McapRecorder:
     def _frame(kind: int, payload: bytes) -> bytes:
         return sink.FRAME.pack(kind, len(payload)) + payload
 
-    def _send(self, frame: bytes) -> None:
-        """Write a frame without blocking; what does not fit waits here for the next call."""
+    def _send(self, frame: bytes, force: bool = False) -> bool:
+        """Write a frame without blocking; what the pipe does not take waits in the backlog.
+
+        Return False, sending nothing, if the frame would take the backlog beyond
+        ``max_backlog`` bytes, unless ``force`` (a channel: small, rare, and the messages
+        already in the backlog may need it). Frames are only ever added whole and taken from
+        the front, so the bytes the writer process reads are always whole frames in order.
+        """
         backlog = self._backlog
-        data: bytes | bytearray = frame
         if backlog:   # keep the order: the backlog goes first, the new frame behind it
+            if len(backlog) + len(frame) > self._max_backlog and not force:
+                return False
             backlog += frame
-            data = backlog
+            self._drain()
+            return True
         try:
-            sent = os.write(self._fd, data)
+            sent = os.write(self._fd, frame)
         except BlockingIOError:
             sent = 0
-        except OSError as exc:   # the writer process is gone
+        except OSError as exc:
+            self._gone(exc)
+            return True
+        if sent == 0 and len(frame) > self._max_backlog and not force:
+            return False
+        backlog += memoryview(frame)[sent:]   # a frame the pipe took part of is completed
+        return True
+
+    def _drain(self) -> None:
+        """Hand as much of the backlog to the writer process as the pipe takes now."""
+        backlog = self._backlog
+        if not backlog:
+            return
+        try:
+            sent = os.write(self._fd, backlog)
+        except BlockingIOError:
+            return
+        except OSError as exc:
+            self._gone(exc)
+            return
+        del backlog[:sent]
+
+    def _gone(self, exc: OSError) -> None:
+        """The writer process is gone (its pipe is closed): stop, drop the backlog."""
+        self._backlog.clear()
+        if self._error is None:
             self._error = RecorderError(f'recording {self._path} stopped: the writer process '
                                         f'is gone ({exc.strerror})')
-            return
-        if data is backlog:
-            del backlog[:sent]
-        elif sent < len(frame):
-            backlog += memoryview(frame)[sent:]
-        if len(backlog) > MAX_BACKLOG:
-            backlog.clear()
-            self._error = RecorderError(f'recording {self._path} stopped: the writer process '
-                                        f'fell {MAX_BACKLOG >> 20} MiB behind')
 
     def _send_blocking(self, data: bytes) -> None:
         view = memoryview(data)
