@@ -385,6 +385,11 @@ def test_minimal_scene_graph() -> None:
         joints = ET.fromstring(urdf.msgs[0].data).findall('joint')
         assert [(j.get('name'), j.get('type')) for j in joints] == [('pendulum_joint',
                                                                      'continuous')]
+        # Both nodes run their loops (a signal while a node is still being built ends it with
+        # nothing to summarise): each has published a state.
+        for proc in (minimal, full):
+            states = probe.subscribe(JointState, f'{proc.namespace}/joint_states')
+            probe.spin_until(lambda s=states: len(s) >= 1, 20.0, 'a joint state')
         assert_clean_exit(minimal, signal.SIGTERM)
         assert_clean_exit(full, signal.SIGINT)
 
