@@ -31,13 +31,13 @@ setup(
     extras_require={
         'ros': ROS_WHEELS,
         'plots': ['matplotlib>=3.7'],
-        'peers': ['scipy>=1.10', 'mujoco>=3.2', 'pybullet>=3.2'],
+        'peers': ['scipy>=1.10', 'mujoco>=3.2', 'pybullet>=3.2', 'pin>=4.1', 'drake>=1.51'],
         'jit': ['numba>=0.59'],
         'docs': ['sphinx>=8', 'myst-parser>=4'],
         'test': [
             'pytest>=8', 'wheel>=0.40', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10',
             'mcap-ros2-support>=0.5',
-            'mujoco>=3.2', 'urdf_parser_py>=0.0.4', 'types-PyYAML>=6',
+            'mujoco>=3.2', 'pin>=4.1', 'drake>=1.51', 'urdf_parser_py>=0.0.4', 'types-PyYAML>=6',
             'colcon-core>=0.17', 'colcon-ros>=0.5', 'colcon-python-setup-py>=0.2',
             # The test bench's peers and campaigns: python-control checks step_metrics.
             'control>=0.10', 'dask[distributed]>=2024.1', 'pyarrow>=14',

@@ -1,4 +1,5 @@
-"""The generated URDF, checked by independent parsers and by MuJoCo as a rigid-body engine.
+"""The generated URDF, checked by independent parsers and by rigid-body engines (MuJoCo,
+PyBullet, Pinocchio, Drake).
 
 Issue 9 item 4 and issue 11 item 6: escaped names, full precision, a rigid body's inertia
 (I >= m l²), limits, viscous damping γ I where n = 1, a ros2_control block for
@@ -364,3 +365,176 @@ def test_the_tutorial_shows_the_shipped_ros2_control_block() -> None:
                  for s in joint.findall('state_interface')])
 
     assert summary(parse(example)) == summary(one(parse(REPO_URDF.read_text()), 'ros2_control'))
+
+
+# ---------------------------------------------------------------- Pinocchio, measured
+ANGLES = (0.0, 0.4, 1.0, -2.5, 3.0)
+
+
+def pinocchio_model(urdf: str, g: float) -> tuple[Any, Any]:
+    """Build a Pinocchio model from URDF text, gravity ``g`` along -z; return (model, data)."""
+    pin = pytest.importorskip('pinocchio')
+    model = pin.buildModelFromXML(urdf)
+    model.gravity.linear = np.array([0.0, 0.0, -g])
+    return model, model.createData()
+
+
+def configuration(phi: float) -> np.ndarray:
+    """Pinocchio's configuration of a continuous joint at angle ``phi``: (cos φ, sin φ)."""
+    return np.array([math.cos(phi), math.sin(phi)])
+
+
+@pytest.mark.parametrize('params', [
+    BODY,
+    PendulumParams(m=2.0, l=0.25, inertia=0.2, gamma=0.1),
+    PendulumParams(m=0.2, l=1.0, inertia=0.2, gamma=1.0),
+], ids=['body', 'short-heavy', 'point-mass'])
+def test_pinocchio_inertia_gravity_and_damping(params: PendulumParams) -> None:
+    """Pinocchio: crba is I (1e-12), the gravity torque m g l sin φ, model.damping γ I."""
+    import pinocchio as pin
+
+    model, data = pinocchio_model(pendulum_urdf(params, 'hinge'), params.g)
+    assert (model.njoints, model.nq, model.nv) == (2, 2, 1)     # universe + the continuous joint
+    assert model.names[1] == 'hinge'
+    zero = np.zeros(1)
+    for phi in ANGLES:
+        q = configuration(phi)
+        inertia = pin.crba(model, data, q)
+        assert inertia.shape == (1, 1)
+        assert inertia[0, 0] == pytest.approx(params.inertia, rel=1e-12, abs=0.0)
+        # The torque that holds the pendulum still: m g l sin φ (eq 11: I ω0² sin φ).
+        expected = params.m * params.g * params.l * math.sin(phi)
+        gravity = pin.computeGeneralizedGravity(model, data, q)
+        assert gravity[0] == pytest.approx(expected, rel=1e-12, abs=1e-15)
+        assert pin.rnea(model, data, q, zero, zero)[0] == pytest.approx(expected, rel=1e-12,
+                                                                         abs=1e-15)
+    assert model.damping[0] == params.gamma * params.inertia
+
+
+def pinocchio_swing(urdf: str, g: float, phi0: float, t_end: float, h: float) -> np.ndarray:
+    """Integrate aba with classic RK4 (the URDF's damping as the joint torque); return φ."""
+    import pinocchio as pin
+
+    model, data = pinocchio_model(urdf, g)
+    damping = float(model.damping[0])
+
+    def accel(phi: float, dphi: float) -> float:
+        v = np.array([dphi])
+        return float(pin.aba(model, data, configuration(phi), v, -damping * v)[0])
+
+    steps = round(t_end / h)
+    out = np.empty(steps + 1)
+    phi, dphi = phi0, 0.0
+    out[0] = phi
+    for k in range(steps):
+        k1 = (dphi, accel(phi, dphi))
+        k2 = (dphi + h / 2 * k1[1], accel(phi + h / 2 * k1[0], dphi + h / 2 * k1[1]))
+        k3 = (dphi + h / 2 * k2[1], accel(phi + h / 2 * k2[0], dphi + h / 2 * k2[1]))
+        k4 = (dphi + h * k3[1], accel(phi + h * k3[0], dphi + h * k3[1]))
+        phi += h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        dphi += h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+        out[k + 1] = phi
+    return out
+
+
+def test_pinocchio_swing_matches_simulate() -> None:
+    """n = 1, φ0 = 0.5 rad: RK4 over Pinocchio's aba (h = 1e-3 s) follows simulate() to 1e-12.
+
+    Pinocchio's aba takes the joint torque as an input: the damping torque -model.damping φ'
+    is applied here, read from the URDF. 1 % more damping in the URDF is seen (> 1e-4 rad).
+    """
+    h, t_end, phi0 = 1e-3, 3.0, 0.5
+    ours = simulate(BODY, phi0, 0.0, t_end, h, 'rk4').phi
+    theirs = pinocchio_swing(pendulum_urdf(BODY), BODY.g, phi0, t_end, h)
+    assert len(ours) == len(theirs)
+    assert np.max(np.abs(ours - theirs)) < 1e-12
+    assert np.count_nonzero(np.diff(np.sign(theirs)) != 0) >= 2
+    other = PendulumParams(m=BODY.m, l=BODY.l, inertia=BODY.inertia, g=BODY.g,
+                           gamma=BODY.gamma * 1.01, n=1.0)
+    moved = pinocchio_swing(pendulum_urdf(other), BODY.g, phi0, t_end, h)
+    assert np.max(np.abs(ours - moved)) > 1e-4
+
+
+# ---------------------------------------------------------------- Drake, measured
+def drake_plant(urdf: str, g: float) -> tuple[Any, Any, Any]:
+    """Load URDF text into a continuous Drake MultibodyPlant, base_link welded to the world.
+
+    Return (plant, context, joint). Drake gives an unattached root link a floating joint, so
+    the weld is what a fixed-base pendulum needs (PyBullet's useFixedBase).
+    """
+    pytest.importorskip('pydrake')
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+
+    plant = MultibodyPlant(time_step=0.0)
+    Parser(plant).AddModelsFromString(urdf, 'urdf')
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName('base_link'))
+    plant.mutable_gravity_field().set_gravity_vector(np.array([0.0, 0.0, -g]))
+    plant.Finalize()
+    (joint,) = [plant.get_joint(i) for i in plant.GetJointIndices()
+                if plant.get_joint(i).num_velocities() == 1]
+    return plant, plant.CreateDefaultContext(), joint
+
+
+@pytest.mark.parametrize('params', [
+    BODY,
+    PendulumParams(m=2.0, l=0.25, inertia=0.2, gamma=0.1),
+    PendulumParams(m=0.2, l=1.0, inertia=0.2, gamma=1.0),
+], ids=['body', 'short-heavy', 'point-mass'])
+def test_drake_inertia_gravity_and_damping(params: PendulumParams) -> None:
+    """Drake: mass matrix I (1e-12), gravity force -m g l sin φ, joint damping γ I."""
+    plant, context, joint = drake_plant(pendulum_urdf(params, 'hinge'), params.g)
+    assert (plant.num_positions(), plant.num_velocities()) == (1, 1)
+    assert joint.name() == 'hinge'
+    for phi in ANGLES:
+        plant.SetPositions(context, [phi])
+        inertia = plant.CalcMassMatrix(context)
+        assert inertia.shape == (1, 1)
+        assert inertia[0, 0] == pytest.approx(params.inertia, rel=1e-12, abs=0.0)
+        # Drake returns the generalized force gravity applies: minus the holding torque.
+        expected = -params.m * params.g * params.l * math.sin(phi)
+        assert plant.CalcGravityGeneralizedForces(context)[0] == pytest.approx(
+            expected, rel=1e-12, abs=1e-15)
+    assert joint.default_damping() == params.gamma * params.inertia
+
+
+def drake_swing(urdf: str, g: float, phi0: float, t_end: float, h: float) -> np.ndarray:
+    """Integrate Drake's own time derivatives (damping included) with classic RK4; return φ."""
+    plant, context, _ = drake_plant(urdf, g)
+    derivatives = plant.AllocateTimeDerivatives()
+
+    def field(x: np.ndarray) -> np.ndarray:
+        plant.SetPositionsAndVelocities(context, x)
+        plant.CalcTimeDerivatives(context, derivatives)
+        return np.asarray(derivatives.get_vector().CopyToVector())
+
+    steps = round(t_end / h)
+    out = np.empty(steps + 1)
+    x = np.array([phi0, 0.0])
+    out[0] = x[0]
+    for k in range(steps):
+        k1 = field(x)
+        k2 = field(x + h / 2 * k1)
+        k3 = field(x + h / 2 * k2)
+        k4 = field(x + h * k3)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        out[k + 1] = x[0]
+    return out
+
+
+def test_drake_swing_matches_simulate() -> None:
+    """n = 1, φ0 = 0.5 rad: RK4 over Drake's CalcTimeDerivatives (h = 1e-3 s) follows simulate()
+    to 1e-12 rad.
+
+    Drake applies the URDF's joint damping itself. 1 % more damping in the URDF is seen.
+    """
+    h, t_end, phi0 = 1e-3, 3.0, 0.5
+    ours = simulate(BODY, phi0, 0.0, t_end, h, 'rk4').phi
+    theirs = drake_swing(pendulum_urdf(BODY), BODY.g, phi0, t_end, h)
+    assert len(ours) == len(theirs)
+    assert np.max(np.abs(ours - theirs)) < 1e-12
+    assert np.count_nonzero(np.diff(np.sign(theirs)) != 0) >= 2
+    other = PendulumParams(m=BODY.m, l=BODY.l, inertia=BODY.inertia, g=BODY.g,
+                           gamma=BODY.gamma * 1.01, n=1.0)
+    moved = drake_swing(pendulum_urdf(other), BODY.g, phi0, t_end, h)
+    assert np.max(np.abs(ours - moved)) > 1e-4
