@@ -4,8 +4,8 @@ from __future__ import annotations
 import math
 
 import pytest
+from test_joint import PARAMS, H, joint  # the joint every ROS-free node test starts from
 
-from pendulum_sim.core import PendulumParams
 from pendulum_sim.core.model import MAX_SPEED
 from pendulum_sim.node import commands
 from pendulum_sim.node.drivers import RealTimeDriver, SyncDriver
@@ -13,15 +13,6 @@ from pendulum_sim.node.exchange import Gate, SyncExchange
 from pendulum_sim.node.joint import JointConfig, SimulatedJoint
 from pendulum_sim.node.parameters import SPECS, check
 from pendulum_sim.node.realtime import WakeStats
-
-PARAMS = PendulumParams(m=0.2, l=1.0, inertia=0.2, g=9.8, gamma=0.1, n=1.0)
-H = 1e-3
-
-
-def joint(**changes: object) -> SimulatedJoint:
-    base: dict[str, object] = {'params': PARAMS, 'h': H, 'phi0': 0.3, 'max_effort': 5.0}
-    base.update(changes)
-    return SimulatedJoint(JointConfig(**base))  # type: ignore[arg-type]
 
 
 def defaults(**changes: object) -> dict[str, object]:
