@@ -9,6 +9,7 @@ config files (scenes, the DDS profile) are. rclpy is imported only inside
 """
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 from collections.abc import Callable, MutableMapping
@@ -100,6 +101,13 @@ def _same_file(path: str, other: Path) -> bool:
 
 
 EXECUTORS = ('events', 'single')
+
+
+def add_executor_option(parser: argparse.ArgumentParser) -> None:
+    """Add the ``--executor`` option (one of :data:`EXECUTORS`) of the programs' parsers."""
+    parser.add_argument('--executor', choices=EXECUTORS, default='events',
+                        help="rclpy executor: 'events' (the experimental EventsExecutor, "
+                        "less CPU per message) or 'single' (SingleThreadedExecutor)")
 
 
 def make_executor(kind: str) -> Executor:

@@ -35,7 +35,13 @@ from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from pendulum_sim.dds import exit_with, make_executor, release, use_loopback_profile
+from pendulum_sim.dds import (
+    add_executor_option,
+    exit_with,
+    make_executor,
+    release,
+    use_loopback_profile,
+)
 
 from .errors import ControllerError
 from .pd_law import PDGains, SettleDetector, SettleEvent, SettleLimits, pd_torque, wrap_angle
@@ -209,9 +215,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument('--count', type=int, default=0, metavar='N',
                         help='exit (code 0) after answering N states; 0 (default) runs until '
                         'Ctrl-C / SIGTERM')
-    parser.add_argument('--executor', choices=('events', 'single'), default='events',
-                        help="rclpy executor: 'events' (the experimental EventsExecutor, "
-                        "less CPU per message) or 'single' (SingleThreadedExecutor)")
+    add_executor_option(parser)
     return parser
 
 

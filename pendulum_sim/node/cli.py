@@ -58,6 +58,7 @@ if __name__ == '__main__' or Path(sys.argv[0] if sys.argv else '').name == 'pend
 
 from pendulum_sim.core import PendulumError  # noqa: E402 - after the signal handlers
 from pendulum_sim.dds import (  # noqa: E402
+    add_executor_option,
     exit_with,
     make_executor,
     release,
@@ -90,9 +91,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument('--rt-priority', type=int, default=0, metavar='N',
                         help='run with SCHED_FIFO priority N (1-99, as rttest does; needs '
                         'CAP_SYS_NICE); 0 (default) keeps the normal scheduler')
-    parser.add_argument('--executor', choices=('events', 'single'), default='events',
-                        help="rclpy executor: 'events' (the experimental EventsExecutor, "
-                        "less CPU) or 'single' (SingleThreadedExecutor)")
+    add_executor_option(parser)
     return parser
 
 

@@ -98,11 +98,7 @@ def run_paper(out: Path, grid: PaperGrid, progress: bool = True) -> dict[str, An
             for ax, g in zip(axes, (1.0, 10.0), strict=False):
                 for n in NS:
                     ax.plot(t, getattr(runs[(g, n)], var), label=f'n = {n}')
-                ax.set_title(f'γ = {g:g} s^(n−2)')
-                ax.set_xlabel('t (s)')
-                ax.set_ylabel(label)
-                ax.legend(fontsize=8)
-                ax.grid(alpha=0.3)
+                plotting.label_axes(ax, 't (s)', label, f'γ = {g:g} s^(n−2)')
             figures.append(plotting.save(fig, out, f'fig{fig_no}_{var}.png'))
     over = runs[(10.0, 1)]
     facts.append({'figure': 3, 'fact': 'n = 1, γ = 10 is overdamped: min φ over the run '
@@ -124,10 +120,7 @@ def run_paper(out: Path, grid: PaperGrid, progress: bool = True) -> dict[str, An
             axes[1].plot(t, runs[(1000.0, n)].phi, label=f'n = {n}')
         axes[1].set_title('γ = 1000 s^(n−2)')
         for ax in axes:
-            ax.set_xlabel('t (s)')
-            ax.set_ylabel('φ (rad)')
-            ax.legend(fontsize=8)
-            ax.grid(alpha=0.3)
+            plotting.label_axes(ax, 't (s)', 'φ (rad)')
         figures.append(plotting.save(fig, out, 'fig4_phi.png'))
     for n in NS:
         facts.append({'figure': 4, 'fact': f'φ(t_end), γ = 1000, n = {n}',
@@ -147,11 +140,7 @@ def run_paper(out: Path, grid: PaperGrid, progress: bool = True) -> dict[str, An
         for ax, g in zip(axes, (1.0, 10.0), strict=False):
             for n in NS:
                 ax.semilogy(t, np.maximum(runs[(g, n)].energy, 1e-16), label=f'n = {n}')
-            ax.set_title(f'Energy, γ = {g:g}')
-            ax.set_xlabel('t (s)')
-            ax.set_ylabel('E (J)')
-            ax.legend(fontsize=8)
-            ax.grid(alpha=0.3)
+            plotting.label_axes(ax, 't (s)', 'E (J)', f'Energy, γ = {g:g}')
         figures.append(plotting.save(fig, out, 'fig6_energy.png'))
     bar.tick('fig 6')
 
@@ -179,11 +168,7 @@ def run_paper(out: Path, grid: PaperGrid, progress: bool = True) -> dict[str, An
             for n in NS:
                 r = runs[(g, n)]
                 ax.plot(r.phi, r.dphi, lw=0.8, label=f'n = {n}')
-            ax.set_title(f'Phase portrait, γ = {g:g}')
-            ax.set_xlabel('φ (rad)')
-            ax.set_ylabel("φ' (rad/s)")
-            ax.legend(fontsize=8)
-            ax.grid(alpha=0.3)
+            plotting.label_axes(ax, 'φ (rad)', "φ' (rad/s)", f'Phase portrait, γ = {g:g}')
         figures.append(plotting.save(fig, out, 'fig7_phase.png'))
     bar.tick('fig 7')
 
@@ -260,9 +245,7 @@ def _fig8(out: Path, grid: PaperGrid, facts: list[dict[str, Any]], plt: Any) -> 
                      label='|core (sin φ) − exact linear|')
     axes[1].set_ylabel('difference (rad)')
     for ax in axes:
-        ax.set_xlabel('t (s)')
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
+        plotting.label_axes(ax, 't (s)')
     return [plotting.save(fig, out, 'fig8_exact_vs_numerical.png')]
 
 
@@ -305,10 +288,7 @@ def _fig9(out: Path, grid: PaperGrid, facts: list[dict[str, Any]], plt: Any) -> 
     for ax in axes:
         ax.axhline(16.0, color='k', lw=0.5, ls=':')
         ax.set_yscale('log')
-        ax.set_xlabel('t (s)')
-        ax.set_ylabel('Q')
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
+        plotting.label_axes(ax, 't (s)', 'Q')
     return [plotting.save(fig, out, 'fig9_convergence_quotient.png')]
 
 
@@ -345,11 +325,8 @@ def _decay(out: Path, grid: PaperGrid, facts: list[dict[str, Any]], plt: Any) ->
     for n, tt, amp, law in curves:
         line = ax.loglog(tt, amp, '.', ms=3, label=f'n = {n}, turning points')[0]
         ax.loglog(tt, law, '-', color=line.get_color(), lw=1, label=f'n = {n}, law')
-    ax.set_xlabel('t (s)')
-    ax.set_ylabel('amplitude (rad)')
-    ax.set_title('Long-time decay, γ = 1: A ∝ t^(−1/(n−1))')
-    ax.legend(fontsize=7)
-    ax.grid(True, which='both', alpha=0.3)
+    plotting.label_axes(ax, 't (s)', 'amplitude (rad)',
+                        'Long-time decay, γ = 1: A ∝ t^(−1/(n−1))', fontsize=7, which='both')
     from matplotlib.ticker import NullFormatter
     ax.xaxis.set_minor_formatter(NullFormatter())
     ax.yaxis.set_minor_formatter(NullFormatter())

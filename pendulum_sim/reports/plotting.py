@@ -48,6 +48,18 @@ def save(fig: Any, out: Path, name: str) -> str:
     return name
 
 
+def label_axes(ax: Any, xlabel: str, ylabel: str | None = None, title: str | None = None,
+               *, fontsize: int = 8, which: str = 'major') -> None:
+    """Label an axes, add its legend and a light grid: every report figure's axes finish so."""
+    if title is not None:
+        ax.set_title(title)
+    ax.set_xlabel(xlabel)
+    if ylabel is not None:
+        ax.set_ylabel(ylabel)
+    ax.legend(fontsize=fontsize)
+    ax.grid(True, which=which, alpha=0.3)
+
+
 def _grid(count: int) -> tuple[int, int]:
     cols = min(count, 3)
     return math.ceil(count / cols), cols
@@ -84,11 +96,8 @@ def work_precision_figures(out: Path, rows: Sequence[dict[str, Any]],
                 colour = colours[bases.index(base) % len(colours)]
                 ax.loglog([p[0] for p in pts], [p[1] for p in pts], style, marker='.',
                           color=colour, label=solver)
-            ax.set_title(case)
-            ax.set_xlabel('CPU time (s)')
-            ax.set_ylabel('max error over trajectory')
-            ax.grid(True, which='both', alpha=0.3)
-            ax.legend(fontsize=7)
+            label_axes(ax, 'CPU time (s)', 'max error over trajectory', case, fontsize=7,
+                       which='both')
         for ax in list(axes.flat)[len(names):]:
             ax.axis('off')
         files.append(save(fig, out, f'work_precision_{key}.png'))
@@ -103,11 +112,8 @@ def work_precision_figures(out: Path, rows: Sequence[dict[str, Any]],
                                if o['case'] == case and o['solver'] == solver), math.nan)
                 ax.loglog([p[0] for p in pts], [p[1] for p in pts], marker='o', ms=3,
                           label=f'{solver} (slope {fitted:.2f})')
-            ax.set_title(case)
-            ax.set_xlabel('h (s)')
-            ax.set_ylabel('max error over trajectory')
-            ax.grid(True, which='both', alpha=0.3)
-            ax.legend(fontsize=7)
+            label_axes(ax, 'h (s)', 'max error over trajectory', case, fontsize=7,
+                       which='both')
         for ax in list(axes.flat)[len(names):]:
             ax.axis('off')
         files.append(save(fig, out, f'error_vs_h_{key}.png'))
