@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -411,48 +412,35 @@ def test_pinocchio_inertia_gravity_and_damping(params: PendulumParams) -> None:
     assert model.damping[0] == params.gamma * params.inertia
 
 
-def pinocchio_swing(urdf: str, g: float, phi0: float, t_end: float, h: float) -> np.ndarray:
-    """Integrate aba with classic RK4 (the URDF's damping as the joint torque); return φ."""
+def pinocchio_field(urdf: str, g: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Return (φ, φ') -> (φ', φ'') from Pinocchio's aba, the URDF's damping as joint torque."""
     import pinocchio as pin
 
     model, data = pinocchio_model(urdf, g)
     damping = float(model.damping[0])
 
-    def accel(phi: float, dphi: float) -> float:
-        v = np.array([dphi])
-        return float(pin.aba(model, data, configuration(phi), v, -damping * v)[0])
+    def field(x: np.ndarray) -> np.ndarray:
+        v = np.array([x[1]])
+        return np.array([x[1], pin.aba(model, data, configuration(x[0]), v, -damping * v)[0]])
 
+    return field
+
+
+def rk4_swing(field: Callable[[np.ndarray], np.ndarray], phi0: float, t_end: float,
+              h: float) -> np.ndarray:
+    """Integrate an engine's vector field from rest at ``phi0`` with classic RK4; return φ."""
     steps = round(t_end / h)
     out = np.empty(steps + 1)
-    phi, dphi = phi0, 0.0
-    out[0] = phi
+    x = np.array([phi0, 0.0])
+    out[0] = x[0]
     for k in range(steps):
-        k1 = (dphi, accel(phi, dphi))
-        k2 = (dphi + h / 2 * k1[1], accel(phi + h / 2 * k1[0], dphi + h / 2 * k1[1]))
-        k3 = (dphi + h / 2 * k2[1], accel(phi + h / 2 * k2[0], dphi + h / 2 * k2[1]))
-        k4 = (dphi + h * k3[1], accel(phi + h * k3[0], dphi + h * k3[1]))
-        phi += h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        dphi += h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-        out[k + 1] = phi
+        k1 = field(x)
+        k2 = field(x + h / 2 * k1)
+        k3 = field(x + h / 2 * k2)
+        k4 = field(x + h * k3)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        out[k + 1] = x[0]
     return out
-
-
-def test_pinocchio_swing_matches_simulate() -> None:
-    """n = 1, φ0 = 0.5 rad: RK4 over Pinocchio's aba (h = 1e-3 s) follows simulate() to 1e-12.
-
-    Pinocchio's aba takes the joint torque as an input: the damping torque -model.damping φ'
-    is applied here, read from the URDF. 1 % more damping in the URDF is seen (> 1e-4 rad).
-    """
-    h, t_end, phi0 = 1e-3, 3.0, 0.5
-    ours = simulate(BODY, phi0, 0.0, t_end, h, 'rk4').phi
-    theirs = pinocchio_swing(pendulum_urdf(BODY), BODY.g, phi0, t_end, h)
-    assert len(ours) == len(theirs)
-    assert np.max(np.abs(ours - theirs)) < 1e-12
-    assert np.count_nonzero(np.diff(np.sign(theirs)) != 0) >= 2
-    other = PendulumParams(m=BODY.m, l=BODY.l, inertia=BODY.inertia, g=BODY.g,
-                           gamma=BODY.gamma * 1.01, n=1.0)
-    moved = pinocchio_swing(pendulum_urdf(other), BODY.g, phi0, t_end, h)
-    assert np.max(np.abs(ours - moved)) > 1e-4
 
 
 # ---------------------------------------------------------------- Drake, measured
@@ -498,8 +486,8 @@ def test_drake_inertia_gravity_and_damping(params: PendulumParams) -> None:
     assert joint.default_damping() == params.gamma * params.inertia
 
 
-def drake_swing(urdf: str, g: float, phi0: float, t_end: float, h: float) -> np.ndarray:
-    """Integrate Drake's own time derivatives (damping included) with classic RK4; return φ."""
+def drake_field(urdf: str, g: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Return (φ, φ') -> (φ', φ'') from Drake's CalcTimeDerivatives (its joint damping)."""
     plant, context, _ = drake_plant(urdf, g)
     derivatives = plant.AllocateTimeDerivatives()
 
@@ -508,33 +496,27 @@ def drake_swing(urdf: str, g: float, phi0: float, t_end: float, h: float) -> np.
         plant.CalcTimeDerivatives(context, derivatives)
         return np.asarray(derivatives.get_vector().CopyToVector())
 
-    steps = round(t_end / h)
-    out = np.empty(steps + 1)
-    x = np.array([phi0, 0.0])
-    out[0] = x[0]
-    for k in range(steps):
-        k1 = field(x)
-        k2 = field(x + h / 2 * k1)
-        k3 = field(x + h / 2 * k2)
-        k4 = field(x + h * k3)
-        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        out[k + 1] = x[0]
-    return out
+    return field
 
 
-def test_drake_swing_matches_simulate() -> None:
-    """n = 1, φ0 = 0.5 rad: RK4 over Drake's CalcTimeDerivatives (h = 1e-3 s) follows simulate()
+@pytest.mark.parametrize('engine', ['pinocchio', 'drake'])
+def test_engine_swing_matches_simulate(engine: str) -> None:
+    """n = 1, φ0 = 0.5 rad: RK4 over the engine's own dynamics (h = 1e-3 s) follows simulate()
     to 1e-12 rad.
 
-    Drake applies the URDF's joint damping itself. 1 % more damping in the URDF is seen.
+    Pinocchio's aba takes the joint torque as an input (the URDF's damping is applied as
+    -model.damping φ'); Drake applies the URDF's joint damping itself. 1 % more damping in the
+    URDF is seen (> 1e-4 rad).
     """
+    pytest.importorskip('pinocchio' if engine == 'pinocchio' else 'pydrake')
+    make_field = pinocchio_field if engine == 'pinocchio' else drake_field
     h, t_end, phi0 = 1e-3, 3.0, 0.5
     ours = simulate(BODY, phi0, 0.0, t_end, h, 'rk4').phi
-    theirs = drake_swing(pendulum_urdf(BODY), BODY.g, phi0, t_end, h)
+    theirs = rk4_swing(make_field(pendulum_urdf(BODY), BODY.g), phi0, t_end, h)
     assert len(ours) == len(theirs)
     assert np.max(np.abs(ours - theirs)) < 1e-12
     assert np.count_nonzero(np.diff(np.sign(theirs)) != 0) >= 2
     other = PendulumParams(m=BODY.m, l=BODY.l, inertia=BODY.inertia, g=BODY.g,
                            gamma=BODY.gamma * 1.01, n=1.0)
-    moved = drake_swing(pendulum_urdf(other), BODY.g, phi0, t_end, h)
+    moved = rk4_swing(make_field(pendulum_urdf(other), BODY.g), phi0, t_end, h)
     assert np.max(np.abs(ours - moved)) > 1e-4
