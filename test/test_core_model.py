@@ -2,8 +2,6 @@
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -71,12 +69,3 @@ def test_jacobian_eigenvalues_match_numpy() -> None:
         ours = sorted(p.jacobian_eigenvalues(phi, v), key=lambda z: (z.real, z.imag))
         ref = sorted(np.linalg.eigvals(jac), key=lambda z: (z.real, z.imag))
         np.testing.assert_allclose(ours, ref, rtol=1e-12, atol=1e-12)
-
-
-def test_importing_the_core_does_not_import_ros() -> None:
-    code = ('import sys, pendulum_sim.core, pendulum_sim.core.analysis; '
-            'print(sorted(m for m in sys.modules if m.split(".")[0] in '
-            '{"rclpy", "sensor_msgs", "std_msgs", "rosgraph_msgs", "builtin_interfaces"}))')
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
-                         check=True)
-    assert out.stdout.strip() == '[]'

@@ -3,8 +3,6 @@ from __future__ import annotations
 
 import math
 import re
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -171,14 +169,3 @@ def test_bad_input_is_refused_with_the_reason(args: tuple[object, ...],
                                               kwargs: dict[str, object], msg: str) -> None:
     with pytest.raises(TestingError, match=re.escape(msg)):
         step_metrics(*args, **kwargs)  # type: ignore[arg-type]
-
-
-def test_importing_the_test_bench_imports_no_ros_no_plotting_no_dask() -> None:
-    code = ('import sys, pendulum_sim.testing as t; t.step_metrics; t.closed_loop; '
-            't.vectorised; t.ClosedLoopRun; import pendulum_sim.testing.pytest_plugin; '
-            'import pendulum_sim.testing.campaign.cli, pendulum_sim.testing.campaign.execute; '
-            'bad = [m for m in ("rclpy", "matplotlib", "dask", "distributed") '
-            'if m in sys.modules]; print(bad)')
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
-                         check=True)
-    assert out.stdout.strip() == '[]'
