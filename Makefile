@@ -39,7 +39,7 @@ typecheck: setup
 	$(VENV)/bin/mypy
 
 pytest: setup
-	$(VENV)/bin/pytest -q
+	$(VENV)/bin/pytest -q --durations=15
 
 # The documentation, warnings (broken links and references included) as errors. The reference
 # tables are written from the code first (docs/_ext/reftables.py), so they cannot go stale.
