@@ -21,11 +21,12 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import IntegratorError
-from .explicit import ErrStepFn, compile_damping, compile_step
+from .explicit import ErrStepFn, compile_step
 from .extrapolation import compile_extrapolation
 from .guard import GuardStats
 from .jit import compile_step as jit_step
-from .model import FloatArray, damping_derivative, run_speed_limit
+from .law import compile_damping, damping_derivative
+from .model import FloatArray, run_speed_limit
 from .problem import Problem
 from .reversal import branch_accel, locate_reversal
 from .rosenbrock import compile_rosenbrock

@@ -36,11 +36,12 @@ from .decisions import (
     stiff_transient,
 )
 from .errors import IntegratorError
-from .explicit import DampingFn, ErrStepFn
+from .explicit import ErrStepFn
 from .guard import FALLBACK, GuardStats, StabilityGuard, safe_speed_range
 from .implicit import dirk_safe, fallback
+from .law import DampingFn, damping_derivative
 from .methods import Advance, Method
-from .model import FloatArray, damping_derivative
+from .model import FloatArray
 from .problem import Problem
 from .split import SplitSteps
 from .tableaus import DOP853, RK4, Tableau

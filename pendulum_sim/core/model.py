@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import IntegratorError, ModelError
+from .law import compile_damping, compile_power, damping_derivative
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -159,10 +160,9 @@ class PendulumParams:
         """Return the damping acceleration γ φ'|φ'|^(n−1) (eq 15) at velocity ``dphi``.
 
         For n = 0 this is γ sgn(φ'), zero at rest; sticking is handled by the integrators.
+        The law is the core's one definition (``law.damping_expression``), compiled for n.
         """
-        if dphi == 0.0:
-            return 0.0
-        return self.gamma * math.copysign(abs(dphi) ** self.n, dphi)
+        return float(compile_damping(self.n)(dphi, self.gamma, 1.0))
 
     def acceleration(self, phi: float, dphi: float, torque: float = 0.0) -> float:
         """Return φ'' = −γ φ'|φ'|^(n−1) − ω0² sin φ + τ/I (eq 16 with input torque)."""
@@ -189,33 +189,6 @@ def smooth_law(n: float) -> bool:
     Every other law has a kink at φ' = 0 (n even, non-integer, or 0): the core's one test.
     """
     return n >= 1.0 and n == int(n) and int(n) % 2 == 1
-
-
-def damping_derivative(gamma: float, n: float, dphi: float) -> float:
-    """Return d = ∂(γ φ'|φ'|^(n−1))/∂φ' = γ n |φ'|^(n−1) (inf for n < 1 at rest)."""
-    try:
-        return slope_formula(gamma, n, dphi)
-    except OverflowError:   # beyond float64: as steep as it gets
-        return math.inf
-
-
-def slope_formula(gamma: float, n: float, dphi: float) -> float:
-    """The arithmetic of :func:`damping_derivative` alone (raises OverflowError beyond float64).
-
-    Kept free of exception handling so that numba can compile it for the compiled steps
-    (``jit.py``), where an overflow gives inf, the value :func:`damping_derivative` returns.
-    """
-    if n == 1.0:
-        return gamma
-    if n == 0.0 or gamma == 0.0:
-        return 0.0
-    a = abs(dphi)
-    if a == 0.0:
-        return math.inf if n < 1.0 else 0.0
-    e = n - 1.0
-    # a^0.5 and a^2 spelled as a compiler rewrites them (LLVM, ``jit.py``): the C library's
-    # pow differs from sqrt and from a·a in the last bit for 7–8 in 10 000 random a.
-    return float(gamma * n * (math.sqrt(a) if e == 0.5 else a * a if e == 2.0 else a ** e))
 
 
 def _eigs(d: float, c: float) -> tuple[complex, complex]:
@@ -251,11 +224,11 @@ def potential_energy(params: PendulumParams, phi: Any) -> Any:
 
 
 def dissipated_power(params: PendulumParams, dphi: Any) -> Any:
-    """Return the power lost to damping, γ I |φ'|^(n+1) in W (eq 26; >= 0)."""
-    a = np.abs(dphi)
-    if params.n == 0.0:
-        return params.gamma * params.inertia * a
-    return params.gamma * params.inertia * a ** (params.n + 1.0)
+    """Return the power lost to damping, γ I |φ'|^(n+1) in W (eq 26; >= 0).
+
+    φ' times the damping torque I D(φ'), generated from the law (``law.power_expression``).
+    """
+    return compile_power(params.n)(dphi, params.gamma * params.inertia)
 
 
 def input_power(dphi: Any, torque: Any) -> Any:
