@@ -36,7 +36,7 @@ DampingFn = Callable[[float], float]
 WHOLE_MAX = 8
 """The largest integer exponent written as multiplications (beyond it a power call is as fast)."""
 
-SPECIAL_SLOPES = (0.5, 1.0, 2.0)
+SPECIAL_SLOPES = (0.5, *(float(k) for k in range(1, WHOLE_MAX + 1)))
 """The exponents n − 1 whose slope |φ'|^(n−1) :func:`power_source` spells specially."""
 
 
