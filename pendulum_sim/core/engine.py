@@ -126,13 +126,13 @@ class Engine:
         return embedded.dense_capable(self.method.family.error_controlled, self.coulomb)
 
     def dense(self, p: float, v: float, t_out: FloatArray, ain: float,
-              stats: GuardStats) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Run the adaptive method over all of ``t_out`` in one cover (``embedded.dense_run``)."""
+              stats: GuardStats, budget: int = 0) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Cover all of ``t_out`` in one run within ``budget`` trials (``embedded.dense_run``)."""
         if not self.dense_capable:
             raise IntegratorError(f'{self.method.name} has no dense output here')
         return embedded.dense_run(self.problem, self.method.tableau, self.pair_steps(),
                                   self.plain.from_rest, p, v, t_out, ain, self.rtol,
-                                  self.atol, stats)
+                                  self.atol, stats, budget)
 
     # ------------------------------------------------------------------ fast path
     def fast_range(self, h: float, ain: float) -> tuple[float, float]:

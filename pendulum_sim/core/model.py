@@ -42,6 +42,15 @@ phase (it is then cut into substeps that each resolve it, so the bound caps thei
 MAX_STEPS = 100_000_000
 """The default largest number of steps of one run (``simulate``, ``sweep``)."""
 
+MAX_RUN_TRIALS = 1_000_000
+"""The most trial substeps an adaptive method may spend in one ``simulate`` call.
+
+An adaptive method's work is set by its inputs together: t_end ω0 radians of oscillation at
+some 1-130 trial substeps a radian (more the tighter rtol and the lower the method's order),
+plus what a stiff damping slope costs an explicit pair. Fast gravity makes that unbounded in
+practice (g = 1e11: ω0 = 3.2e5 s⁻¹, 3.5e6 trials a second of ``dopri5`` at rtol = 1e-8), so
+a run that spends this many is stopped there with the reason (:func:`run_work_refusal`)."""
+
 INERTIA_RTOL = 1e-12
 """Round-off allowed in the parallel-axis test I >= m l²."""
 
@@ -370,6 +379,21 @@ def check_count(name: str, value: object, minimum: int = 1) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise IntegratorError(f'{name} must be an integer >= {minimum}, got {value!r}')
     return value
+
+
+def run_work_refusal(method: str, t_end: float, rtol: float, omega0_sq: float,
+                     budget: int) -> IntegratorError:
+    """Return the error that stops an adaptive run beyond ``budget`` trial substeps.
+
+    The message names the arguments that set the work (t_end, rtol, and gravity through ω0)
+    and the limit, :data:`MAX_RUN_TRIALS`.
+    """
+    omega0 = math.sqrt(omega0_sq)
+    return IntegratorError(
+        f'{method} needs more than MAX_RUN_TRIALS = {budget} trial substeps for t_end = '
+        f'{t_end:g} s at rtol = {rtol:g} (omega0 = {omega0:.6g} rad/s: {t_end * omega0:.3g} '
+        f'rad of oscillation); the work budget of one call is spent: shorten t_end, loosen '
+        f'rtol or simulate the run in parts')
 
 
 def check_run_length(t_end: float, h: float, max_steps: int) -> float:
