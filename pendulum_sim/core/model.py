@@ -49,7 +49,8 @@ An adaptive method's work is set by its inputs together: t_end ω0 radians of os
 some 1-130 trial substeps a radian (more the tighter rtol and the lower the method's order),
 plus what a stiff damping slope costs an explicit pair. Fast gravity makes that unbounded in
 practice (g = 1e11: ω0 = 3.2e5 s⁻¹, 3.5e6 trials a second of ``dopri5`` at rtol = 1e-8), so
-a run that spends this many is stopped there with the reason (:func:`run_work_refusal`)."""
+a run that spends this many is stopped there with the reason (:func:`run_work_refusal`), and
+one that :func:`oscillation_trials` puts beyond it is refused before any work."""
 
 INERTIA_RTOL = 1e-12
 """Round-off allowed in the parallel-axis test I >= m l²."""
@@ -381,6 +382,38 @@ def check_count(name: str, value: object, minimum: int = 1) -> int:
     return value
 
 
+OSCILLATION_TRIALS = {'dopri5': 0.12, 'dop853': 0.09, 'rodas4': 0.13, 'extrap6': 0.11,
+                      'extrap8': 0.09}
+"""Trial substeps a radian of oscillation, times rtol^(1/(q+1)) (q the order of the error
+estimate): half the least each adaptive method took on undamped swings of 1e-3 and 2 rad at
+rtol 1e-3 to 1e-10, so :func:`oscillation_trials` stays below the work it estimates."""
+
+
+def oscillation_trials(method: str, error_order: int, t_end: float, rtol: float, atol: float,
+                       params: PendulumParams, phi0: float, dphi0: float) -> float:
+    """Return a lower estimate of the trials an adaptive run without input must spend (0: none).
+
+    The run swings through t_end ω0 radians at some c rtol^(−1/(q+1)) trials a radian
+    (:data:`OSCILLATION_TRIALS`) while rtol, not atol, sets its error scale: where the speed
+    scale sqrt(2 E/I) (eq 23) stays at least atol/rtol to t_end, as the damping guarantees
+    (E/E0 >= exp(−2 γ V^(n−1) t) for n >= 1, since dE/dt = −γ I |φ'|^(n+1) with |φ'| <= V;
+    E0/I − γ V^(n+1) t for n < 1). Otherwise, and for an unknown method, 0 (no estimate).
+    """
+    c = OSCILLATION_TRIALS.get(method, 0.0)
+    w2, g, n = params.omega0_sq, params.gamma, params.n
+    e0 = 0.5 * dphi0 * dphi0 + 2.0 * w2 * math.sin(0.5 * phi0) ** 2
+    if c == 0.0 or w2 == 0.0 or e0 == 0.0:
+        return 0.0
+    v = math.sqrt(2.0 * e0)
+    if n >= 1.0:
+        left = e0 * math.exp(-2.0 * g * v ** (n - 1.0) * t_end)
+    else:
+        left = e0 - g * v ** (n + 1.0) * t_end
+    if not (left > 0.0 and rtol * math.sqrt(2.0 * left) >= atol):
+        return 0.0
+    return float(c * t_end * math.sqrt(w2) * max(rtol, 1e-13) ** (-1.0 / (error_order + 1)))
+
+
 def run_work_refusal(method: str, t_end: float, rtol: float, omega0_sq: float,
                      budget: int) -> IntegratorError:
     """Return the error that stops an adaptive run beyond ``budget`` trial substeps.
@@ -392,8 +425,8 @@ def run_work_refusal(method: str, t_end: float, rtol: float, omega0_sq: float,
     return IntegratorError(
         f'{method} needs more than MAX_RUN_TRIALS = {budget} trial substeps for t_end = '
         f'{t_end:g} s at rtol = {rtol:g} (omega0 = {omega0:.6g} rad/s: {t_end * omega0:.3g} '
-        f'rad of oscillation); the work budget of one call is spent: shorten t_end, loosen '
-        f'rtol or simulate the run in parts')
+        f'rad of oscillation), beyond the work budget of one call: shorten t_end, loosen rtol '
+        f'or simulate the run in parts')
 
 
 def check_run_length(t_end: float, h: float, max_steps: int) -> float:

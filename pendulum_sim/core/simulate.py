@@ -19,6 +19,7 @@ from .model import (
     check_speed,
     check_torque,
     energy,
+    oscillation_trials,
     run_speed_limit,
     run_work_refusal,
 )
@@ -100,7 +101,8 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     max_steps : int
         Refuse runs of more steps than this (default ``MAX_STEPS`` = 1e8), with the reason.
         An adaptive method's run also stops, with the reason, once it has spent
-        ``MAX_RUN_TRIALS`` (1e6) trial substeps: its work is bounded by both.
+        ``MAX_RUN_TRIALS`` (1e6) trial substeps (refused at once where its swing alone is
+        estimated to need more, ``model.oscillation_trials``): its work is bounded by both.
     jit : bool
         Run an adaptive method's steps compiled by numba (see :class:`Stepper`).
 
@@ -126,6 +128,11 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         tau_of: Callable[[float, float, float], float] = torque
     else:
         tau_const = 0.0 if torque is None else check_torque(torque, params)
+        if adaptive and tau_const == 0.0 and oscillation_trials(
+                stepper.method, stepper.engine.method.tableau.error_order, t_end,
+                stepper.engine.rtol, stepper.engine.atol, params, stepper.phi,
+                stepper.dphi) > budget:
+            raise refusal()  # before any work: the swing alone needs more than the budget
         if stepper.engine.dense_capable:
             try:
                 return _dense(stepper, t_end, k_full, last, record_every, tau_const, budget)
