@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from pendulum_sim.core.model import damping_derivative
+from pendulum_sim.core.law import damping_derivative
 
 W2 = 9.8
 

@@ -3,6 +3,8 @@ integers. Each input is refused with the core's own message naming the argument 
 or gives a finite, energy-consistent result; work is asserted as counted steps, never as time."""
 from __future__ import annotations
 
+import importlib
+import math
 import re
 from decimal import Decimal
 from typing import Any
@@ -10,12 +12,28 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pendulum_sim.core import IntegratorError, ModelError, PendulumParams, Stepper, simulate
-from pendulum_sim.core.embedded import MAX_TRIALS
-from pendulum_sim.core.model import MAX_SPEED, MAX_TOLERANCE, run_speed_limit
+from pendulum_sim.core import (
+    METHODS,
+    GuardStats,
+    IntegratorError,
+    ModelError,
+    PendulumParams,
+    Stepper,
+    simulate,
+)
+from pendulum_sim.core.embedded import MAX_TRIALS, BudgetSpent
+from pendulum_sim.core.model import (
+    MAX_RUN_TRIALS,
+    MAX_SPEED,
+    MAX_TOLERANCE,
+    oscillation_trials,
+    run_speed_limit,
+)
 from pendulum_sim.core.sweep import sweep
 
 PAPER = PendulumParams()
+simulate_module = importlib.import_module('pendulum_sim.core.simulate')  # the package's
+# ``simulate`` attribute is the function
 ADAPTIVE = ('dopri5', 'dop853', 'rodas4', 'extrap6', 'extrap8')
 
 
@@ -137,6 +155,75 @@ def test_adaptive_work_is_bounded_by_the_trial_budget_per_output() -> None:
     assert run.stats.steps == 10
     assert 0 < run.stats.substeps <= MAX_TRIALS * run.stats.steps
     assert np.all(np.isfinite(run.residual))
+
+
+BUDGET_MESSAGE = (
+    'dopri5 needs more than MAX_RUN_TRIALS = 5000 trial substeps for t_end = 0.01 s at rtol = '
+    '1e-08 (omega0 = 316228 rad/s: 3.16e+03 rad of oscillation), beyond the work budget of one '
+    'call: shorten t_end, loosen rtol or simulate the run in parts')
+
+
+@pytest.mark.parametrize('torque', [0.0, 1e-12, lambda t, p, v: 0.0],
+                         ids=['up front', 'dense', 'stepwise'])
+def test_an_adaptive_run_stops_at_its_trial_budget_with_the_reason(
+        monkeypatch: pytest.MonkeyPatch, torque: Any) -> None:
+    # g = 1e11: 3.2e3 rad of oscillation in 0.01 s take dopri5 35 000 trial substeps at rtol
+    # 1e-8 (3.5e6 for one second). Without input the swing's estimate (15 000) refuses it at
+    # once; with a torque the run stops once it has spent the budget, both when it runs as one
+    # cover (a constant) and output by output (a callable). A budget of 5000 stands for
+    # MAX_RUN_TRIALS here, whose 1e6 trials take seconds.
+    monkeypatch.setattr(simulate_module, 'MAX_RUN_TRIALS', 5000)
+    with pytest.raises(IntegratorError, match=f'^{re.escape(BUDGET_MESSAGE)}$'):
+        simulate(PAPER.with_changes(g=1e11), 1e-3, 0.0, 0.01, 1e-3, 'dopri5', torque=torque)
+
+
+def test_a_swing_beyond_the_budget_is_refused_before_any_work() -> None:
+    params = PAPER.with_changes(g=1e11)
+    need = oscillation_trials('dopri5', 4, 1.0, 1e-8, 1e-10, params, 2.0, 0.0)
+    assert need > MAX_RUN_TRIALS  # 1.5e6 estimated, 3.5e6 counted a second of this swing
+    message = BUDGET_MESSAGE.replace('5000', '1000000').replace('0.01 s', '1 s').replace(
+        '3.16e+03', '3.16e+05')
+    with pytest.raises(IntegratorError, match=f'^{re.escape(message)}$'):
+        simulate(params, 2.0, 0.0, 1.0, 1e-3, 'dopri5')
+
+
+@pytest.mark.parametrize('method', ADAPTIVE)
+@pytest.mark.parametrize(('phi0', 'gamma', 'rtol'), [(1e-3, 0.0, 1e-3), (2.0, 1.0, 1e-6)])
+def test_the_swing_estimate_stays_below_the_trials_counted(
+        method: str, phi0: float, gamma: float, rtol: float) -> None:
+    # 300 rad of swing at g = 1e9 (omega0 = 3.2e4 s^-1), undamped and damped.
+    params = PAPER.with_changes(g=1e9, gamma=gamma)
+    t_end = 300.0 / math.sqrt(params.omega0_sq)
+    run = simulate(params, phi0, 0.0, t_end, t_end / 10, method, rtol=rtol, atol=1e-10)
+    need = oscillation_trials(method, METHODS[method].tableau.error_order, t_end, rtol, 1e-10,
+                              params, phi0, 0.0)
+    assert 0.0 < need < run.stats.steps + run.stats.substeps
+
+
+def test_the_swing_estimate_claims_nothing_where_damping_may_end_the_swing() -> None:
+    # The paper's pendulum (gamma = 1 s^-1) over 100 s: the damping may bring the speed
+    # scale below atol/rtol, where the error control no longer follows the swing.
+    assert oscillation_trials('dopri5', 4, 100.0, 1e-8, 1e-10, PAPER, 2.0, 0.0) == 0.0
+    assert oscillation_trials('dopri5', 4, 1.0, 1e-8, 1e-10, PAPER, 2.0, 0.0) > 0.0
+    assert oscillation_trials('dopri5', 4, 1.0, 1e-8, 1e-10, PAPER, 0.0, 0.0) == 0.0  # at rest
+
+
+def test_the_dense_run_spends_exactly_its_budget_before_it_stops() -> None:
+    stepper = Stepper(PAPER.with_changes(g=1e11), 1e-3, 0.0, 1e-3, 'dopri5')
+    stats = GuardStats()
+    with pytest.raises(BudgetSpent):
+        stepper.engine.dense(1e-3, 0.0, np.linspace(0.0, 0.01, 11), 0.0, stats, 5000)
+    assert stats.substeps == 5001
+    # Without a budget the same run takes what it needs (no stop, more trial substeps).
+    free = GuardStats()
+    stepper.engine.dense(1e-3, 0.0, np.linspace(0.0, 0.01, 11), 0.0, free)
+    assert free.substeps > 5001
+
+
+def test_the_trial_budget_leaves_fixed_step_methods_to_max_steps() -> None:
+    # rk4 at g = 1e11 is refused by its step (h omega0 <= 100), not by a trial budget.
+    run = simulate(PAPER.with_changes(g=1e11), 1e-3, 0.0, 0.01, 1e-5, 'rk4')
+    assert run.stats.steps == 1000 and MAX_RUN_TRIALS == 1_000_000
 
 
 @pytest.mark.parametrize('method', ['rodas4', 'dopri5'])

@@ -14,8 +14,9 @@ import pytest
 
 from pendulum_sim.core import IntegratorError, PendulumParams, Stepper
 from pendulum_sim.core.decisions import kernel_source
-from pendulum_sim.core.explicit import damping_expression, step_source
+from pendulum_sim.core.explicit import step_source
 from pendulum_sim.core.jit import available
+from pendulum_sim.core.law import damping_expression
 from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import TABLEAUS
 

@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from .explicit import StepFn
+from .law import compile_damping
 from .problem import Problem
 
 CREEP_RELAX = 0.01
@@ -62,13 +63,14 @@ def settle_shift(n: float, v: float, vc: float, force: float) -> float:
     where the law has its kink.
     """
     u0 = v / vc
+    law = compile_damping(n)  # u|u|^(n−1): the law at γ = 1 (``law.py``)
 
     def part(a: float, b: float) -> float:
         mid, half = 0.5 * (a + b), 0.5 * (b - a)
         total = 0.0
         for x, wt in zip(_NODES, _WEIGHTS, strict=True):
             u = mid + half * x
-            den = 1.0 - math.copysign(abs(u) ** n, u)
+            den = 1.0 - law(u, 1.0, 1.0)
             total += wt * ((u - 1.0) / den if den != 0.0 else -1.0 / n)
         return half * total
 
@@ -100,7 +102,7 @@ def creep(prob: Problem, p: float, v: float, h: float,
     vc = creep_speed(prob, force)
     settle = abs(vc) / (n * a)
     if v != 0.0 and v != vc:
-        toward = a if v * force < 0.0 else abs(g * abs(v) ** n - a)
+        toward = a if v * force < 0.0 else abs(abs(prob.damping(v)) - a)
         settle += abs(v - vc) / toward if toward > 0.0 else math.inf
     if not settle <= CREEP_RELAX * h:
         return None

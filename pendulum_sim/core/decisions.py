@@ -17,7 +17,8 @@ import numpy as np
 import numpy.typing as npt
 
 from .codegen import define
-from .explicit import SCALAR_ENV, damping_expression, step_source
+from .explicit import step_source
+from .law import SCALAR_ENV, damping_expression
 from .tableaus import Tableau
 
 ENERGY_TOL = 1e-12

@@ -17,8 +17,7 @@ from __future__ import annotations
 
 import math
 
-from .explicit import DampingFn
-from .model import damping_derivative
+from .law import DampingFn, damping_derivative
 from .tableaus import Tableau
 
 _EPS = 2.220446049250313e-16

@@ -21,11 +21,12 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import IntegratorError
-from .explicit import ErrStepFn, compile_damping, compile_step
+from .explicit import ErrStepFn, compile_step
 from .extrapolation import compile_extrapolation
 from .guard import GuardStats
 from .jit import compile_step as jit_step
-from .model import FloatArray, damping_derivative, run_speed_limit
+from .law import compile_damping, damping_derivative
+from .model import FloatArray, run_speed_limit
 from .problem import Problem
 from .reversal import branch_accel, locate_reversal
 from .rosenbrock import compile_rosenbrock
@@ -125,6 +126,10 @@ class CoverFailed(IntegratorError):
         self.reached = reached
 
 
+class BudgetSpent(IntegratorError):
+    """Raised by :func:`cover` once the run's trial substeps exceed its ``budget``."""
+
+
 class TooManySubsteps(CoverFailed):
     """Raised by :func:`cover` when ``max_trials`` trial substeps did not cover the step."""
 
@@ -137,7 +142,8 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
           rest: FromRest, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
           h_try: float, stats: GuardStats, max_trials: int = 0,
           trace: list[float] | None = None,
-          stops: Sequence[float] = (), per: float = 0.0) -> tuple[float, float, float, float]:
+          stops: Sequence[float] = (), per: float = 0.0,
+          budget: int = 0) -> tuple[float, float, float, float]:
     """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial).
 
     ``tab`` is the embedded pair and ``steps`` its compiled steps (:func:`pair_steps`),
@@ -149,6 +155,8 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
     ``t, φ, φ', w`` after every accepted substep (t from the start of h): the mesh of
     :func:`dense_run`. ``stops`` (increasing, inside (0, h)) are times a substep must land on,
     as if h were covered by one call per stretch between them, the trial-step memory carried.
+    With ``budget`` > 0, :class:`BudgetSpent` is raised once ``stats`` counts more substeps
+    (the run's work bound, ``model.MAX_RUN_TRIALS``).
     """
     trials = 0
     plain, branch = steps
@@ -173,6 +181,8 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
         trials += 1
         if trials > 1:
             stats.substeps += 1
+            if stats.substeps > budget > 0:
+                raise BudgetSpent(f'more than {budget} trial substeps')
         if 0 < max_trials < trials and (not per or trials > max_trials * (1 + done // per)):
             raise TooManySubsteps(f'{trials - 1} trial substeps did not cover h = {h:g} s',
                                   (done, p, v, w_total))
@@ -299,7 +309,8 @@ def dense_capable(error_controlled: bool, coulomb: bool) -> bool:
 
 def dense_run(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, ErrStepFn],
               rest: FromRest, p: float, v: float, t_out: FloatArray, ain: float, rtol: float,
-              atol: float, stats: GuardStats) -> tuple[FloatArray, FloatArray, FloatArray]:
+              atol: float, stats: GuardStats,
+              budget: int = 0) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Integrate over [0, t_out[-1]] in one cover; return φ, φ', w at ``t_out``.
 
     The error-controlled substeps of :func:`cover` run over the whole span in one call (cut at
@@ -317,14 +328,16 @@ def dense_run(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepF
     where the damping is not smooth); where fewer than m points lie between kinks it uses those
     (at least the step's two ends). ``t_out`` is increasing from 0; ``a_in`` is constant over
     the run. Raises :class:`CoverFailed` where the substeps cannot cover the run (more than
-    :data:`MAX_TRIALS` trials per output interval, or a substep below :func:`min_step`).
+    :data:`MAX_TRIALS` trials per output interval, or a substep below :func:`min_step`), and
+    :class:`BudgetSpent` beyond ``budget`` trial substeps in all (see :func:`cover`).
     """
     m = dense_nodes(tab.order)
     trace: list[float] = [0.0, p, v, 0.0]
     stops = () if m else t_out[1:-1].tolist()
     span = float(t_out[-1])
     cover(prob, tab, steps, rest, p, v, span, ain, rtol, atol, 0.0, stats,
-          max_trials=MAX_TRIALS, trace=trace, stops=stops, per=span / (len(t_out) - 1))
+          max_trials=MAX_TRIALS, trace=trace, stops=stops, per=span / (len(t_out) - 1),
+          budget=budget)
     # Counted as one cover per output interval would count them: the first trial of each
     # stretch after a landing is a step, not a substep.
     stats.substeps -= len(stops)

@@ -36,11 +36,12 @@ from .decisions import (
     stiff_transient,
 )
 from .errors import IntegratorError
-from .explicit import DampingFn, ErrStepFn
+from .explicit import ErrStepFn
 from .guard import FALLBACK, GuardStats, StabilityGuard, safe_speed_range
 from .implicit import dirk_safe, fallback
+from .law import DampingFn, damping_derivative
 from .methods import Advance, Method
-from .model import FloatArray, damping_derivative
+from .model import FloatArray
 from .problem import Problem
 from .split import SplitSteps
 from .tableaus import DOP853, RK4, Tableau
@@ -125,13 +126,13 @@ class Engine:
         return embedded.dense_capable(self.method.family.error_controlled, self.coulomb)
 
     def dense(self, p: float, v: float, t_out: FloatArray, ain: float,
-              stats: GuardStats) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Run the adaptive method over all of ``t_out`` in one cover (``embedded.dense_run``)."""
+              stats: GuardStats, budget: int = 0) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Cover all of ``t_out`` in one run within ``budget`` trials (``embedded.dense_run``)."""
         if not self.dense_capable:
             raise IntegratorError(f'{self.method.name} has no dense output here')
         return embedded.dense_run(self.problem, self.method.tableau, self.pair_steps(),
                                   self.plain.from_rest, p, v, t_out, ain, self.rtol,
-                                  self.atol, stats)
+                                  self.atol, stats, budget)
 
     # ------------------------------------------------------------------ fast path
     def fast_range(self, h: float, ain: float) -> tuple[float, float]:

@@ -18,78 +18,16 @@ either side of a velocity reversal); the plain law ignores it.
 from __future__ import annotations
 
 import functools
-import math
 import re
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from .codegen import define
+from .law import SCALAR_ENV, VECTOR_ENV, damping_expression
 from .tableaus import Tableau
 
 StepFn = Callable[..., tuple[Any, Any, Any, Any]]
 ErrStepFn = Callable[..., tuple[Any, Any, Any, Any, Any, Any]]
-DampingFn = Callable[[float], float]
-
-
-def _sign(x: float) -> float:
-    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
-
-
-SCALAR_ENV: dict[str, object] = {'sin': math.sin, 'copysign': math.copysign, 'sign': _sign,
-                                 'abs': abs, 'sqrt': math.sqrt}
-VECTOR_ENV: dict[str, object] = {'sin': np.sin, 'copysign': np.copysign, 'sign': np.sign,
-                                 'abs': np.abs, 'sqrt': np.sqrt}
-
-
-def _power(n: int, odd_abs: bool) -> str:
-    """Return v^n as multiplications; |v|^n instead where ``odd_abs`` and n is odd."""
-    if n == 0:
-        return '1.0'
-    if n % 2 == 1 and odd_abs:
-        return ' * '.join(['v'] * (n - 1) + ['abs(v)'])
-    return ' * '.join(['v'] * n)
-
-
-def damping_expression(n: float, branch: bool = False, scalar: bool = False) -> str:
-    """Return source for the damping law D(v) specialised for the exponent ``n`` (eq 15).
-
-    The plain law is γ v|v|^(n−1) (D(0) = 0 for every n, also n = 0: sticking is decided by the
-    caller); the branch law is s γ |v|^n. Integer exponents up to 8 use multiplications (a
-    power call costs as much as a whole stage). Names read: ``v``, ``gamma``, ``n``, ``s``.
-    This is the one definition of the law in the core; everything that evaluates it compiles it.
-    """
-    whole = n == int(n) and 1.0 <= n <= 8.0
-    # |v|^0.5 is spelled sqrt: a compiler rewrites pow(x, 0.5) so (LLVM, ``jit.py``), and the
-    # C library's pow differs from sqrt in the last bit for 7–8 in 10 000 random x.
-    root = 'sqrt(abs(v))' if n == 0.5 else 'abs(v) ** n'
-    if branch:
-        if n == 0.0:
-            return 's * gamma'
-        if whole:
-            return f's * gamma * {_power(int(n), odd_abs=True)}'
-        return f's * gamma * {root}'
-    if n == 0.0:
-        return 'gamma * sign(v)'
-    if whole:
-        k = int(n)
-        # v|v|^(k−1): v^k for odd k, v^(k−1)|v| for even k; in scalar code the even case is
-        # ±γ v^k by the sign of v, the same floats without an abs() call per stage.
-        if k % 2:
-            return f'gamma * {_power(k, False)}'
-        if scalar:
-            return f'(gamma * {_power(k, False)} if v > 0.0 else -(gamma * {_power(k, False)}))'
-        return f'gamma * {_power(k - 1, False)} * abs(v)'
-    return f'copysign(gamma * {root}, v)'
-
-
-@functools.lru_cache(maxsize=256)
-def compile_damping(n: float, branch: bool = False, vector: bool = False) -> Any:
-    """Return the damping law ``D(v, gamma, s)`` for exponent ``n`` (numpy with ``vector``)."""
-    src = f'def damping(v, gamma, s):\n    return {damping_expression(n, branch)}\n'
-    env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV, n=n)
-    return define(src, 'damping', env, '<damping>')
 
 
 def _num(x: float) -> str:

@@ -15,7 +15,7 @@ T_kk has order k; T_kk − T_{k,k−1} estimates the error of the order-(k−1) 
 behaves as an embedded pair of orders k(k−1) with an L-stable base, and the error-controlled cover
 of ``embedded.py`` (with its cut at velocity reversals) drives it unchanged. As in
 ``rosenbrock.py``, J = [[0, 1], [−ω0² cos φ, −d]] with the damping slope d = γ n |φ'|^(n−1) of
-``model.damping_derivative`` (eq 18-19), every solve is a 2×2 one written out by hand, and the
+``law.damping_derivative`` (eq 18-19), every solve is a 2×2 one written out by hand, and the
 damping work w is a third, quadrature component (its row of J is [0, D + φ' D', 0]).
 
 The generated step has the signature and results of the embedded steps,
@@ -33,8 +33,7 @@ from typing import Any
 import numpy as np
 
 from .codegen import define
-from .explicit import SCALAR_ENV, damping_expression
-from .model import damping_derivative
+from .law import SCALAR_ENV, damping_derivative, damping_expression
 from .tableaus import Extrapolation, FloatArray
 
 

@@ -21,7 +21,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 import numpy.typing as npt
 
-from .model import _eigs, damping_derivative
+from .law import damping_derivative
+from .model import _eigs
 from .tableaus import Tableau
 
 FALLBACK = 0

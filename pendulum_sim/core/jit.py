@@ -13,7 +13,7 @@ implementation.
 Two things keep the two executions equal. No fast-math: numba leaves IEEE arithmetic as
 written (no fused multiply-add, no reassociation), but LLVM still rewrites a power with the
 constant exponent 0.5, 2 or −1 (to sqrt, x·x, 1/x), which the C library's pow differs from in
-the last bit for 7–8 in 10 000 random x; the generated damping law and ``model.slope_formula``
+the last bit for 7–8 in 10 000 random x; the generated damping law and ``law.slope_formula``
 therefore spell those cases so themselves. And where Python raises OverflowError or
 ValueError (a power beyond float64, the sine of inf), compiled code returns inf or NaN: the
 cover rejects a trial step either way (its error norm is then not finite), so both take the
@@ -34,7 +34,7 @@ import types
 from typing import Any
 
 from .errors import IntegratorError
-from .model import damping_derivative, slope_formula
+from .law import damping_derivative, slope_formula
 
 SIGNATURE = 'UniTuple(float64, 6)(float64, float64, float64, float64, float64, float64, float64)'
 """The embedded steps' signature: (φ₀, φ'₀, h, a_in, ω0², γ, s) → (φ₁, φ'₁, w, a₀, e_φ, e_φ')."""

@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import IntegratorError, ModelError
+from .law import compile_damping, compile_power, damping_derivative
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -40,6 +41,16 @@ phase (it is then cut into substeps that each resolve it, so the bound caps thei
 
 MAX_STEPS = 100_000_000
 """The default largest number of steps of one run (``simulate``, ``sweep``)."""
+
+MAX_RUN_TRIALS = 1_000_000
+"""The most trial substeps an adaptive method may spend in one ``simulate`` call.
+
+An adaptive method's work is set by its inputs together: t_end ω0 radians of oscillation at
+some 1-130 trial substeps a radian (more the tighter rtol and the lower the method's order),
+plus what a stiff damping slope costs an explicit pair. Fast gravity makes that unbounded in
+practice (g = 1e11: ω0 = 3.2e5 s⁻¹, 3.5e6 trials a second of ``dopri5`` at rtol = 1e-8), so
+a run that spends this many is stopped there with the reason (:func:`run_work_refusal`), and
+one that :func:`oscillation_trials` puts beyond it is refused before any work."""
 
 INERTIA_RTOL = 1e-12
 """Round-off allowed in the parallel-axis test I >= m l²."""
@@ -159,10 +170,9 @@ class PendulumParams:
         """Return the damping acceleration γ φ'|φ'|^(n−1) (eq 15) at velocity ``dphi``.
 
         For n = 0 this is γ sgn(φ'), zero at rest; sticking is handled by the integrators.
+        The law is the core's one definition (``law.damping_expression``), compiled for n.
         """
-        if dphi == 0.0:
-            return 0.0
-        return self.gamma * math.copysign(abs(dphi) ** self.n, dphi)
+        return float(compile_damping(self.n)(dphi, self.gamma, 1.0))
 
     def acceleration(self, phi: float, dphi: float, torque: float = 0.0) -> float:
         """Return φ'' = −γ φ'|φ'|^(n−1) − ω0² sin φ + τ/I (eq 16 with input torque)."""
@@ -189,33 +199,6 @@ def smooth_law(n: float) -> bool:
     Every other law has a kink at φ' = 0 (n even, non-integer, or 0): the core's one test.
     """
     return n >= 1.0 and n == int(n) and int(n) % 2 == 1
-
-
-def damping_derivative(gamma: float, n: float, dphi: float) -> float:
-    """Return d = ∂(γ φ'|φ'|^(n−1))/∂φ' = γ n |φ'|^(n−1) (inf for n < 1 at rest)."""
-    try:
-        return slope_formula(gamma, n, dphi)
-    except OverflowError:   # beyond float64: as steep as it gets
-        return math.inf
-
-
-def slope_formula(gamma: float, n: float, dphi: float) -> float:
-    """The arithmetic of :func:`damping_derivative` alone (raises OverflowError beyond float64).
-
-    Kept free of exception handling so that numba can compile it for the compiled steps
-    (``jit.py``), where an overflow gives inf, the value :func:`damping_derivative` returns.
-    """
-    if n == 1.0:
-        return gamma
-    if n == 0.0 or gamma == 0.0:
-        return 0.0
-    a = abs(dphi)
-    if a == 0.0:
-        return math.inf if n < 1.0 else 0.0
-    e = n - 1.0
-    # a^0.5 and a^2 spelled as a compiler rewrites them (LLVM, ``jit.py``): the C library's
-    # pow differs from sqrt and from a·a in the last bit for 7–8 in 10 000 random a.
-    return float(gamma * n * (math.sqrt(a) if e == 0.5 else a * a if e == 2.0 else a ** e))
 
 
 def _eigs(d: float, c: float) -> tuple[complex, complex]:
@@ -251,11 +234,11 @@ def potential_energy(params: PendulumParams, phi: Any) -> Any:
 
 
 def dissipated_power(params: PendulumParams, dphi: Any) -> Any:
-    """Return the power lost to damping, γ I |φ'|^(n+1) in W (eq 26; >= 0)."""
-    a = np.abs(dphi)
-    if params.n == 0.0:
-        return params.gamma * params.inertia * a
-    return params.gamma * params.inertia * a ** (params.n + 1.0)
+    """Return the power lost to damping, γ I |φ'|^(n+1) in W (eq 26; >= 0).
+
+    φ' times the damping torque I D(φ'), generated from the law (``law.power_expression``).
+    """
+    return compile_power(params.n)(dphi, params.gamma * params.inertia)
 
 
 def input_power(dphi: Any, torque: Any) -> Any:
@@ -397,6 +380,53 @@ def check_count(name: str, value: object, minimum: int = 1) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise IntegratorError(f'{name} must be an integer >= {minimum}, got {value!r}')
     return value
+
+
+OSCILLATION_TRIALS = {'dopri5': 0.12, 'dop853': 0.09, 'rodas4': 0.13, 'extrap6': 0.11,
+                      'extrap8': 0.09}
+"""Trial substeps a radian of oscillation, times rtol^(1/(q+1)) (q the order of the error
+estimate): half the least each adaptive method took on undamped swings of 1e-3 and 2 rad at
+rtol 1e-3 to 1e-10, so :func:`oscillation_trials` stays below the work it estimates."""
+
+
+def oscillation_trials(method: str, error_order: int, t_end: float, rtol: float, atol: float,
+                       params: PendulumParams, phi0: float, dphi0: float) -> float:
+    """Return a lower estimate of the trials an adaptive run without input must spend (0: none).
+
+    The run swings through t_end ω0 radians at some c rtol^(−1/(q+1)) trials a radian
+    (:data:`OSCILLATION_TRIALS`) while rtol, not atol, sets its error scale: where the speed
+    scale sqrt(2 E/I) (eq 23) stays at least atol/rtol to t_end, as the damping guarantees
+    (E/E0 >= exp(−2 γ V^(n−1) t) for n >= 1, since dE/dt = −γ I |φ'|^(n+1) with |φ'| <= V;
+    E0/I − γ V^(n+1) t for n < 1). Otherwise, and for an unknown method, 0 (no estimate).
+    """
+    c = OSCILLATION_TRIALS.get(method, 0.0)
+    w2, g, n = params.omega0_sq, params.gamma, params.n
+    e0 = 0.5 * dphi0 * dphi0 + 2.0 * w2 * math.sin(0.5 * phi0) ** 2
+    if c == 0.0 or w2 == 0.0 or e0 == 0.0:
+        return 0.0
+    v = math.sqrt(2.0 * e0)
+    if n >= 1.0:
+        left = e0 * math.exp(-2.0 * g * v ** (n - 1.0) * t_end)
+    else:
+        left = e0 - g * v ** (n + 1.0) * t_end
+    if not (left > 0.0 and rtol * math.sqrt(2.0 * left) >= atol):
+        return 0.0
+    return float(c * t_end * math.sqrt(w2) * max(rtol, 1e-13) ** (-1.0 / (error_order + 1)))
+
+
+def run_work_refusal(method: str, t_end: float, rtol: float, omega0_sq: float,
+                     budget: int) -> IntegratorError:
+    """Return the error that stops an adaptive run beyond ``budget`` trial substeps.
+
+    The message names the arguments that set the work (t_end, rtol, and gravity through ω0)
+    and the limit, :data:`MAX_RUN_TRIALS`.
+    """
+    omega0 = math.sqrt(omega0_sq)
+    return IntegratorError(
+        f'{method} needs more than MAX_RUN_TRIALS = {budget} trial substeps for t_end = '
+        f'{t_end:g} s at rtol = {rtol:g} (omega0 = {omega0:.6g} rad/s: {t_end * omega0:.3g} '
+        f'rad of oscillation), beyond the work budget of one call: shorten t_end, loosen rtol '
+        f'or simulate the run in parts')
 
 
 def check_run_length(t_end: float, h: float, max_steps: int) -> float:

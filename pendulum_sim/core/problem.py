@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from .explicit import DampingFn, compile_damping
+from .law import DampingFn, compile_damping
 from .model import smooth_law
 from .reversal import grade_window, graded_law
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from .explicit import compile_damping
+from .law import compile_damping
 
 GRADE_WINDOW = 1.0
 """Laws graded at reversals: the window, in units of 1/ω0 (1 s without gravity), on either
@@ -62,7 +62,7 @@ def branch_accel(p: float, v: float, ain: float, sign: float, gamma: float, n: f
                  w2: float) -> float:
     """Return φ'' on the damping branch ``sign``: a_in − s γ |φ'|^n − ω0² sin φ (eq 16).
 
-    The branch law is the generated one (``explicit.damping_expression``), as in the steps.
+    The branch law is the generated one (``law.damping_expression``), as in the steps.
     """
     return float(ain - compile_damping(n, True)(v, gamma, sign) - w2 * math.sin(p))
 

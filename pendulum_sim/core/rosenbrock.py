@@ -17,7 +17,7 @@ w = ∫ φ' D(φ') dt is a third, quadrature component of the same system (its r
 results as an embedded explicit step of ``explicit.py`` — ``(φ₁, φ'₁, w, a₀, e_φ, e_φ')`` — so
 the error-controlled cover of ``embedded.py`` (with its cut at velocity reversals) drives it
 unchanged. The damping law is the core's one expression (``explicit.damping_expression``) and
-its slope the core's one ``model.damping_derivative``.
+its slope the core's one ``law.damping_derivative``.
 """
 from __future__ import annotations
 
@@ -31,8 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .codegen import define
-from .explicit import SCALAR_ENV, damping_expression
-from .model import damping_derivative
+from .law import SCALAR_ENV, damping_derivative, damping_expression
 from .tableaus import Tableau
 
 FloatArray = npt.NDArray[np.float64]

@@ -7,9 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .embedded import CoverFailed
+from .embedded import BudgetSpent, CoverFailed
 from .guard import GuardStats
 from .model import (
+    MAX_RUN_TRIALS,
     MAX_STEPS,
     FloatArray,
     PendulumParams,
@@ -18,7 +19,9 @@ from .model import (
     check_speed,
     check_torque,
     energy,
+    oscillation_trials,
     run_speed_limit,
+    run_work_refusal,
 )
 from .stepper import Stepper
 
@@ -97,6 +100,9 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
         Keep every k-th step (the last step is always kept).
     max_steps : int
         Refuse runs of more steps than this (default ``MAX_STEPS`` = 1e8), with the reason.
+        An adaptive method's run also stops, with the reason, once it has spent
+        ``MAX_RUN_TRIALS`` (1e6) trial substeps (refused at once where its swing alone is
+        estimated to need more, ``model.oscillation_trials``): its work is bounded by both.
     jit : bool
         Run an adaptive method's steps compiled by numba (see :class:`Stepper`).
 
@@ -111,16 +117,31 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     h = stepper.h
     t_end = check_run_length(t_end, h, max_steps)
     k_full, last = step_count(t_end, h)
+    adaptive = not stepper.engine.method.fixed_step
+    budget = MAX_RUN_TRIALS if adaptive else 0
+    spent = 0  # trial substeps of a dense run that could not run through
+
+    def refusal() -> Exception:
+        return run_work_refusal(stepper.method, t_end, rtol, params.omega0_sq, budget)
+
     if callable(torque):
         tau_of: Callable[[float, float, float], float] = torque
     else:
         tau_const = 0.0 if torque is None else check_torque(torque, params)
+        if adaptive and tau_const == 0.0 and oscillation_trials(
+                stepper.method, stepper.engine.method.tableau.error_order, t_end,
+                stepper.engine.rtol, stepper.engine.atol, params, stepper.phi,
+                stepper.dphi) > budget:
+            raise refusal()  # before any work: the swing alone needs more than the budget
         if stepper.engine.dense_capable:
             try:
-                return _dense(stepper, t_end, k_full, last, record_every, tau_const)
+                return _dense(stepper, t_end, k_full, last, record_every, tau_const, budget)
+            except BudgetSpent:
+                raise refusal() from None
             except CoverFailed:
                 # The one cover could not run through: step by step below, where a step the
                 # cover fails on is taken by the fallback (``embedded.Cover``).
+                spent = stepper.stats.substeps
                 stepper.stats = GuardStats()
 
         def tau_of(t: float, phi: float, dphi: float) -> float:
@@ -131,6 +152,8 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     for k in range(1, k_full + 1):
         tau = tau_of(stepper.t, stepper.phi, stepper.dphi)
         stepper.step(tau)
+        if spent + stepper.stats.substeps > budget > 0:
+            raise refusal()
         if k in recorded:
             taus.append(tau)
             ps.append(stepper.phi)
@@ -140,6 +163,8 @@ def simulate(params: PendulumParams, phi0: float, dphi0: float, t_end: float, h:
     if last > 0.0:
         tau = tau_of(stepper.t, stepper.phi, stepper.dphi)
         stepper.step_by(last, tau)
+        if spent + stepper.stats.substeps > budget > 0:
+            raise refusal()
         taus.append(tau)
         ps.append(stepper.phi)
         vs.append(stepper.dphi)
@@ -180,12 +205,13 @@ def output_times(t_end: float, h: float, k_full: int, last: float,
 
 
 def _dense(stepper: Stepper, t_end: float, k_full: int, last: float, record_every: int,
-           tau: float) -> Trajectory:
+           tau: float, budget: int) -> Trajectory:
     """Run an adaptive method over all outputs in one cover (``embedded.dense_run``)."""
     params = stepper.params
     t = output_times(t_end, stepper.h, k_full, last, record_every)
     p0, v0 = stepper.phi, stepper.dphi
-    phi, dphi, w = stepper.engine.dense(p0, v0, t, tau / params.inertia, stepper.stats)
+    phi, dphi, w = stepper.engine.dense(p0, v0, t, tau / params.inertia, stepper.stats,
+                                        budget)
     phi[0], dphi[0], w[0] = p0, v0, 0.0
     lim = run_speed_limit(params.gamma, params.n, params.omega0_sq)
     fast = np.flatnonzero(~(np.abs(dphi) <= lim))

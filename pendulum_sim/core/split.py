@@ -15,6 +15,7 @@ from .coulomb import creep, from_rest
 from .decisions import reversal_suspect
 from .explicit import StepFn, compile_step
 from .guard import GuardStats
+from .law import compile_damping
 from .problem import Problem
 from .reversal import branch_accel, graded_mesh, locate_reversal
 from .tableaus import Tableau
@@ -132,7 +133,7 @@ class SplitSteps:
             if acc != 0.0:
                 dt = min(max(-vm / acc, -th * h), (1.0 - th) * h)
                 pm += dt * (vm + 0.5 * dt * acc)
-                wm += dt * vm * (sign * g * abs(vm) ** n)
+                wm += dt * vm * compile_damping(n, True)(vm, g, sign)
                 vm = 0.0
                 th += dt / h
         stats.reversals += 1

@@ -12,8 +12,9 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
-from ..core.explicit import compile_damping, compile_step
-from ..core.model import PendulumParams, damping_derivative
+from ..core.explicit import compile_step
+from ..core.law import compile_damping, damping_derivative
+from ..core.model import PendulumParams
 from ..core.tableaus import TABLEAUS
 
 FloatArray = npt.NDArray[np.float64]

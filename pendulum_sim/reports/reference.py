@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..core.explicit import compile_damping
 from ..core.guard import terminal_speed
-from ..core.model import PendulumParams, damping_derivative
+from ..core.law import compile_damping, damping_derivative
+from ..core.model import PendulumParams
 from ..core.simulate import simulate
 from .plain import jacobian
 
