@@ -18,7 +18,8 @@ that much log time. When stdin ends without ``CLOSE`` (the recording process was
 closed the recording while this process was stopped and could not hand everything over) the file
 is finalised all the same, ending with a stop event (the ``stop`` channel, the same mark a
 recording cut short by a lagging writer ends with) stamped with the last log time received:
-every message received is in it, and the file says that it was cut short. SIGINT and SIGTERM are ignored: the recording process decides.
+every message received is in it, and the file says that it was cut short. SIGINT and SIGTERM
+are ignored: the recording process decides.
 Input is taken in batches every few milliseconds (the pipe buffers it). This process never
 imports rclpy, so it starts quickly, and it holds no GIL the node needs.
 """
