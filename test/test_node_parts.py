@@ -245,3 +245,45 @@ def test_each_driver_applies_the_live_parameters_of_its_mode() -> None:
     sync.reconfigure({**values, 'sync_timeout': 0.25, 'sync_timeout_action': 'stop'},
                      {'sync_timeout', 'sync_timeout_action'}, 0)
     assert (ex.timeout_ns, ex.action) == (250_000_000, 'stop')
+
+
+def test_a_parameter_storm_reconfigures_the_joint_once_a_wake_with_the_last_values() -> None:
+    """Parameter sets are only noted; each wake applies all noted since the last at once.
+
+    1000 sets between two wakes used to reconfigure the joint 1000 times in the parameter
+    callbacks, between the ticks; now the wake reconfigures once, with the last values, before
+    it steps, and the set counts from the step at which it arrived.
+    """
+    from pendulum_sim.node.parameters import joint_config, merged
+
+    clock = FakeClock()
+    values = defaults(publish_rate=100.0)
+    j = SimulatedJoint(joint_config(values, 0))  # type: ignore[arg-type]
+    driver = RealTimeDriver(j, Gate(), lambda c: True, lambda level, text: None, 0, 1.0,
+                            lockstep=False, clock=clock)
+    reconfigured: list[set[str]] = []
+    applied = driver.reconfigure
+
+    def counting(v: object, names: set[str], now_ns: int) -> None:
+        reconfigured.append(set(names))
+        applied(v, names, now_ns)  # type: ignore[arg-type]
+
+    driver.reconfigure = counting  # type: ignore[method-assign]
+    current = dict(values)
+    for wake in range(1, 4):
+        for k in range(1000):
+            current = merged(current, [('gamma', 1.0 + k / 1000 + wake)])
+            driver.take_parameters(current, {'gamma'})  # type: ignore[arg-type]
+            assert j.config.params.gamma != current['gamma']   # noted, not applied
+        current = merged(current, [('max_effort', 5.0 + wake)])
+        driver.take_parameters(current, {'max_effort'})  # type: ignore[arg-type]
+        steps = j.steps
+        clock.ns = wake * 10_000_000
+        driver.wake(clock.ns, clock.ns + 10_000_000)
+        assert j.steps > steps   # the tick went on stepping
+        assert reconfigured == [{'gamma', 'max_effort'}] * wake
+        assert (j.config.params.gamma, j.config.max_effort) == (1.999 + wake, 5.0 + wake)
+    assert (driver.parameter_sets, driver.reconfigures) == (3003, 3)
+    clock.ns += 10_000_000
+    driver.wake(clock.ns, clock.ns + 10_000_000)   # nothing new: no reconfigure
+    assert driver.reconfigures == 3 and len(reconfigured) == 3

@@ -208,10 +208,21 @@ def physics(values: Mapping[str, Value]) -> PendulumParams:
 
 def check(values: Mapping[str, Value]) -> str | None:
     """Return why the complete parameter set ``values`` is unusable, or None if it is fine."""
+    return _checked(values)[0]
+
+
+def _checked(values: Mapping[str, Value]) -> tuple[str | None, PendulumParams | None]:
+    """Return (why ``values`` is unusable or None, its physics if it has any); the body is
+    built once per check (a parameter storm validates every set)."""
     try:
-        validate_state(float(values['phi0']), float(values['dphi0']), physics(values))
+        params = physics(values)
+        validate_state(float(values['phi0']), float(values['dphi0']), params)
     except ModelError as exc:
-        return str(exc)
+        return str(exc), None
+    return _check_rest(values, params), params
+
+
+def _check_rest(values: Mapping[str, Value], params: PendulumParams) -> str | None:
     if values['integrator'] not in METHODS:
         known = ', '.join(sorted(METHODS))
         return f"integrator must be one of {known}, got '{values['integrator']}'"
@@ -247,7 +258,7 @@ def check(values: Mapping[str, Value]) -> str | None:
                 f'infinite (a continuous joint), got {lo} and {hi}: a URDF joint has no '
                 'one-sided limit')
     try:
-        check_config(joint_config(values))
+        check_config(JointConfig.from_values(values, params))
     except (JointError, ModelError) as exc:
         return str(exc)
     return None
@@ -280,10 +291,10 @@ def refusal(current: Mapping[str, Value], changes: Iterable[tuple[str, Value]],
     checks the new physics against its state.
     """
     proposed = merged(current, changes)
-    reason = check(proposed)
-    if reason is None:
+    reason, params = _checked(proposed)
+    if reason is None and params is not None:
         try:
-            joint.check_params(physics(proposed))
+            joint.check_params(params)
         except (JointError, PendulumError) as exc:
             reason = str(exc)
     return reason

@@ -260,6 +260,7 @@ class PendulumNode(Node):
         self._guarded(self._command, 'joint_commands', msg, decoded)
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        self._driver.apply_parameters(time.monotonic_ns())   # a new phi0 counts from here
         was_failed = self._joint.reset()
         response.success = True
         response.message = replies.reset_reply(self._values, self._joint.time, was_failed)
@@ -306,7 +307,7 @@ class PendulumNode(Node):
         for p in params:
             if p.name in names:
                 self._values[p.name] = p.value
-        self._driver.reconfigure(self._values, names, time.monotonic_ns())
+        self._driver.take_parameters(self._values, names)   # applied by the next wake, once
         self._telemetry.rtf_target = float(self._values['real_time_factor'])
         if self._recording.recorder is not None:
             stamp = self._joint.stamp_ns()
