@@ -26,6 +26,8 @@ Value = bool | int | float | str
 
 FIXED = 'Read-only: fixed when the node starts (restart the node to change it).'
 SWITCH = 'Read-only: a scene builds only what it enables.'
+SAMPLED = ('Refused beyond the stability limit of the servo loop sampled at h (with the other '
+           'gains as set; the message states the limit).')
 
 
 @dataclass(frozen=True)
@@ -133,12 +135,13 @@ SPECS: tuple[Spec, ...] = (
     Spec('position_max', math.inf, 'Upper position limit of position commands, rad (.inf = '
          'none). Live.', unit='rad'),
     Spec('servo.position_p', 8.0, 'Position loop gain of the servo, 1/s: the speed demanded '
-         'per rad of position error (limited to max_velocity). Live.', low=0.0, high=1e6,
-         unit='1/s'),
+         'per rad of position error (limited to max_velocity). ' + SAMPLED + ' Live.',
+         low=0.0, high=1e6, unit='1/s'),
     Spec('servo.velocity_p', 4.0, 'Velocity loop proportional gain of the servo, N m s/rad. '
-         'Live.', low=0.0, high=1e6, unit='N m s/rad'),
+         + SAMPLED + ' Live.', low=0.0, high=1e6, unit='N m s/rad'),
     Spec('servo.velocity_i', 20.0, 'Velocity loop integral gain of the servo, N m/rad (with '
-         'anti-windup at max_effort). Live.', low=0.0, high=1e6, unit='N m/rad'),
+         'anti-windup at max_effort). ' + SAMPLED + ' Live.', low=0.0, high=1e6,
+         unit='N m/rad'),
     Spec('servo.gravity_feedforward', True, "Add the joint's own gravity torque m g l sin(phi) "
          'to the servo torque. Live.'),
     # Sensor realism.
