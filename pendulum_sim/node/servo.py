@@ -45,7 +45,7 @@ it, so a step has no overshoot). For another inertia, scale velocity_p and veloc
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from pendulum_sim.core import PendulumParams
 
@@ -159,7 +159,9 @@ def gain_range(name: str, gains: ServoGains, inertia: float, h: float,
     def stable(value: float) -> bool:
         values = {'position_p': gains.position_p, 'velocity_p': gains.velocity_p,
                   'velocity_i': gains.velocity_i, name: value}
-        return loop_stable(replace(gains, **values), inertia, h, interface)
+        trial = ServoGains(values['position_p'], values['velocity_p'], values['velocity_i'],
+                           gains.gravity_feedforward)
+        return loop_stable(trial, inertia, h, interface)
 
     flags = [stable(v) for v in GRID]
     if not any(flags):
