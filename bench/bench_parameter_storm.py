@@ -49,8 +49,11 @@ def main() -> None:
     parser.add_argument('--count', type=int, default=10000)
     parser.add_argument('--rate', type=float, default=1000.0)
     parser.add_argument('--in-flight', type=int, default=10)
+    parser.add_argument('--executor', choices=('events', 'single'), default='events',
+                        help="the node's executor (pendulum_node --executor)")
     args = parser.parse_args()
-    with NodeProcess('default', {'status_line': False}) as node, Probe() as probe:
+    with NodeProcess('default', {'status_line': False},
+                     extra_args=['--executor', args.executor]) as node, Probe() as probe:
         diags = probe.subscribe(DiagnosticArray, '/diagnostics')
 
         def latest() -> dict[str, str]:
@@ -67,8 +70,13 @@ def main() -> None:
              str(args.rate), str(args.in_flight)], stdout=subprocess.PIPE, text=True)
         assert storm.stdout is not None
         assert storm.stdout.readline().strip() == 'ready'
+        seen = len(diags.msgs)
+        windows = []
         while storm.poll() is None:
             probe.spin_for(0.1)
+            if len(diags.msgs) > seen:
+                seen = len(diags.msgs)
+                windows.append(latest())
         result = json.loads(storm.stdout.readline())
         cpu = cpu_seconds(node.proc.pid) - cpu0
         count = len(diags.msgs)
@@ -81,6 +89,11 @@ def main() -> None:
           f"(asked {args.rate:.0f}/s, <= {args.in_flight} in flight)")
     print(f"node CPU during the storm: {cpu:.2f} s = {1e3 * cpu / result['answered']:.2f} ms "
           f"per set ({100 * cpu / result['seconds']:.0f} % of one core)")
+    print('each diagnostics window during the storm (about 1 s): wake latency p99 / max (us), '
+          'mean steps per wake, missed wakes so far')
+    for w in windows:
+        print(f"  {w.get('wake_latency_p99_us', '-'):>10} {w.get('wake_latency_max_us', '-'):>10}"
+              f" {w.get('steps_per_wake', '-'):>8} {w.get('missed_wakes', '-'):>6}")
     print(f"{'figure':<28}{'before':>12}{'after':>12}")
     for key in KEYS:
         print(f'{key:<28}{before.get(key, "-"):>12}{after.get(key, "-"):>12}')

@@ -287,3 +287,23 @@ def test_a_parameter_storm_reconfigures_the_joint_once_a_wake_with_the_last_valu
     clock.ns += 10_000_000
     driver.wake(clock.ns, clock.ns + 10_000_000)   # nothing new: no reconfigure
     assert driver.reconfigures == 3 and len(reconfigured) == 3
+
+
+def test_a_due_wake_is_served_before_a_queued_parameter_set_and_only_once() -> None:
+    """The timer's event can wait behind queued parameter sets; a set first serves the wake
+    that is due (the latest on the timer's grid), and the timer's event then finds it taken."""
+    ms = 1_000_000
+    stats = WakeStats(5 * ms)
+    assert stats.overdue(0) is None                   # the first wake is the timer's own
+    stats.wake(0, 100)
+    assert stats.overdue(4 * ms) is None              # not yet due
+    assert stats.overdue(5 * ms) == 5 * ms            # due: served by the set
+    stats.wake(5 * ms, 5 * ms)
+    assert stats.taken(5 * ms)                        # the timer's event for it: nothing to do
+    assert not stats.taken(10 * ms)
+    assert stats.overdue(23 * ms) == 20 * ms          # late: the latest due, the rest missed
+    stats.wake(20 * ms, 23 * ms)
+    assert (stats.wakes, stats.missed) == (3, 2)
+    assert stats.taken(15 * ms) and stats.taken(20 * ms) and not stats.taken(25 * ms)
+    assert WakeStats(0).overdue(10**12) is None      # no period (as fast as possible, sync)
+    assert not WakeStats(0).taken(0)

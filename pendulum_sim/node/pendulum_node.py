@@ -216,13 +216,28 @@ class PendulumNode(Node):
         return None
 
     def _on_wake(self) -> None:
-        self._guarded(self._wake)
+        self._guarded(self._wake, None)
 
-    def _wake(self) -> None:
-        """Advance as the mode says, report, and measure this wake (the timer callback)."""
+    def _tick_first(self) -> None:
+        """Serve the tick now if a wake is due (on a schedule: real time, paced lockstep).
+
+        The executor takes events in order, so the timer's event can wait behind a queue of
+        parameter sets; each set first serves a due wake, and the timer's event, once it comes,
+        finds that wake served.
+        """
+        sched = self._wakes.overdue(time.monotonic_ns())
+        if sched is not None:
+            self._guarded(self._wake, sched)
+
+    def _wake(self, sched: int | None) -> None:
+        """Advance as the mode says, report, and measure this wake (the timer callback, or
+        a due wake served early with its scheduled time ``sched``)."""
         now = time.monotonic_ns()
-        remaining = self._timer.time_until_next_call()
-        sched = now if remaining is None else now + remaining - self._period_ns
+        if sched is None:
+            remaining = self._timer.time_until_next_call()
+            sched = now if remaining is None else now + remaining - self._period_ns
+            if self._wakes.taken(sched):
+                return   # served early, ahead of the parameter sets queued before this event
         self._wakes.wake(sched, now)
         self._outputs.refresh()
         taken = self._driver.wake(now, now + WAKE_BUDGET_NS)
@@ -297,6 +312,7 @@ class PendulumNode(Node):
                 self.get_logger().warning(line.replace('dropped a command on ', ''))
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        self._tick_first()
         reason = refusal(self._values, ((p.name, p.value) for p in params), self._joint)
         return SetParametersResult(successful=reason is None, reason=reason or '')
 
