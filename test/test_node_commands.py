@@ -226,3 +226,30 @@ def test_synchronous_mode_says_when_a_best_effort_publisher_cannot_connect() -> 
         assert (f'a publisher on {topic} cannot connect: its QoS is incompatible '
                 '(RELIABILITY); publish reliable (synchronous mode loses no command) '
                 '(1 so far)') in node.output()
+
+
+def test_servo_gains_beyond_the_sampled_loops_limit_are_refused_live_and_at_start() -> None:
+    """position_p 1e6 (in its range) used to be taken and run the joint away to ~1e3 rad."""
+    import re
+
+    from test_servo import eigen_limit
+
+    from pendulum_sim.node.servo import ServoGains
+    params = {'command_interface': 'position', 'joint_commands_input': True,
+              'status_line': False}
+    inertia = 0.2   # the default body's inertia in config/default.yaml ...
+    with NodeProcess('default', params) as node, Probe() as probe:
+        inertia = float(probe.get_parameters(node.fqn, ['inertia'])['inertia'])   # ... as run
+        limit = eigen_limit(ServoGains(), inertia, 1e-3)
+        reason = (f'servo.position_p 1e+06 1/s makes the position servo unstable at h = 0.001 s '
+                  f'(its loop is sampled every step, inertia {inertia:g} kg m^2): it must be '
+                  f'below {limit:.6g} 1/s with the other gains as set')
+        [result] = probe.set_parameters(node.fqn, {'servo.position_p': 1e6})
+        assert (result.successful, result.reason) == (False, reason)
+        assert probe.get_parameters(node.fqn, ['servo.position_p']) == {'servo.position_p': 8.0}
+        [result] = probe.set_parameters(node.fqn, {'servo.position_p': 0.9 * limit})
+        assert result.successful, result.reason
+        assert node.stop(signal.SIGINT, timeout=2.0) == 0
+    with NodeProcess('default', {**params, 'servo.position_p': 1e6}) as node:
+        assert node.wait(30.0) == 2
+        assert re.search(re.escape(reason), node.output()), node.output()

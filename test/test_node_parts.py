@@ -245,3 +245,65 @@ def test_each_driver_applies_the_live_parameters_of_its_mode() -> None:
     sync.reconfigure({**values, 'sync_timeout': 0.25, 'sync_timeout_action': 'stop'},
                      {'sync_timeout', 'sync_timeout_action'}, 0)
     assert (ex.timeout_ns, ex.action) == (250_000_000, 'stop')
+
+
+def test_a_parameter_storm_reconfigures_the_joint_once_a_wake_with_the_last_values() -> None:
+    """Parameter sets are only noted; each wake applies all noted since the last at once.
+
+    1000 sets between two wakes used to reconfigure the joint 1000 times in the parameter
+    callbacks, between the ticks; now the wake reconfigures once, with the last values, before
+    it steps, and the set counts from the step at which it arrived.
+    """
+    from pendulum_sim.node.parameters import joint_config, merged
+
+    clock = FakeClock()
+    values = defaults(publish_rate=100.0)
+    j = SimulatedJoint(joint_config(values, 0))  # type: ignore[arg-type]
+    driver = RealTimeDriver(j, Gate(), lambda c: True, lambda level, text: None, 0, 1.0,
+                            lockstep=False, clock=clock)
+    reconfigured: list[set[str]] = []
+    applied = driver.reconfigure
+
+    def counting(v: object, names: set[str], now_ns: int) -> None:
+        reconfigured.append(set(names))
+        applied(v, names, now_ns)  # type: ignore[arg-type]
+
+    driver.reconfigure = counting  # type: ignore[method-assign]
+    current = dict(values)
+    for wake in range(1, 4):
+        for k in range(1000):
+            current = merged(current, [('gamma', 1.0 + k / 1000 + wake)])
+            driver.take_parameters(current, {'gamma'})  # type: ignore[arg-type]
+            assert j.config.params.gamma != current['gamma']   # noted, not applied
+        current = merged(current, [('max_effort', 5.0 + wake)])
+        driver.take_parameters(current, {'max_effort'})  # type: ignore[arg-type]
+        steps = j.steps
+        clock.ns = wake * 10_000_000
+        driver.wake(clock.ns, clock.ns + 10_000_000)
+        assert j.steps > steps   # the tick went on stepping
+        assert reconfigured == [{'gamma', 'max_effort'}] * wake
+        assert (j.config.params.gamma, j.config.max_effort) == (1.999 + wake, 5.0 + wake)
+    assert (driver.parameter_sets, driver.reconfigures) == (3003, 3)
+    clock.ns += 10_000_000
+    driver.wake(clock.ns, clock.ns + 10_000_000)   # nothing new: no reconfigure
+    assert driver.reconfigures == 3 and len(reconfigured) == 3
+
+
+def test_a_due_wake_is_served_before_a_queued_parameter_set_and_only_once() -> None:
+    """The timer's event can wait behind queued parameter sets; a set first serves the wake
+    that is due (the latest on the timer's grid), and the timer's event then finds it taken."""
+    ms = 1_000_000
+    stats = WakeStats(5 * ms)
+    assert stats.overdue(0) is None                   # the first wake is the timer's own
+    stats.wake(0, 100)
+    assert stats.overdue(4 * ms) is None              # not yet due
+    assert stats.overdue(5 * ms) == 5 * ms            # due: served by the set
+    stats.wake(5 * ms, 5 * ms)
+    assert stats.taken(5 * ms)                        # the timer's event for it: nothing to do
+    assert not stats.taken(10 * ms)
+    assert stats.overdue(23 * ms) == 20 * ms          # late: the latest due, the rest missed
+    stats.wake(20 * ms, 23 * ms)
+    assert (stats.wakes, stats.missed) == (3, 2)
+    assert stats.taken(15 * ms) and stats.taken(20 * ms) and not stats.taken(25 * ms)
+    assert WakeStats(0).overdue(10**12) is None      # no period (as fast as possible, sync)
+    assert not WakeStats(0).taken(0)

@@ -615,7 +615,8 @@ def test_sigkill_of_process_and_writer_loses_only_what_was_not_yet_written_out(
 @pytest.mark.slow
 def test_sigkill_of_the_recording_process_alone_loses_no_message_it_wrote(
         tmp_path: Path) -> None:
-    """The writer process drains the pipe and finalises the file: every write() survives."""
+    """The writer process drains the pipe and finalises the file: every write() survives, and
+    the file ends with the stop event at the last message (the recording was never closed)."""
     path = tmp_path / 'killed.mcap'
     proc = start_recording(path, report=True)
     assert proc.stdout is not None
@@ -629,9 +630,18 @@ def test_sigkill_of_the_recording_process_alone_loses_no_message_it_wrote(
     deadline = time.monotonic() + 10.0   # the writer process finishes the file on its own
     while time.monotonic() < deadline and path.read_bytes()[-8:] != MAGIC:
         time.sleep(0.05)
-    rec = load(path)
-    assert rec.complete and rec.problems == ()
-    assert assert_readable_prefix(rec) >= last + 1
+    with pytest.warns(TruncatedRecordingWarning, match='without CLOSE'):
+        rec = load(path)
+    n = assert_readable_prefix(rec)
+    assert n >= last + 1
+    assert rec.joint_states is not None
+    end = int(rec.joint_states.stamp_ns[-1])
+    assert not rec.complete and rec.stopped_ns == end
+    assert rec.problems == (
+        f'{path} was cut short at {end} ns (t = {end / 1e9:.9g} s): the writer process saw its '
+        f'input end without CLOSE (the recording process was killed, or closed the recording '
+        f'while the writer process was stopped, with frames not handed over) after the message '
+        f'stamped {end} ns; nothing later is recorded',)
 
 
 @pytest.mark.slow

@@ -177,3 +177,93 @@ def test_before_any_command_the_drive_holds_the_initial_state(interface: str,
     assert worst <= (1e-3 if interface == 'position' else 0.01)
     j.reset()
     assert j.target == {'position': 0.3, 'velocity': dphi0}[interface]
+
+
+# ---------------------------------------------------------------- the sampled loop's limits
+def step_matrix(gains: ServoGains, inertia: float, h: float) -> object:
+    """Return the matrix of one step of the linearised position loop on (φ, φ', z), written
+    out from the law (τ held over the step, ``I φ'' = τ`` stepped exactly)."""
+    import numpy as np
+
+    kp, ki, pp = gains.velocity_p, gains.velocity_i, gains.position_p
+    c = h * h / (2.0 * inertia)
+    return np.array([[1.0 - c * kp * pp, h - c * kp, c * ki],
+                     [-h * kp * pp / inertia, 1.0 - h * kp / inertia, h * ki / inertia],
+                     [-h * pp, -h, 1.0]])
+
+
+def spectral_radius(gains: ServoGains, inertia: float, h: float) -> float:
+    import numpy as np
+    return float(max(abs(np.linalg.eigvals(step_matrix(gains, inertia, h)))))  # type: ignore
+
+
+def eigen_limit(gains: ServoGains, inertia: float, h: float) -> float:
+    """Return the largest position_p with spectral radius < 1, by bisection on eigenvalues."""
+    from dataclasses import replace
+
+    lo, hi = 1.0, 1e9
+    assert spectral_radius(replace(gains, position_p=lo), inertia, h) < 1.0
+    assert spectral_radius(replace(gains, position_p=hi), inertia, h) > 1.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if spectral_radius(replace(gains, position_p=mid), inertia, h) < 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def run_law(gains: ServoGains, params: PendulumParams, target: float, steps: int) -> list[float]:
+    """Return φ after each step of the core stepped with the written-out law (no limits)."""
+    tau = law('position', target, gains, max_effort=math.inf, max_velocity=math.inf)
+    st = Stepper(params, 0.0, 0.0, H)
+    out = []
+    for _ in range(steps):
+        st.step(tau(st.phi, st.dphi))  # type: ignore[operator]
+        out.append(st.phi)
+    return out
+
+
+def test_position_gains_beyond_the_sampled_loops_limit_are_refused_with_the_limit() -> None:
+    """position_p 1e6 used to be taken and the joint ran away (to ~1e3 rad) without a word."""
+    limit = eigen_limit(ServoGains(), BODY.inertia, H)
+    # The limit is real: just below it the loop settles on the target, just above it the
+    # same law on the same core runs away (no damping; gravity is fed forward).
+    still = PendulumParams(m=BODY.m, l=BODY.l, inertia=BODY.inertia, g=BODY.g, gamma=0.0, n=1.0)
+    for factor, ratio in ((0.9, 0.1), (1.1, 10.0)):   # the error decays, or grows, tenfold
+        run = run_law(ServoGains(position_p=factor * limit), still, 1e-3, 4000)
+        first, last = (max(abs(p - 1e-3) for p in part) for part in (run[:100], run[-100:]))
+        assert (last < ratio * first) if ratio < 1.0 else (last > ratio * first), factor
+    expected = (f'servo.position_p 1e+06 1/s makes the position servo unstable at h = 0.001 s '
+                f'(its loop is sampled every step, inertia {BODY.inertia:g} kg m^2): it must '
+                f'be below {limit:.6g} 1/s with the other gains as set')
+    with pytest.raises(JointError, match=re.escape(expected)):
+        drive('position', 1.0, 0.001, servo=ServoGains(position_p=1e6))
+    drive('position', 1.0, 0.001, servo=ServoGains(position_p=0.98 * limit))   # taken
+
+
+@pytest.mark.parametrize(('gains', 'name', 'value', 'relation', 'bound', 'unit'), [
+    # The velocity loop's limits in closed form: velocity_p < 2 I/h + h velocity_i/2,
+    # velocity_i < velocity_p/h (Jury's conditions on λ² − (2 − a) λ + (1 − a + b)).
+    (ServoGains(velocity_p=1e6), 'velocity_p', '1e+06', 'below',
+     2 * BODY.inertia / H + H * 20.0 / 2, 'N m s/rad'),
+    (ServoGains(velocity_i=1e6), 'velocity_i', '1e+06', 'below', 4.0 / H, 'N m/rad'),
+    (ServoGains(velocity_p=0.0), 'velocity_p', '0', 'above', H * 20.0, 'N m s/rad'),
+])
+def test_velocity_gains_beyond_the_sampled_loops_limits_are_refused(
+        gains: ServoGains, name: str, value: str, relation: str, bound: float,
+        unit: str) -> None:
+    expected = (f'servo.{name} {value} {unit} makes the velocity servo unstable at h = 0.001 s '
+                f'(its loop is sampled every step, inertia {BODY.inertia:g} kg m^2): it must be '
+                f'{relation} '
+                f'{bound:.6g} {unit} with the other gains as set')
+    with pytest.raises(JointError, match=re.escape(expected)):
+        drive('velocity', 1.0, 0.001, servo=gains)
+
+
+@pytest.mark.parametrize('gains', [ServoGains(), ServoGains(0.0, 0.0, 0.0),
+                                   ServoGains(velocity_i=0.0), ServoGains(position_p=0.0)])
+def test_stable_and_uncorrected_loops_are_taken(gains: ServoGains) -> None:
+    """A gain of 0 leaves a state uncorrected (a root at 1), not growing: taken."""
+    for interface in ('velocity', 'position'):
+        drive(interface, 0.5, 0.01, servo=gains)

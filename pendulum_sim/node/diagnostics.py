@@ -62,6 +62,10 @@ KEYS: tuple[Key, ...] = (
     Key('missed_wakes', 'int', '', 'Wakes skipped because the loop was late.'),
     Key('schedule_slips', 'int', '',
         'Times the schedule was moved because more work was due than one wake may do.'),
+    Key('parameter_sets', 'int', '', 'Live parameter sets accepted (validated and noted).'),
+    Key('reconfigures', 'int', '',
+        'Times the accepted sets were applied to the joint: at most once a wake, all sets '
+        'noted since the previous wake at once.'),
     Key('guard_steps', 'int', 'steps', 'Steps of h the core took; ' + GUARD + '.'),
     Key('guard_substeps', 'int', 'steps',
         'Extra substeps the stability guard took; ' + GUARD + '.'),

@@ -15,6 +15,13 @@ wakes, so services, parameters and signals are served in between.
 
 Paused, every mode takes the periods of the step budget (:class:`~.exchange.Gate`) and nothing
 else. The achieved real-time factor counts the wall time while the gate is open.
+
+Live parameters are taken, not applied: :meth:`Driver.take_parameters` (the node's parameter
+callback, after validation) only notes the values and the names that changed; the next wake, or
+a reset, applies everything noted since the last one at once (:meth:`Driver.apply_parameters`),
+before it steps. However many sets arrive, the joint and the mode are reconfigured at most once
+a wake (``reconfigures`` <= ``wakes``), and a set takes effect from the step at which it
+arrived (no step is taken between a set and the next wake's apply).
 """
 from __future__ import annotations
 
@@ -69,6 +76,10 @@ class Driver:
         if not gate.open:
             self.rate.pause(now_ns)
         self.slips = 0
+        self.parameter_sets = 0     # live parameter sets taken
+        self.reconfigures = 0       # times they were applied (at most once a wake)
+        self._values: Mapping[str, Value] | None = None
+        self._changed: set[str] = set()
         self._failure_logged = False
 
     # ------------------------------------------------------------------ shared
@@ -103,6 +114,23 @@ class Driver:
             self.rate.resume(now_ns)
         else:
             self.rate.pause(now_ns)
+
+    def take_parameters(self, values: Mapping[str, Value], names: set[str]) -> None:
+        """Note a validated set of live parameters (``names`` changed in ``values``, the
+        node's current values) for the next :meth:`apply_parameters`; cheap."""
+        self.parameter_sets += 1
+        self._values = values
+        self._changed |= names
+
+    def apply_parameters(self, now_ns: int) -> bool:
+        """Apply every set noted since the last call, at once; return False if none was."""
+        values, names = self._values, self._changed
+        if values is None or not names:
+            return False
+        self._changed = set()
+        self.reconfigures += 1
+        self.reconfigure(values, names, now_ns)
+        return True
 
     def reconfigure(self, values: Mapping[str, Value], names: set[str], now_ns: int) -> None:
         """Apply live parameters (``names`` changed in ``values``) to the joint and the mode."""
@@ -201,6 +229,7 @@ class RealTimeDriver(Driver):
     def wake(self, now_ns: int, deadline_ns: int) -> int:
         joint = self.joint
         gate = self.gate
+        self.apply_parameters(now_ns)
         if joint.failed is not None:
             return 0
         if gate.paused:
@@ -322,6 +351,7 @@ class SyncDriver(Driver):
     def wake(self, now_ns: int, deadline_ns: int) -> int:
         joint = self.joint
         ex = self.exchange
+        self.apply_parameters(now_ns)
         if joint.failed is not None:
             return 0
         ready, subscribers = self.ready()

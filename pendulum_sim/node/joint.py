@@ -47,7 +47,7 @@ from pendulum_sim.core.model import speed_limit
 
 from .errors import JointError
 from .sensors import SensorModel
-from .servo import Servo, ServoGains
+from .servo import Servo, ServoGains, loop_refusal
 
 INTERFACES = ('effort', 'velocity', 'position')
 # Steps of delay are kept in memory (one entry per step), so a delay is bounded.
@@ -113,6 +113,11 @@ class JointConfig:
             if steps > MAX_DELAY_STEPS:
                 raise JointError(f'{name[:-6]} is {steps} steps of h = {self.h:g} s; at most '
                                  f'{MAX_DELAY_STEPS} steps are kept')
+        if self.command_interface != 'effort':
+            reason = loop_refusal(self.servo, self.params.inertia, self.h,
+                                  self.command_interface)
+            if reason is not None:
+                raise JointError(reason)
         if not self.position_min < self.position_max:
             raise JointError(f'position_min must be < position_max, got {self.position_min} '
                              f'and {self.position_max}')

@@ -26,6 +26,8 @@ Value = bool | int | float | str
 
 FIXED = 'Read-only: fixed when the node starts (restart the node to change it).'
 SWITCH = 'Read-only: a scene builds only what it enables.'
+SAMPLED = ('Refused beyond the stability limit of the servo loop sampled at h (with the other '
+           'gains as set; the message states the limit).')
 
 
 @dataclass(frozen=True)
@@ -133,12 +135,13 @@ SPECS: tuple[Spec, ...] = (
     Spec('position_max', math.inf, 'Upper position limit of position commands, rad (.inf = '
          'none). Live.', unit='rad'),
     Spec('servo.position_p', 8.0, 'Position loop gain of the servo, 1/s: the speed demanded '
-         'per rad of position error (limited to max_velocity). Live.', low=0.0, high=1e6,
-         unit='1/s'),
+         'per rad of position error (limited to max_velocity). ' + SAMPLED + ' Live.',
+         low=0.0, high=1e6, unit='1/s'),
     Spec('servo.velocity_p', 4.0, 'Velocity loop proportional gain of the servo, N m s/rad. '
-         'Live.', low=0.0, high=1e6, unit='N m s/rad'),
+         + SAMPLED + ' Live.', low=0.0, high=1e6, unit='N m s/rad'),
     Spec('servo.velocity_i', 20.0, 'Velocity loop integral gain of the servo, N m/rad (with '
-         'anti-windup at max_effort). Live.', low=0.0, high=1e6, unit='N m/rad'),
+         'anti-windup at max_effort). ' + SAMPLED + ' Live.', low=0.0, high=1e6,
+         unit='N m/rad'),
     Spec('servo.gravity_feedforward', True, "Add the joint's own gravity torque m g l sin(phi) "
          'to the servo torque. Live.'),
     # Sensor realism.
@@ -208,10 +211,21 @@ def physics(values: Mapping[str, Value]) -> PendulumParams:
 
 def check(values: Mapping[str, Value]) -> str | None:
     """Return why the complete parameter set ``values`` is unusable, or None if it is fine."""
+    return _checked(values)[0]
+
+
+def _checked(values: Mapping[str, Value]) -> tuple[str | None, PendulumParams | None]:
+    """Return (why ``values`` is unusable or None, its physics if it has any); the body is
+    built once per check (a parameter storm validates every set)."""
     try:
-        validate_state(float(values['phi0']), float(values['dphi0']), physics(values))
+        params = physics(values)
+        validate_state(float(values['phi0']), float(values['dphi0']), params)
     except ModelError as exc:
-        return str(exc)
+        return str(exc), None
+    return _check_rest(values, params), params
+
+
+def _check_rest(values: Mapping[str, Value], params: PendulumParams) -> str | None:
     if values['integrator'] not in METHODS:
         known = ', '.join(sorted(METHODS))
         return f"integrator must be one of {known}, got '{values['integrator']}'"
@@ -247,7 +261,7 @@ def check(values: Mapping[str, Value]) -> str | None:
                 f'infinite (a continuous joint), got {lo} and {hi}: a URDF joint has no '
                 'one-sided limit')
     try:
-        check_config(joint_config(values))
+        check_config(JointConfig.from_values(values, params))
     except (JointError, ModelError) as exc:
         return str(exc)
     return None
@@ -280,10 +294,10 @@ def refusal(current: Mapping[str, Value], changes: Iterable[tuple[str, Value]],
     checks the new physics against its state.
     """
     proposed = merged(current, changes)
-    reason = check(proposed)
-    if reason is None:
+    reason, params = _checked(proposed)
+    if reason is None and params is not None:
         try:
-            joint.check_params(physics(proposed))
+            joint.check_params(params)
         except (JointError, PendulumError) as exc:
             reason = str(exc)
     return reason

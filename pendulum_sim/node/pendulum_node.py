@@ -216,13 +216,28 @@ class PendulumNode(Node):
         return None
 
     def _on_wake(self) -> None:
-        self._guarded(self._wake)
+        self._guarded(self._wake, None)
 
-    def _wake(self) -> None:
-        """Advance as the mode says, report, and measure this wake (the timer callback)."""
+    def _tick_first(self) -> None:
+        """Serve the tick now if a wake is due (on a schedule: real time, paced lockstep).
+
+        The executor takes events in order, so the timer's event can wait behind a queue of
+        parameter sets; each set first serves a due wake, and the timer's event, once it comes,
+        finds that wake served.
+        """
+        sched = self._wakes.overdue(time.monotonic_ns())
+        if sched is not None:
+            self._guarded(self._wake, sched)
+
+    def _wake(self, sched: int | None) -> None:
+        """Advance as the mode says, report, and measure this wake (the timer callback, or
+        a due wake served early with its scheduled time ``sched``)."""
         now = time.monotonic_ns()
-        remaining = self._timer.time_until_next_call()
-        sched = now if remaining is None else now + remaining - self._period_ns
+        if sched is None:
+            remaining = self._timer.time_until_next_call()
+            sched = now if remaining is None else now + remaining - self._period_ns
+            if self._wakes.taken(sched):
+                return   # served early, ahead of the parameter sets queued before this event
         self._wakes.wake(sched, now)
         self._outputs.refresh()
         taken = self._driver.wake(now, now + WAKE_BUDGET_NS)
@@ -260,6 +275,7 @@ class PendulumNode(Node):
         self._guarded(self._command, 'joint_commands', msg, decoded)
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        self._driver.apply_parameters(time.monotonic_ns())   # a new phi0 counts from here
         was_failed = self._joint.reset()
         response.success = True
         response.message = replies.reset_reply(self._values, self._joint.time, was_failed)
@@ -296,6 +312,7 @@ class PendulumNode(Node):
                 self.get_logger().warning(line.replace('dropped a command on ', ''))
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        self._tick_first()
         reason = refusal(self._values, ((p.name, p.value) for p in params), self._joint)
         return SetParametersResult(successful=reason is None, reason=reason or '')
 
@@ -306,7 +323,7 @@ class PendulumNode(Node):
         for p in params:
             if p.name in names:
                 self._values[p.name] = p.value
-        self._driver.reconfigure(self._values, names, time.monotonic_ns())
+        self._driver.take_parameters(self._values, names)   # applied by the next wake, once
         self._telemetry.rtf_target = float(self._values['real_time_factor'])
         if self._recording.recorder is not None:
             stamp = self._joint.stamp_ns()

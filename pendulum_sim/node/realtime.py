@@ -123,6 +123,23 @@ class WakeStats:
                 self.missed += skipped
         self._last_sched = sched_ns
 
+    def overdue(self, now_ns: int) -> int | None:
+        """Return the scheduled time of the latest wake due by ``now_ns`` and not yet taken,
+        or None (none is, or the timer has no period: it runs as fast as it can).
+
+        The node serves it ahead of other callbacks queued before the timer's event.
+        """
+        period, last = self.period_ns, self._last_sched
+        if period <= 0 or last is None or now_ns < last + period:
+            return None
+        return last + period * ((now_ns - last) // period)
+
+    def taken(self, sched_ns: int) -> bool:
+        """Return True if the wake scheduled at ``sched_ns`` was already taken (served early,
+        so the timer's own event for it has nothing left to do)."""
+        return self.period_ns > 0 and self._last_sched is not None and (
+            sched_ns <= self._last_sched)
+
     def done(self, sched_ns: int, end_ns: int, steps: int) -> None:
         """Record the end of a wake's work and the steps it took; count an overrun if late."""
         self.steps += steps

@@ -126,6 +126,8 @@ class Telemetry:
             'overruns': wakes.overruns,
             'missed_wakes': wakes.missed,
             'schedule_slips': self.driver.slips,
+            'parameter_sets': self.driver.parameter_sets,
+            'reconfigures': self.driver.reconfigures,
             **{f'guard_{k}': val for k, val in joint.guard_stats().items()},
             'energy': energy,
             'energy_residual': residual,

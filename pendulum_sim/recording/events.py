@@ -11,5 +11,7 @@ STOPPED_TOPIC: Final = '/pendulum_sim/recording_stopped'
 """Topic of the event that ends a recording cut short (``std_msgs/msg/String``, data = why; its
 log time is the stamp of the first message left out, the message it stopped at), written by
 :class:`~pendulum_sim.recording.writer.McapRecorder` when its writer process falls too far
-behind; :func:`~pendulum_sim.recording.load` then reports the file incomplete."""
+behind, or by the writer process itself when its input ends without ``CLOSE`` (log time: the
+last stamp it received); :func:`~pendulum_sim.recording.load` then reports the file
+incomplete."""
 STOPPED_TYPE: Final = 'std_msgs/msg/String'

@@ -4,7 +4,8 @@
 (``python -m pendulum_sim.recording.sink FD``, FD being the recording file it opened) and feeds
 it frames on stdin: ``<BI`` (kind, payload length) then the payload.
 
-- ``OPEN``: JSON ``{path, chunk_interval, chunk_size, compression, library, metadata}``;
+- ``OPEN``: JSON ``{path, chunk_interval, chunk_size, compression, library, metadata, stop}``
+  (``stop``: the channel of the stop event, ``{topic, type, schema, metadata, qos}``);
 - ``CHANNEL``: JSON ``{id, schema_id, topic, type, schema, metadata, qos}``;
 - ``MESSAGE``: ``<HQ`` (channel id, log time = publish time in ns) then the CDR payload;
 - ``CLOSE``: nothing.
@@ -13,8 +14,12 @@ It answers with JSON lines on stdout: ``{"ready": true}`` once the header and me
 are on disk, ``{"written": N}`` after each chunk, ``{"error": "..."}`` when writing fails (it
 then writes nothing more) and ``{"closed": N}`` once the file is finalised. A chunk is closed at
 the latest ``chunk_interval`` seconds (wall clock) after its first message, or once it spans
-that much log time. When stdin ends without ``CLOSE`` (the recording process was killed) the
-file is finalised all the same. SIGINT and SIGTERM are ignored: the recording process decides.
+that much log time. When stdin ends without ``CLOSE`` (the recording process was killed, or it
+closed the recording while this process was stopped and could not hand everything over) the file
+is finalised all the same, ending with a stop event (the ``stop`` channel, the same mark a
+recording cut short by a lagging writer ends with) stamped with the last log time received:
+every message received is in it, and the file says that it was cut short. SIGINT and SIGTERM
+are ignored: the recording process decides.
 Input is taken in batches every few milliseconds (the pipe buffers it). This process never
 imports rclpy, so it starts quickly, and it holds no GIL the node needs.
 """
@@ -71,6 +76,8 @@ class Sink:
         self._chunk_first_ns = 0
         self._start_ns: int | None = None
         self._end_ns: int | None = None
+        self._schema_ids: dict[str, int] = {}
+        self._stop: dict[str, Any] | None = None
         self.written = 0      # messages handed to the MCAP writer
         self.flushed = 0      # of them, in chunks completely written to the file
         self.failed = False
@@ -110,6 +117,7 @@ class Sink:
             writer.add_metadata(name, record)
         self._stream.flush()
         self._writer = writer
+        self._stop = spec.get('stop')
         self.report(ready=True)
 
     def channel(self, spec: dict[str, Any]) -> None:
@@ -120,6 +128,7 @@ class Sink:
                                                      spec['schema'].encode())
             assert schema_id == spec['schema_id']
             self._schemas.add(schema_id)
+            self._schema_ids[spec['type']] = schema_id
         channel_id = self._writer.register_channel(spec['topic'], MessageEncoding.CDR,
                                                    spec['schema_id'], spec['metadata'])
         assert channel_id == spec['id']
@@ -144,6 +153,33 @@ class Sink:
             self._chunk_first_ns = stamp_ns
         elif abs(stamp_ns - self._chunk_first_ns) >= self._interval_ns:
             self.flush()
+
+    def mark_cut_short(self) -> None:
+        """Add the stop event: the input ended without CLOSE (unless a stop event is there)."""
+        stop = self._stop
+        if self._writer is None or stop is None:
+            return
+        ids = [cid for cid, c in self._channels.items() if c.topic == stop['topic']]
+        if ids and self._channels[ids[0]].count:
+            return   # the recording process stopped the recording itself, and said why
+        if ids:
+            channel_id = ids[0]
+        else:
+            schema_id = self._schema_ids.get(stop['type'])
+            if schema_id is None:
+                schema_id = self._writer.register_schema(stop['type'], SchemaEncoding.ROS2,
+                                                         stop['schema'].encode())
+                self._schema_ids[stop['type']] = schema_id
+            channel_id = self._writer.register_channel(stop['topic'], MessageEncoding.CDR,
+                                                       schema_id, stop['metadata'])
+            self._channels[channel_id] = _Channel(stop['topic'], stop['type'], stop['qos'],
+                                                  stop['metadata']['topic_type_hash'])
+        end = self._end_ns or 0
+        reason = (f'the writer process saw its input end without CLOSE (the recording process '
+                  f'was killed, or closed the recording while the writer process was stopped, '
+                  f'with frames not handed over) after the message stamped {end} ns; nothing '
+                  f'later is recorded')
+        self.message(channel_id, end, cdr_string(reason))
 
     def until_flush(self) -> float | None:
         """Return the seconds until the open chunk is due, or None without one."""
@@ -174,6 +210,12 @@ class Sink:
         self.report(closed=self.written)
 
 
+def cdr_string(text: str) -> bytes:
+    """Return the CDR (little-endian, with its encapsulation header) of a std_msgs/String."""
+    data = text.encode()
+    return b'\x00\x01\x00\x00' + struct.pack('<I', len(data) + 1) + data + b'\x00'
+
+
 def serve(sink: Sink, fd_in: int) -> None:
     """Read frames from ``fd_in`` and hand them to the sink until CLOSE or the end of input."""
     buffer = bytearray()
@@ -182,10 +224,14 @@ def serve(sink: Sink, fd_in: int) -> None:
         timeout = None if sink.failed else sink.until_flush()
         ready, _, _ = select.select([fd_in], [], [], timeout)
         data = os.read(fd_in, 1 << 20) if ready else None
-        if data == b'':   # the recording process is gone: finalise what we have
+        if data == b'':   # the input ended without CLOSE: finalise what we have, cut short
             if opened and not sink.failed:
-                sink.flush()
-                sink.finish()
+                try:
+                    sink.mark_cut_short()
+                    sink.flush()
+                    sink.finish()
+                except Exception as exc:   # a full disk, ...: the chunks written stay readable
+                    sink.fail(exc, opening=False)
             return
         if data:
             buffer += data

@@ -7,7 +7,8 @@ lock, no thread to wake. The writer process builds the chunks, compresses them a
 to disk; being another process, it never holds the GIL the loop needs. A chunk is closed at the
 latest ``chunk_interval`` seconds (wall clock) after its first message, or once it spans that
 much log time, so if both processes are killed at once at most that much is lost; if only the
-recording process dies, the writer process sees its input end and finalises the file.
+recording process dies, the writer process sees its input end and finalises the file, ending
+it with a stop event (below) since the recording was not closed.
 :meth:`McapRecorder.close` has the writer add the ``rosbag2`` metadata, the summary (schemas,
 channels, statistics, chunk, metadata and summary-offset indexes) and the footer. A write error
 (full disk, file size limit) stops the recording only: it shows in :attr:`McapRecorder.error`,
@@ -309,7 +310,7 @@ class McapRecorder:
             os.close(fd)
         assert process.stdin is not None and process.stdout is not None
         self._process, self._fd = process, process.stdin.fileno()
-        spec = dict(self._settings, path=str(self._path))
+        spec = dict(self._settings, path=str(self._path), stop=self._stop_spec())
         self._send_blocking(self._frame(sink.OPEN, json.dumps(spec).encode()))
         reply = json.loads(process.stdout.readline() or b'{}')
         if not reply.get('ready'):
@@ -331,12 +332,24 @@ class McapRecorder:
             self._send(self._frame(sink.CHANNEL, json.dumps(channel.spec).encode()))
         return self
 
+    @staticmethod
+    def _stop_spec() -> dict[str, Any]:
+        """Return the stop event's channel, for the writer process to end a file cut short."""
+        type_name = type_name_of(String)
+        offer = offered_qos(STOPPED_QOS)
+        return {'topic': STOPPED_TOPIC, 'type': type_name, 'schema': ros2msg_schema(type_name),
+                'qos': offer, 'metadata': {'offered_qos_profiles': qos_profiles_yaml([offer]),
+                                           'topic_type_hash': type_hash(type_name)}}
+
     def close(self, timeout: float = CLOSE_TIMEOUT) -> None:
         """Have the writer finalise the file (rosbag2 metadata, summary, footer); idempotent.
 
         Waits at most ``timeout`` seconds for the writer process: one that does not run (say,
         stopped with SIGSTOP) is left to finish the file by itself when it runs again (it
-        finalises what it was handed at the end of its input), and :attr:`error` says so.
+        finalises what it was handed at the end of its input), and :attr:`error` says so. If
+        not everything (the ``CLOSE`` frame included) could be handed over, the writer process
+        sees its input end without ``CLOSE`` and ends the file with the stop event
+        (:data:`~pendulum_sim.recording.events.STOPPED_TOPIC`): it says it was cut short.
         """
         if self._state == 'closed':
             return
@@ -360,8 +373,8 @@ class McapRecorder:
             except subprocess.TimeoutExpired:
                 pass
         if code is None:
-            lost = (f'; {len(unsent)} bytes were not handed over, so the file ends earlier'
-                    if unsent else '')
+            lost = (f'; {len(unsent)} bytes were not handed over, so the file ends earlier '
+                    'and says it was cut short' if unsent else '')
             state = 'is stopped' if self._writer_stopped() else f'did not finish in {timeout:g} s'
             self._error = RecorderError(
                 f'recording {self._path}: the writer process (pid {process.pid}) {state}; it '
@@ -384,18 +397,23 @@ class McapRecorder:
         return stat_line.rsplit(')', 1)[-1].split()[:1] in (['T'], ['t'])
 
     def _send_until(self, data: bytes, deadline: float) -> bytes:
-        """Write ``data`` to the writer until it is all sent or ``deadline``; return the rest."""
+        """Write ``data`` to the writer until it is all sent or ``deadline``; return the rest.
+
+        What the pipe takes is always handed over; only waiting for room stops early, when the
+        writer process is stopped (it would not make room).
+        """
         view = memoryview(data)
         while view:
+            try:
+                view = view[os.write(self._fd, view):]
+            except BlockingIOError:
+                pass
+            if not view:
+                break
             left = deadline - time.monotonic()
             if left <= 0.0 or self._writer_stopped():
                 break
-            _, ready, _ = select.select([], [self._fd], [], min(left, 0.02))
-            if ready:
-                try:
-                    view = view[os.write(self._fd, view):]
-                except BlockingIOError:
-                    continue
+            select.select([], [self._fd], [], min(left, 0.02))
         return bytes(view)
 
     # -- channels and messages ------------------------------------------------------------------
