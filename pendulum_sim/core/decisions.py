@@ -204,7 +204,8 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '                e = e1',
              '            p0 = p1', '            v0 = v1', '            k += 1',
              '            r = record_row(base + k, every, total, rows)',
-             '            if r >= 0:', '                RP[r, i] = p0', '                RV[r, i] = v0',
+             '            if r >= 0:', '                RP[r, i] = p0',
+             '                RV[r, i] = v0',
              '            if not abs(v0) <= vmax:', '                break',
              '        P[i] = p0', '        V[i] = v0', '        E[i] = e', '        K[i] = k']
     return '\n'.join(lines) + '\n'
