@@ -26,15 +26,19 @@ in place in the group's state arrays ``p``, ``v``, ``e``."""
 
 def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, every: int,
               records: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]],
-              vmax: npt.NDArray[np.float64], careful: CarefulFn) -> list[tuple[int, int]]:
+              vmax: npt.NDArray[np.float64], careful: CarefulFn,
+              guard: tuple[float, float, float]) -> tuple[list[tuple[int, int]], dict[int, int]]:
     """Advance every group's pendulums by ``count`` steps of ``h`` (steps ``base`` + 1 …).
 
     ``records[g]`` are the group's recording arrays (rows by :func:`record_row`; shape (0, m)
-    when not recording), ``vmax`` the run's speed bound over the n-sorted pendulums. Returns
-    ``(step, position)`` of every pendulum whose |φ'| went beyond its bound (it stops there;
-    the caller refuses the run), else an empty list.
+    when not recording), ``vmax`` the run's speed bound over the n-sorted pendulums, ``guard``
+    the guard's (disk, real, max_angle) for the compiled careful step (a group takes it where
+    its ``use_careful`` is set). Returns ``(step, position)`` of every pendulum whose |φ'|
+    went beyond its bound (it stops there; the caller refuses the run), and the reversals the
+    compiled careful step split per position.
     """
     beyond: list[tuple[int, int]] = []
+    turns: dict[int, int] = {}
     for grp, (rp, rv) in zip(groups, records, strict=True):
         sl = grp.sl
         size = sl.stop - sl.start
@@ -42,10 +46,12 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
         k = np.zeros(size, dtype=np.int64)
         idx = np.arange(size, dtype=np.int64)
         rows = rp.shape[0]
+        rev = np.zeros(size, dtype=np.int64)
         while idx.size:
             grp.kernel(grp.p, grp.v, grp.e, k, idx, h, count, grp.ain_col, grp.w2_col,
                        grp.gamma_col, grp.n, grp.lo, grp.hi, grp.reach, grp.v_acc, grp.check,
-                       grp.nonsmooth, grp.coulomb, vm, base, every, total, rp, rv)
+                       grp.nonsmooth, grp.coulomb, vm, base, every, total, rp, rv, rev,
+                       grp.use_careful, *guard)
             fast = ~(np.abs(grp.v[idx]) <= vm[idx])
             for j in idx[fast].tolist():
                 beyond.append((base + int(k[j]), sl.start + j))
@@ -62,7 +68,9 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
                 else:
                     beyond.append((done, sl.start + j))
             idx = np.array(left, dtype=np.int64)
-    return beyond
+        for j in np.flatnonzero(rev).tolist():
+            turns[sl.start + j] = int(rev[j])
+    return beyond, turns
 
 
 __all__ = ['CarefulFn', 'run_piece']

@@ -142,7 +142,7 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
 
 KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'n', 'LO', 'HI',
                'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base', 'every',
-               'total', 'RP', 'RV')
+               'total', 'RP', 'RV', 'REV', 'use_careful', 'disk', 'real', 'max_angle')
 """The arguments of a compiled sweep run (:func:`kernel_source`), arrays in capitals."""
 
 
@@ -161,27 +161,39 @@ def record_row(done: int, every: int, total: int, rows: int) -> int:
     return -1
 
 
+def _step_with_n(tableau: Tableau, n: float, branch: bool, name: str) -> list[str]:
+    """Return the scalar step of ``explicit.step_source`` as ``name``, the exponent an argument."""
+    lines = step_source(tableau, damping_expression(n, branch, scalar=True)).splitlines()
+    return [f'def {name}(p0, v0, h, ain, w2, gamma, s, n):', *lines[1:]]
+
+
 @functools.lru_cache(maxsize=256)
 def kernel_source(tableau: Tableau, n: float) -> str:
     """Return the sweep's run of many steps for one exponent, over arrays, as source text.
 
     ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, n, LO, HI, REACH, V_ACC, CHECK,
-    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV)`` advances every pendulum
-    ``i = IDX[j]`` (in parallel over j where compiled with ``prange``), its state ``(P[i],
-    V[i], E[i])`` held in registers, from step ``K[i]`` to step ``count`` of size h, by the
-    plain step of ``explicit.step_source`` as long as the fast-path decisions accept it: the
-    guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite result, not a Coulomb pendulum at rest,
-    the reversal test where ``NONSMOOTH[i]``, the stiff-transient test and, where ``CHECK[i]``,
-    the energy test (E/I kept in ``E[i]``). It stops at the first step they refuse (``K[i]``
-    is then the step the careful path must take) or after a step that leaves |φ'| above
-    ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after step
-    ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``.
+    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, REV, use_careful, disk, real,
+    max_angle)`` advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
+    ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
+    step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
+    fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
+    result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
+    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``).
+    A refused step is taken, where ``use_careful``, by ``careful_step`` (the careful path's
+    split step, ``compiled_careful.py``; its reversals counted in ``REV[i]``, the guard's
+    ``disk``, ``real`` and ``max_angle`` its constants). The run stops at a step neither takes
+    (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'|
+    above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
+    step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``.
     The texts are the ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`;
     the exponent is an argument, so one text serves every exponent whose law it spells alike.
+    The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
+    with the exponent an argument, which ``careful_step`` takes.
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
     pad = '        '
-    lines = [f'def kernel({", ".join(KERNEL_ARGS)}):',
+    lines = [*_step_with_n(tableau, n, False, 'plain'), *_step_with_n(tableau, n, True, 'branch'),
+             f'def kernel({", ".join(KERNEL_ARGS)}):',
              '    rows = RP.shape[0]',
              '    for j in prange(IDX.shape[0]):',
              '        i = IDX[j]',
@@ -193,15 +205,25 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '        p0 = P[i]', '        v0 = V[i]', '        e = E[i]', '        k = K[i]',
              '        while k < count:', *(pad + line for line in body),
              '            v = v0', '            a0 = a_0', '            av = abs(v)',
-             '            if not (lo <= av <= hi and -INF < p1 < INF and -INF < v1 < INF):',
-             '                break',
-             '            if coulomb and v == 0.0:', '                break',
-             f'            if nonsmooth and ({_scalar(REVERSAL_SRC)}):', '                break',
-             f'            if av > v_acc and {_scalar(STIFF_SRC)}:', '                break',
-             '            if check:', '                e0 = e', '                v = v1',
+             '            ok = lo <= av <= hi and -INF < p1 < INF and -INF < v1 < INF',
+             '            if ok and coulomb and v == 0.0:', '                ok = False',
+             f'            if ok and nonsmooth and ({_scalar(REVERSAL_SRC)}):',
+             '                ok = False',
+             f'            if ok and av > v_acc and {_scalar(STIFF_SRC)}:',
+             '                ok = False',
+             '            if ok and check:', '                e0 = e', '                v = v1',
              '                s = sin(0.5 * p1)', f'                e1 = {ENERGY_SRC}',
-             f'                if {ROSE_SRC}:', '                    break',
-             '                e = e1',
+             f'                if {ROSE_SRC}:', '                    ok = False',
+             '                else:', '                    e = e1',
+             '            if not ok:',
+             '                if not use_careful:', '                    break',
+             '                done, p1, v1, turns = careful_step(',
+             '                    plain, branch, p0, v0, h, ain, w2, gamma, n, v_acc, check,',
+             '                    nonsmooth, disk, real, max_angle)',
+             '                if not done:', '                    break',
+             '                REV[i] += turns',
+             '                if check:', '                    v = v1',
+             '                    s = sin(0.5 * p1)', f'                    e = {ENERGY_SRC}',
              '            p0 = p1', '            v0 = v1', '            k += 1',
              '            r = record_row(base + k, every, total, rows)',
              '            if r >= 0:', '                RP[r, i] = p0',
@@ -211,13 +233,15 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def compile_kernel(tableau: Tableau, n: float) -> Any:
+def compile_kernel(tableau: Tableau, n: float, careful_step: Any) -> Any:
     """Return the Python function of :func:`kernel_source` (``jit.compile_kernel`` compiles it).
 
-    Run as Python, ``prange`` is ``range``: the same steps, one pendulum after another.
+    ``careful_step`` is ``compiled_careful.careful_step``. Run as Python, ``prange`` is
+    ``range``: the same steps, one pendulum after another.
     """
     env: dict[str, object] = dict(SCALAR_ENV, INF=math.inf, ENERGY_TOL=ENERGY_TOL,
-                                  prange=range, record_row=record_row)
+                                  prange=range, record_row=record_row,
+                                  careful_step=careful_step)
     return define(kernel_source(tableau, n), 'kernel', env, f'<kernel {tableau.name}>')
 
 

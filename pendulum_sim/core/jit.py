@@ -93,13 +93,28 @@ def compile_step(fn: Any) -> Any:
     return numba.njit(SIGNATURE)(_twin(fn))
 
 
-def _twin(fn: Any) -> Any:
-    """Return ``fn`` on a copy of its globals in which the functions it calls are compiled."""
-    env = {name: _helper(value) if isinstance(value, types.FunctionType) else value
+def _twin(fn: Any, deep: bool = False) -> Any:
+    """Return ``fn`` on a copy of its globals in which the functions it calls are compiled.
+
+    With ``deep``, the functions it names are compiled the same way, and so on down.
+    """
+    used = set(fn.__code__.co_names)
+    env = {name: (numba_twin(value) if deep and name in used else _helper(value))
+           if isinstance(value, types.FunctionType) else value
            for name, value in fn.__globals__.items()
            if name != '__builtins__' and value is not fn}
     env['__builtins__'] = fn.__globals__.get('__builtins__', __builtins__)
     return types.FunctionType(fn.__code__, env, fn.__name__)
+
+
+@functools.cache
+def numba_twin(fn: Any) -> Any:
+    """Return ``fn`` compiled by numba with everything it calls compiled (:func:`_twin` deep)."""
+    import numba
+
+    if fn is damping_derivative:
+        return numba.njit(slope_formula)
+    return numba.njit(_twin(fn, deep=True))
 
 
 _KERNELS: dict[types.CodeType, Any] = {}
@@ -120,7 +135,7 @@ def compile_kernel(fn: Any) -> Any:
 
     kernel = _KERNELS.get(fn.__code__)
     if kernel is None:
-        twin = _twin(fn)
+        twin = _twin(fn, deep=True)
         twin.__globals__['prange'] = numba.prange
         kernel = _KERNELS[fn.__code__] = numba.njit(parallel=True)(twin)
     return kernel

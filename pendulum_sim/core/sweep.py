@@ -32,6 +32,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .codegen import define
+from .compiled_careful import careful_step
 from .compiled_sweep import run_piece
 from .decisions import (
     CROSS_SRC,
@@ -275,7 +276,8 @@ class _Group:
         self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
-        self.kernel: Any = None  # the compiled fast path (``jit=True``), or None: numpy
+        self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
+        self.use_careful = False  # the compiled run takes the split step (compiled_careful)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
         self.p = self.v = self.e = np.empty(0)
         self.w2: Any = 0.0
@@ -537,7 +539,9 @@ class Sweep:
             tab = METHODS[method].tableau
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
             for grp in self._groups:
-                grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n))
+                grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n, careful_step))
+                # The compiled careful step serves guarded ungraded laws with n >= 1.
+                grp.use_careful = self.guard and grp.n >= 1.0 and not grp.graded
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
         self._bounds = ain_bounds(self._tau)
         for grp in self._groups:
@@ -667,8 +671,14 @@ class Sweep:
             if grp.check[j]:
                 grp.e[j] = specific_energy(v1, math.sin(0.5 * p1), w2)
 
-        beyond = run_piece(self._groups, hh, count, base, total, every, records, self._vmax,
-                           careful)
+        g = guard_for(meth.tableau)
+        beyond, turns = run_piece(self._groups, hh, count, base, total, every, records,
+                                  self._vmax, careful, (g.disk, g.real, g.max_angle))
+        for i, k in turns.items():
+            st = stats.get(i)
+            if st is None:
+                st = stats[i] = GuardStats()
+            st.reversals += k
         if beyond:
             done, pos = min(beyond)
             grp = next(grp for grp in self._groups if grp.sl.start <= pos < grp.sl.stop)
