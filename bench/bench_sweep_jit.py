@@ -67,7 +67,7 @@ def bare_rk4(n_values: list[float]) -> dict[float, Callable[..., None]]:
     """
     import numba
 
-    out = {}
+    out: dict[float, Callable[..., None]] = {}
     for n in n_values:
         env: dict[str, Any] = {'sin': math.sin, 'copysign': math.copysign, 'sqrt': math.sqrt,
                                'prange': numba.prange}

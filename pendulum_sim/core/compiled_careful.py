@@ -99,10 +99,12 @@ def split(plain: Any, branch: Any, p: float, v: float, h: float, ain: float, w2:
           gamma: float, n: float, a0: float) -> tuple[bool, float, float, int]:
     """Return ``SplitSteps.split``'s (done, φ₁, φ'₁, reversals) for an ungraded law, n >= 1."""
     sign = 1.0 if v > 0.0 else -1.0
-    p1, v1, _, a1 = branch(p, v, h, ain, w2, gamma, sign, n)
+    p1, v1, _, _ = branch(p, v, h, ain, w2, gamma, sign, n)
     if v1 * v > 0.0:
         return True, p1, v1, 0  # no kink inside
-    # reversal.locate_reversal: the Hermite root, then Newton on the partial step's φ'(θh).
+    # reversal.locate_reversal: the Hermite root (end slope: φ'' on the branch at the step's
+    # end, reversal.branch_accel), then Newton on the partial step's own φ'(θh).
+    a1 = branch(p1, v1, 0.0, ain, w2, gamma, sign, n)[3]
     th = hermite_root(v, v1, h * a0, h * a1)
     pm, vm, _, _ = branch(p, v, th * h, ain, w2, gamma, sign, n)
     for _ in range(NEWTON_ITERATIONS):

@@ -19,6 +19,8 @@ import numpy.typing as npt
 
 from .decisions import record_row
 
+PARALLEL_MIN = 512
+"""Pendulums below which a run is taken by the serial kernel (threads cost more to wake)."""
 CarefulFn = Callable[[Any, int, float], None]
 """``careful(group, j, h)``: take the step of h of the group's pendulum j on the careful path,
 in place in the group's state arrays ``p``, ``v``, ``e``."""
@@ -30,6 +32,7 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
               guard: tuple[float, float, float]) -> tuple[list[tuple[int, int]], dict[int, int]]:
     """Advance every group's pendulums by ``count`` steps of ``h`` (steps ``base`` + 1 …).
 
+    Each group's ``kernel`` is its (parallel, serial) pair of ``jit.compile_kernel``;
     ``records[g]`` are the group's recording arrays (rows by :func:`record_row`; shape (0, m)
     when not recording), ``vmax`` the run's speed bound over the n-sorted pendulums, ``guard``
     the guard's (disk, real, max_angle) for the compiled careful step (a group takes it where
@@ -48,10 +51,10 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
         rows = rp.shape[0]
         rev = np.zeros(size, dtype=np.int64)
         while idx.size:
-            grp.kernel(grp.p, grp.v, grp.e, k, idx, h, count, grp.ain_col, grp.w2_col,
-                       grp.gamma_col, grp.n, grp.lo, grp.hi, grp.reach, grp.v_acc, grp.check,
-                       grp.nonsmooth, grp.coulomb, vm, base, every, total, rp, rv, rev,
-                       grp.use_careful, *guard)
+            run = grp.kernel[0] if idx.size >= PARALLEL_MIN else grp.kernel[1]
+            run(grp.p, grp.v, grp.e, k, idx, h, count, grp.ain_col, grp.w2_col, grp.gamma_col,
+                grp.n, grp.lo, grp.hi, grp.reach, grp.v_acc, grp.check, grp.nonsmooth,
+                grp.coulomb, vm, base, every, total, rp, rv, rev, grp.use_careful, *guard)
             fast = ~(np.abs(grp.v[idx]) <= vm[idx])
             for j in idx[fast].tolist():
                 beyond.append((base + int(k[j]), sl.start + j))

@@ -117,25 +117,29 @@ def numba_twin(fn: Any) -> Any:
     return numba.njit(_twin(fn, deep=True))
 
 
-_KERNELS: dict[types.CodeType, Any] = {}
+_KERNELS: dict[types.CodeType, tuple[Any, Any]] = {}
 
 
-def compile_kernel(fn: Any) -> Any:
-    """Return a sweep's generated run (``decisions.kernel_source``) compiled, in parallel.
+def compile_kernel(fn: Any) -> tuple[Any, Any]:
+    """Return a sweep's generated run (``decisions.kernel_source``) compiled: (parallel, serial).
 
-    ``prange`` becomes numba's: the pendulums are shared out among the cores, each one's
-    arithmetic unchanged (no fast-math, no reduction across pendulums), so every pendulum
-    takes the steps it takes alone. Compiled once per source text (the runs of all exponents
-    a text serves share it), for the array types of its first call.
+    In the parallel one ``prange`` is numba's: the pendulums are shared out among the cores,
+    each one's arithmetic unchanged (no fast-math, no reduction across pendulums), so every
+    pendulum takes the steps it takes alone. The serial one runs them one after another, for
+    runs of a few pendulums, where waking the other threads costs more than the steps.
+    Compiled once per source text (the runs of all exponents a text serves share it), on first
+    call, for the array types of that call.
     """
     if not available():
         raise IntegratorError(f'compiled steps need numba, which is not installed: '
                               f'{INSTALL_HINT}')
     import numba
 
-    kernel = _KERNELS.get(fn.__code__)
-    if kernel is None:
+    kernels = _KERNELS.get(fn.__code__)
+    if kernels is None:
+        twin = _twin(fn, deep=True)
+        serial = numba.njit(twin)
         twin = _twin(fn, deep=True)
         twin.__globals__['prange'] = numba.prange
-        kernel = _KERNELS[fn.__code__] = numba.njit(parallel=True)(twin)
-    return kernel
+        kernels = _KERNELS[fn.__code__] = (numba.njit(parallel=True)(twin), serial)
+    return kernels
