@@ -9,7 +9,9 @@ exponent with the law as ``explicit.damping_expression`` spells it, integer n as
 multiplications, the state in registers over the steps, in parallel over the pendulums as the
 compiled sweep runs; no guard, no decisions) over the same pendulums in the same run, the
 three in turn for ``--repeats`` rounds. Prints ns per pendulum-step (the best of each) and the
-ratios. Asserts nothing.
+ratios. Then (``--distinct``, issue 20) a sweep of 2000 pendulums with as many distinct
+non-integer n from 0.2 to 5: its set-up, how many source texts that compiled, and its time a
+step, numpy and compiled. Asserts nothing.
 """
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from pendulum_sim.core import codegen
 from pendulum_sim.core.explicit import damping_expression
 from pendulum_sim.core.jit import available
 from pendulum_sim.core.sweep import Sweep
@@ -78,6 +81,27 @@ def bare_rk4(n_values: list[float]) -> dict[float, Callable[..., None]]:
     return out
 
 
+def distinct(count: int, steps: int) -> None:
+    """Print the set-up and the time a step of a sweep of ``count`` distinct exponents."""
+    rng = np.random.default_rng(20)
+    n = rng.uniform(0.2, 5.0, count)
+    gamma, p0, v0 = rng.uniform(0.05, 1.0, count), rng.uniform(-2, 2, count), rng.uniform(
+        -3, 3, count)
+    print(f'# {count} pendulums with distinct n in [0.2, 5], gamma in [0.05, 1], h = 1 ms')
+    for name, jit in (('numpy', False), ('compiled', True)):
+        texts = codegen._code.cache_info().misses
+        t0 = time.perf_counter()
+        sw = Sweep(9.8, gamma, n, p0, v0, 1e-3, jit=jit)
+        setup = time.perf_counter() - t0
+        texts = codegen._code.cache_info().misses - texts
+        t0 = time.perf_counter()
+        sw.advance(1e-3)                                    # compiles with jit
+        first = time.perf_counter() - t0
+        per = best(functools.partial(sw.advance, steps * 1e-3), 3) / steps
+        print(f'{name:8s}: set-up {setup:.2f} s ({texts} new source texts), first step '
+              f'{first:.2f} s, then {per * 1e3:.2f} ms a step', flush=True)
+
+
 def best(run: Callable[[], object], repeats: int) -> float:
     """Return the best wall time of ``run()`` over the repeats, in s."""
     out = math.inf
@@ -93,6 +117,7 @@ def main() -> int:
     parser.add_argument('--size', type=int, default=100_000)
     parser.add_argument('--steps', type=int, default=20)
     parser.add_argument('--repeats', type=int, default=5)
+    parser.add_argument('--distinct', type=int, default=2000)
     args = parser.parse_args()
     if not available():
         print('numba is not installed: pip install the jit extra')
@@ -139,6 +164,8 @@ def main() -> int:
     figures['bare'] = figures['bare compiled RK4']
     print(f'compiled sweep / bare kernel = {figures["compiled"] / figures["bare"]:.2f}; '
           f'numpy / compiled sweep = {figures["numpy"] / figures["compiled"]:.2f}')
+    if args.distinct:
+        distinct(args.distinct, 10)
     return 0
 
 

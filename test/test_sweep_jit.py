@@ -116,7 +116,7 @@ def _careful_steps(n: float) -> tuple[Any, Any]:
     return kern.__globals__['plain'], kern.__globals__['branch']
 
 
-@pytest.mark.parametrize('n', [1.0, 2.0, 3.7, 4.0, 5.0])
+@pytest.mark.parametrize('n', [1.0, 1.5, 2.0, 2.5, 3.7, 4.0, 5.0])
 def test_the_compiled_careful_step_is_the_engines_careful_path(n: float) -> None:
     # Where the compiled careful step takes a step it must be Engine.careful's step to the bit,
     # with the same reversal count and nothing else counted; where the engine needs more
@@ -137,7 +137,7 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(n: float) -> None
         eng = Engine(w2, gamma, n, METHODS['rk4'])
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
-        args = (p, v, h, ain, w2, gamma, n, eng.v_acc, eng.energy_check, eng.nonsmooth,
+        args = (p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth,
                 g.disk, g.real, g.max_angle)
         got = compiled[0](compiled[1], compiled[2], *args)
         assert careful_step(plain, branch, *args) == got

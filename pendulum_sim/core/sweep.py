@@ -540,8 +540,8 @@ class Sweep:
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
             for grp in self._groups:
                 grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n, careful_step))
-                # The compiled careful step serves guarded ungraded laws with n >= 1.
-                grp.use_careful = self.guard and grp.n >= 1.0 and not grp.graded
+                # The compiled careful step serves guarded laws with n >= 1.
+                grp.use_careful = self.guard and grp.n >= 1.0
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
         self._bounds = ain_bounds(self._tau)
         for grp in self._groups:
