@@ -20,6 +20,11 @@ second implementation. Each step:
   :meth:`~pendulum_sim.core.engine.Engine.careful`, exactly as the Stepper redoes it: the same
   guard substeps and fallback, the same reversal split, the same Coulomb sticking and energy
   redo. Hence both take the same decisions and agree to round-off (a parity test checks it).
+
+What each group's pendulums fix (damped, Coulomb, a kink at rest, the grading window, the
+stiff-transient speed) is read from each distinct pendulum's frozen
+:class:`~pendulum_sim.core.problem.Problem`, the object the Stepper's engine reads. With
+``jit=True`` the groups run compiled instead (``compiled_sweep.py``), from the same texts.
 """
 from __future__ import annotations
 
@@ -751,8 +756,11 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     max_steps : int
         Refuse runs of more steps than this.
     jit : bool
-        Run the fast path compiled by numba (the ``jit`` extra) instead of with numpy: the
-        same generated step and decisions (``decisions.kernel_source``) in one loop.
+        Run each group of one n compiled by numba (the ``jit`` extra) instead of with numpy:
+        the same generated step and decisions (``decisions.kernel_source``) run step after
+        step per pendulum, in parallel over the pendulums, the careful path's split step
+        compiled too (``compiled_careful.py``) and every other refused step taken by
+        ``Engine.careful`` (``compiled_sweep.py``).
 
     Returns
     -------
