@@ -1,9 +1,11 @@
-"""``sweep(..., jit=True)``: the sweep's fast path compiled by numba from the generated source.
+"""``sweep(..., jit=True)``: the sweep's runs and its careful split step compiled by numba.
 
-Oracles: the ``Stepper`` (the kernel is the Stepper's generated fast step and the decision
-texts, run in one loop, so both take the same steps to the last bit) and the numpy sweep (the
-same decisions; the numbers equal to the bit where the law is spelled with multiplications,
-to round-off where numpy's power differs from the C library's pow).
+Oracles: the ``Stepper`` (the run is the Stepper's generated fast step and the decision texts,
+the compiled careful step mirrors ``Engine.careful`` and everything else goes to it, so both
+take the same steps to the last bit, counters included), ``Engine.careful`` itself for the
+compiled careful step, and the numpy sweep (the same decisions; the numbers equal to the bit
+where the law is spelled with multiplications, to round-off where numpy's power differs from
+the C library's pow).
 """
 from __future__ import annotations
 

@@ -331,10 +331,6 @@ class _Group:
         self.w2, self.gamma = _uniform(om2[sl]), _uniform(gam[sl])
         self.w2_col, self.gamma_col = om2[sl], gam[sl]
 
-    def columns(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Return a_in, ω0² and γ as arrays over the group (the compiled kernel's columns)."""
-        return self.ain_col, self.w2_col, self.gamma_col
-
     def store(self, phi: FloatArray, v: FloatArray, energy: FloatArray) -> None:
         """Write the group's state back into the n-sorted arrays."""
         sl = self.sl
