@@ -1,22 +1,29 @@
-"""``sweep(..., jit=True)``: the sweep's fast path compiled by numba from the generated source.
+"""``sweep(..., jit=True)``: the sweep's runs and its careful split step compiled by numba.
 
-Oracles: the ``Stepper`` (the kernel is the Stepper's generated fast step and the decision
-texts, run in one loop, so both take the same steps to the last bit) and the numpy sweep (the
-same decisions; the numbers equal to the bit where the law is spelled with multiplications,
-to round-off where numpy's power differs from the C library's pow).
+Oracles: the ``Stepper`` (the run is the Stepper's generated fast step and the decision texts,
+the compiled careful step mirrors ``Engine.careful`` and everything else goes to it, so both
+take the same steps to the last bit, counters included), ``Engine.careful`` itself for the
+compiled careful step, and the numpy sweep (the same decisions; the numbers equal to the bit
+where the law is spelled with multiplications, to round-off where numpy's power differs from
+the C library's pow).
 """
 from __future__ import annotations
 
 import itertools
+from typing import Any
 
 import numpy as np
 import pytest
 
-from pendulum_sim.core import IntegratorError, PendulumParams, Stepper
-from pendulum_sim.core.decisions import kernel_source
+from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen, jit
+from pendulum_sim.core.compiled_careful import careful_step
+from pendulum_sim.core.decisions import compile_kernel, kernel_source
+from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.explicit import step_source
-from pendulum_sim.core.jit import available
+from pendulum_sim.core.guard import GuardStats
+from pendulum_sim.core.jit import available, numba_twin
 from pendulum_sim.core.law import damping_expression
+from pendulum_sim.core.methods import METHODS
 from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import TABLEAUS
 
@@ -104,3 +111,107 @@ def test_jit_must_be_a_bool() -> None:
     with pytest.raises(IntegratorError) as info:
         sweep(W2, 1.0, 1.0, 0.1, 0.0, 0.1, 1e-2, jit=1)  # type: ignore[arg-type]
     assert str(info.value) == 'jit must be True or False, got 1'
+
+
+def _careful_steps(n: float) -> tuple[Any, Any]:
+    """Return the generated plain and branch steps (exponent an argument) the kernel calls."""
+    kern = compile_kernel(TABLEAUS['rk4'], n, careful_step)
+    return kern.__globals__['plain'], kern.__globals__['branch']
+
+
+@pytest.mark.parametrize('n', [1.0, 1.5, 2.0, 2.5, 3.7, 4.0, 5.0])
+def test_the_compiled_careful_step_is_the_engines_careful_path(n: float) -> None:
+    # Where the compiled careful step takes a step it must be Engine.careful's step to the bit,
+    # with the same reversal count and nothing else counted; where the engine needs more
+    # (substeps, the fallback, a stiff transient, an energy redo) it must decline. The same
+    # function run as Python and compiled must agree as well.
+    plain, branch = _careful_steps(n)
+    compiled = (numba_twin(careful_step), numba_twin(plain), numba_twin(branch))
+    g = guard_for(TABLEAUS['rk4'])
+    rng = np.random.default_rng(int(10 * n))
+    took = declined = turned = 0
+    for _ in range(400):
+        gamma = float(rng.choice([0.1, 1.0, 30.0, 1e3]))
+        w2 = float(rng.choice([0.0, 9.8, 40.0]))
+        h = float(rng.choice([1e-3, 2e-2]))
+        ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
+        p = float(rng.uniform(-3.0, 3.0))
+        v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.7 else rng.uniform(-6.0, 6.0))
+        eng = Engine(w2, gamma, n, METHODS['rk4'])
+        st = GuardStats()
+        want = eng.careful(p, v, h, ain, st)
+        args = (p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth,
+                g.disk, g.real, g.max_angle)
+        got = compiled[0](compiled[1], compiled[2], *args)
+        assert careful_step(plain, branch, *args) == got
+        if got[0]:
+            assert (got[1], got[2]) == want[:2], (gamma, w2, h, ain, p, v)
+            assert got[3] == st.reversals
+            assert st.substeps == st.fallbacks == st.energy_rejections == 0
+            took += 1
+            turned += got[3]
+        else:
+            declined += 1
+    assert took > 100 and declined > 10
+    assert turned > 30 if n != int(n) or n % 2 == 0 else turned == 0  # smooth: no split
+
+
+# Cells whose steps the careful path takes: near-Coulomb creep and Coulomb sticking, a stiff
+# γ with substeps and the fallback, reversals for non-integer and even n, the energy check.
+CAREFUL = [(100.0, 0.001, 1e-3, 0.3, 0.0, 0.0), (100.0, 0.01, 1e-3, 0.3, 0.0, 0.0),
+           (5.0, 0.0, 1e-2, 0.2, 0.3, 0.0), (5.0, 0.0, 1e-2, 2.0, 1.0, 1.5),
+           (1e4, 1.0, 2e-2, 1.0, 3.0, 0.0), (1e3, 5.0, 2e-2, 0.5, 6.0, 0.0),
+           (2.0, 3.7, 2e-2, 2.5, 0.0, 0.0), (0.5, 1.5, 1e-2, 1.0, 0.0, 0.0),
+           (0.5, 2.0, 1e-2, 2.0, 0.0, 0.0), (0.5, 4.0, 1e-2, 2.0, 0.0, -2.0),
+           (30.0, 0.3, 2e-2, 3.1, 8.0, 0.0), (0.0, 2.0, 2e-2, 3.1, 8.0, 0.0)]
+
+
+def test_careful_cases_take_the_steppers_steps_on_both_sweeps() -> None:
+    gam, nn, hs, p0, v0, tau = (np.array(col) for col in zip(*CAREFUL, strict=True))
+    steps = 60
+    seen = np.zeros(len(COUNTERS), dtype=np.int64)
+    for h in sorted(set(hs.tolist())):
+        sel = hs == h
+        a = sweep(W2, gam[sel], nn[sel], p0[sel], v0[sel], steps * h, h, torque=tau[sel])
+        b = sweep(W2, gam[sel], nn[sel], p0[sel], v0[sel], steps * h, h, torque=tau[sel],
+                  jit=True)
+        for i, (g, n, _, x0, dx0, ain) in enumerate(c for c in CAREFUL if c[2] == h):
+            st = Stepper(PendulumParams.from_omega0_sq(W2, g, n), x0, dx0, h)
+            for _ in range(steps):
+                st.step(ain)
+            want = tuple(getattr(st.stats, k) for k in COUNTERS)
+            seen += want
+            for res in (a, b):
+                assert tuple(int(getattr(res, k)[i]) for k in COUNTERS) == want, (g, n)
+                assert (res.phi[i], res.dphi[i]) == (st.phi, st.dphi), (g, n)
+    assert seen.all()  # substeps, fallbacks, reversals and sticks all took part
+
+
+def test_a_run_beyond_the_speed_bound_is_refused_alike() -> None:
+    # An input drives the second pendulum beyond the run's speed bound: both sweeps stop
+    # with the model's message at the same step, naming the pendulum.
+    msg = None
+    for compiled in (False, True):
+        with pytest.raises(IntegratorError) as info:
+            sweep(W2, [0.0, 0.0, 1.0], [1.0, 1.0, 2.0], 0.0, [0.0, 9999.0, 0.0], 0.01, 1e-3,
+                  torque=[0.0, 1e6, 0.0], jit=compiled)
+        assert str(info.value).endswith(' (index 1)')
+        assert 'at t = 0.001 s' in str(info.value)
+        assert msg is None or str(info.value) == msg
+        msg = str(info.value)
+
+
+def test_distinct_exponents_share_their_generated_code() -> None:
+    # Issue 20: 2000 distinct non-integer n compile one text per law spelling (the exponent is
+    # a name the code reads), for numpy and compiled alike: the set-up's work does not grow
+    # with the number of exponents.
+    rng = np.random.default_rng(20)
+    n = rng.uniform(3.0, 5.0, 2000)
+    n = n[n != np.round(n)]
+    before = codegen._code.cache_info().misses
+    kernels = len(jit._KERNELS)
+    prepared = Sweep(W2, 0.5, n, 1.0, 0.0, 1e-3, jit=True)
+    assert len(prepared._groups) == n.size
+    assert codegen._code.cache_info().misses - before <= 3
+    assert len(jit._KERNELS) - kernels <= 1
+    assert len({id(grp.kernel[0]) for grp in prepared._groups}) == 1

@@ -141,47 +141,108 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
     return define('\n'.join(lines) + '\n', 'fast', env, f'<fast {tableau.name}>')
 
 
-KERNEL_ARGS = ('P', 'V', 'E', 'h', 'AIN', 'W2', 'GAMMA', 'n', 'LO', 'HI', 'REACH', 'V_ACC',
-               'CHECK', 'NONSMOOTH', 'COULOMB', 'P1', 'V1', 'E1', 'OK')
-"""The arguments of a fast-path kernel (:func:`kernel_source`), arrays in capitals."""
+KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'n', 'LO', 'HI',
+               'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base', 'every',
+               'total', 'RP', 'RV', 'REV', 'use_careful', 'disk', 'real', 'max_angle')
+"""The arguments of a compiled sweep run (:func:`kernel_source`), arrays in capitals."""
+
+
+def record_row(done: int, every: int, total: int, rows: int) -> int:
+    """Return the row of the recording that holds the state after step ``done``, or −1.
+
+    Row 0 is the start; a state is recorded every ``every`` steps and after the last step
+    ``total`` (in the last of ``rows`` rows); ``every`` = 0 records nothing.
+    """
+    if every <= 0:
+        return -1
+    if done % every == 0:
+        return done // every
+    if done == total:
+        return rows - 1
+    return -1
+
+
+def _step_with_n(tableau: Tableau, n: float, branch: bool, name: str) -> list[str]:
+    """Return the scalar step of ``explicit.step_source`` as ``name``, the exponent an argument."""
+    lines = step_source(tableau, damping_expression(n, branch, scalar=True)).splitlines()
+    return [f'def {name}(p0, v0, h, ain, w2, gamma, s, n):', *lines[1:]]
 
 
 @functools.lru_cache(maxsize=256)
 def kernel_source(tableau: Tableau, n: float) -> str:
-    """Return the sweep's fast path for one exponent as a loop over arrays, as source text.
+    """Return the sweep's run of many steps for one exponent, over arrays, as source text.
 
-    ``kernel(P, V, E, h, AIN, W2, GAMMA, n, LO, HI, REACH, V_ACC, CHECK, NONSMOOTH, COULOMB,
-    P1, V1, E1, OK)`` takes for every pendulum i the plain step of ``explicit.step_source``
-    from ``(P[i], V[i])`` into ``(P1[i], V1[i])``, and sets ``OK[i]`` where the decisions
-    accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite result, not a Coulomb
-    pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the stiff-transient test and,
-    where ``CHECK[i]``, the energy test from ``E[i]`` (E₁/I into ``E1[i]``). The texts are the
-    ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`; the exponent is an
-    argument, so one text serves every exponent whose law it spells the same.
+    ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, n, LO, HI, REACH, V_ACC, CHECK,
+    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, REV, use_careful, disk, real,
+    max_angle)`` advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
+    ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
+    step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
+    fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
+    result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
+    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``).
+    A refused step is taken, where ``use_careful``, by ``careful_step`` (the careful path's
+    split step, ``compiled_careful.py``; its reversals counted in ``REV[i]``, the guard's
+    ``disk``, ``real`` and ``max_angle`` its constants). The run stops at a step neither takes
+    (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'|
+    above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
+    step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``.
+    The texts are the ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`;
+    the exponent is an argument, so one text serves every exponent whose law it spells alike.
+    The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
+    with the exponent an argument, which ``careful_step`` takes.
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
-    lines = [f'def kernel({", ".join(KERNEL_ARGS)}):', '    for i in range(P.shape[0]):',
-             '        p0 = P[i]', '        v0 = V[i]', '        ain = AIN[i]',
-             '        w2 = W2[i]', '        gamma = GAMMA[i]', *('    ' + line for line in body),
-             '        P1[i] = p1', '        V1[i] = v1', '        v = v0', '        a0 = a_0',
-             '        av = abs(v)',
-             '        ok = LO[i] <= av <= HI[i] and -INF < p1 < INF and -INF < v1 < INF',
-             '        if ok and COULOMB[i] and v == 0.0:', '            ok = False',
-             '        reach = REACH[i]',
-             f'        if ok and NONSMOOTH[i] and ({_scalar(REVERSAL_SRC)}):',
-             '            ok = False',
-             '        v_acc = V_ACC[i]',
-             f'        if ok and av > v_acc and {_scalar(STIFF_SRC)}:', '            ok = False',
-             '        e1 = E[i]', '        if CHECK[i]:', '            e0 = e1',
-             '            v = v1', '            s = sin(0.5 * p1)',
-             f'            e1 = {ENERGY_SRC}', f'            if ok and {ROSE_SRC}:',
-             '                ok = False', '        E1[i] = e1', '        OK[i] = ok']
+    pad = '        '
+    lines = [*_step_with_n(tableau, n, False, 'plain'), *_step_with_n(tableau, n, True, 'branch'),
+             f'def kernel({", ".join(KERNEL_ARGS)}):',
+             '    rows = RP.shape[0]',
+             '    for j in prange(IDX.shape[0]):',
+             '        i = IDX[j]',
+             '        ain = AIN[i]', '        w2 = W2[i]', '        gamma = GAMMA[i]',
+             '        lo = LO[i]', '        hi = HI[i]', '        reach = REACH[i]',
+             '        v_acc = V_ACC[i]', '        check = CHECK[i]',
+             '        nonsmooth = NONSMOOTH[i]', '        coulomb = COULOMB[i]',
+             '        vmax = VMAX[i]',
+             '        p0 = P[i]', '        v0 = V[i]', '        e = E[i]', '        k = K[i]',
+             '        while k < count:', *(pad + line for line in body),
+             '            v = v0', '            a0 = a_0', '            av = abs(v)',
+             '            ok = lo <= av <= hi and -INF < p1 < INF and -INF < v1 < INF',
+             '            if ok and coulomb and v == 0.0:', '                ok = False',
+             f'            if ok and nonsmooth and ({_scalar(REVERSAL_SRC)}):',
+             '                ok = False',
+             f'            if ok and av > v_acc and {_scalar(STIFF_SRC)}:',
+             '                ok = False',
+             '            if ok and check:', '                e0 = e', '                v = v1',
+             '                s = sin(0.5 * p1)', f'                e1 = {ENERGY_SRC}',
+             f'                if {ROSE_SRC}:', '                    ok = False',
+             '                else:', '                    e = e1',
+             '            if not ok:',
+             '                if not use_careful:', '                    break',
+             '                done, p1, v1, turns = careful_step(',
+             '                    plain, branch, p0, v0, h, ain, w2, gamma, n, v_acc, reach,',
+             '                    check, nonsmooth, disk, real, max_angle)',
+             '                if not done:', '                    break',
+             '                REV[i] += turns',
+             '                if check:', '                    v = v1',
+             '                    s = sin(0.5 * p1)', f'                    e = {ENERGY_SRC}',
+             '            p0 = p1', '            v0 = v1', '            k += 1',
+             '            r = record_row(base + k, every, total, rows)',
+             '            if r >= 0:', '                RP[r, i] = p0',
+             '                RV[r, i] = v0',
+             '            if not abs(v0) <= vmax:', '                break',
+             '        P[i] = p0', '        V[i] = v0', '        E[i] = e', '        K[i] = k']
     return '\n'.join(lines) + '\n'
 
 
-def compile_kernel(tableau: Tableau, n: float) -> Any:
-    """Return the Python function of :func:`kernel_source` (``jit.compile_kernel`` compiles it)."""
-    env: dict[str, object] = dict(SCALAR_ENV, INF=math.inf, ENERGY_TOL=ENERGY_TOL)
+def compile_kernel(tableau: Tableau, n: float, careful_step: Any) -> Any:
+    """Return the Python function of :func:`kernel_source` (``jit.compile_kernel`` compiles it).
+
+    ``careful_step`` is ``compiled_careful.careful_step``. Run as Python, ``prange`` is
+    ``range``: the same steps, one pendulum after another.
+    """
+    env: dict[str, object] = dict(SCALAR_ENV, INF=math.inf, ENERGY_TOL=ENERGY_TOL,
+                                  prange=range, record_row=record_row,
+                                  careful_step=careful_step)
     return define(kernel_source(tableau, n), 'kernel', env, f'<kernel {tableau.name}>')
 
 
@@ -216,6 +277,7 @@ __all__ = [
     'compile_kernel',
     'energy_rose',
     'kernel_source',
+    'record_row',
     'reversal_suspect',
     'specific_energy',
     'stiff_transient',

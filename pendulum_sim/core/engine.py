@@ -89,7 +89,7 @@ class Engine:
         self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
         # May creep (``coulomb.py``); plain unguarded steps are taken as asked.
         self.near_coulomb = 0.0 < n < 1.0 and gamma > 0.0 and not (fast and not guard)
-        self.v_acc = accuracy_speed(gamma, n, self.omega0) if guard and fast else math.inf
+        self.v_acc = prob.v_acc if guard and fast else math.inf
         self.w_ref = max(self.omega0, 1.0)
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
         # only for a Coulomb break-away, never for the implicit method's own steps).
@@ -98,7 +98,7 @@ class Engine:
         self.micro = self.plain.micro
         self.guard = guard_for(tab) if guard and fast else None
         self.unguarded = fast and not guard  # plain explicit steps, as asked
-        self.energy_check = energy_check and gamma > 0.0 and fast
+        self.energy_check = energy_check and prob.damped and fast
         self.damping: DampingFn = prob.damping
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
         self.rtol, self.atol = rtol, atol

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from .decisions import accuracy_speed
 from .law import DampingFn, compile_damping
 from .model import smooth_law
 from .reversal import grade_window, graded_law
@@ -29,6 +30,8 @@ class Problem:
     ----------
     omega0 : float
         ω0 in s⁻¹.
+    damped : bool
+        γ > 0: energy can only fall without input (the energy check applies).
     coulomb : bool
         Dry friction (n = 0, γ > 0): the pendulum sticks where the forces allow.
     nonsmooth : bool
@@ -36,6 +39,9 @@ class Problem:
         velocity reversals.
     reach : float
         The window S (s) around a reversal inside which steps are graded (0: no grading).
+    v_acc : float
+        The speed above which a damping-dominated n > 1 transient is taken by error-controlled
+        substeps (``decisions.accuracy_speed``; inf for n <= 1 or γ = 0).
     damping : callable
         The damping acceleration D(φ') = γ φ'|φ'|^(n−1), compiled for this n and γ.
     """
@@ -44,19 +50,23 @@ class Problem:
     gamma: float
     n: float
     omega0: float = field(init=False)
+    damped: bool = field(init=False)
     coulomb: bool = field(init=False)
     nonsmooth: bool = field(init=False)
     reach: float = field(init=False)
+    v_acc: float = field(init=False)
     damping: DampingFn = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         omega0 = math.sqrt(self.w2)
         set_(self, 'omega0', omega0)
+        set_(self, 'damped', self.gamma > 0.0)
         set_(self, 'coulomb', self.n == 0.0 and self.gamma > 0.0)
         nonsmooth = self.gamma > 0.0 and not smooth_law(self.n)
         set_(self, 'nonsmooth', nonsmooth)
         set_(self, 'reach', grade_window(omega0) if nonsmooth and graded_law(self.n) else 0.0)
+        set_(self, 'v_acc', accuracy_speed(self.gamma, self.n, omega0))
         law = compile_damping(self.n)
         g = self.gamma
         set_(self, 'damping', lambda v: law(v, g, 1.0))

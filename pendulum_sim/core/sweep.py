@@ -20,9 +20,15 @@ second implementation. Each step:
   :meth:`~pendulum_sim.core.engine.Engine.careful`, exactly as the Stepper redoes it: the same
   guard substeps and fallback, the same reversal split, the same Coulomb sticking and energy
   redo. Hence both take the same decisions and agree to round-off (a parity test checks it).
+
+What each group's pendulums fix (damped, Coulomb, a kink at rest, the grading window, the
+stiff-transient speed) is read from each distinct pendulum's frozen
+:class:`~pendulum_sim.core.problem.Problem`, the object the Stepper's engine reads. With
+``jit=True`` the groups run compiled instead (``compiled_sweep.py``), from the same texts.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -31,10 +37,11 @@ import numpy as np
 import numpy.typing as npt
 
 from .codegen import define
+from .compiled_careful import careful_step
+from .compiled_sweep import run_piece
 from .decisions import (
     CROSS_SRC,
     REVERSAL_SRC,
-    accuracy_speed,
     ain_bounds,
     compile_kernel,
     energy_rose,
@@ -61,11 +68,10 @@ from .model import (
     check_step,
     check_torque,
     run_speed_limit,
-    smooth_law,
     speed_limit,
     validate_state,
 )
-from .reversal import grade_window, graded_law
+from .problem import Problem
 from .simulate import step_count
 from .tableaus import Tableau
 
@@ -275,7 +281,8 @@ class _Group:
         self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
-        self.kernel: Any = None  # the compiled fast path (``jit=True``), or None: numpy
+        self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
+        self.use_careful = False  # the compiled run takes the split step (compiled_careful)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
         self.p = self.v = self.e = np.empty(0)
         self.w2: Any = 0.0
@@ -324,10 +331,6 @@ class _Group:
         self.w2, self.gamma = _uniform(om2[sl]), _uniform(gam[sl])
         self.w2_col, self.gamma_col = om2[sl], gam[sl]
 
-    def columns(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Return a_in, ω0² and γ as arrays over the group (the compiled kernel's columns)."""
-        return self.ain_col, self.w2_col, self.gamma_col
-
     def store(self, phi: FloatArray, v: FloatArray, energy: FloatArray) -> None:
         """Write the group's state back into the n-sorted arrays."""
         sl = self.sl
@@ -354,6 +357,17 @@ def _on_unique(fn: Any, *cols: FloatArray) -> FloatArray:
     return np.array([fn(*row) for row in rows], dtype=np.float64)[inv.ravel()]
 
 
+def _flags(w2: float, gamma: float, n: float, guard: bool) -> tuple[float, ...]:
+    """Return what the pendulum's frozen :class:`Problem` decides, as the group's columns.
+
+    (damped, coulomb, nonsmooth, reach, v_acc): the very values the Stepper's engine reads
+    from its Problem (v_acc only where the guard is on, as the engine has it).
+    """
+    prob = Problem(w2, gamma, n)
+    return (prob.damped, prob.coulomb, prob.nonsmooth, prob.reach,
+            prob.v_acc if guard else math.inf)
+
+
 def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str,
             guard: bool) -> list[_Group]:
     """Split the n-sorted pendulums into groups of one n (blocks of at most BLOCK)."""
@@ -365,15 +379,11 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str,
               zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, BLOCK)]
     for val, a, b in pieces:
         sl = slice(a, b)
-        smooth = smooth_law(val)
-        omega0 = np.sqrt(om2[sl])
-        out.append(_Group(
-            sl=sl, n=val, step=compile_step(tab, val, vector=True),
-            nonsmooth=(gam[sl] > 0.0) & (not smooth), coulomb=(gam[sl] > 0.0) & (val == 0.0),
-            damped=gam[sl] > 0.0,
-            reach=_on_unique(grade_window, omega0) if graded_law(val) else np.zeros(b - a),
-            v_acc=(_on_unique(lambda ga, w0, n=val: accuracy_speed(ga, n, w0), gam[sl], omega0)
-                   if guard and val > 1.0 else np.full(b - a, math.inf))))
+        flags = _on_unique(functools.partial(_flags, n=val, guard=guard), om2[sl], gam[sl])
+        damped, coulomb, nonsmooth = (flags[:, k] != 0.0 for k in range(3))
+        out.append(_Group(sl=sl, n=val, step=compile_step(tab, val, vector=True),
+                          nonsmooth=nonsmooth, coulomb=coulomb, damped=damped,
+                          reach=flags[:, 3].copy(), v_acc=flags[:, 4].copy()))
     return out
 
 
@@ -381,13 +391,6 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool) -> None:
     """Advance one group by a step of hh: the plain step, the decisions, the careful path."""
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
-    if grp.kernel is not None:
-        p1, v1, e1 = np.empty_like(p), np.empty_like(p), np.empty_like(p)
-        ok = np.empty(p.shape, dtype=np.bool_)
-        grp.kernel(p, vv, grp.e, hh, *grp.columns(), grp.n, grp.lo, grp.hi, grp.reach,
-                   grp.v_acc, grp.check, grp.nonsmooth, grp.coulomb, p1, v1, e1, ok)
-        _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1)
-        return
     p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
     av = np.abs(vv)
     ok = av <= grp.hi
@@ -423,6 +426,26 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1)
 
 
+def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float, w2: float,
+                 gamma: float, engines: dict[tuple[float, ...], Engine],
+                 stats: dict[int, GuardStats], meth: Any, guard: bool,
+                 energy_check: bool) -> tuple[float, float]:
+    """Take the step of the group's pendulum ``j`` on the engine's careful path; return it."""
+    n = grp.n
+    # Pendulums with the same (ω0², γ, n) share an Engine; a zero's sign is kept apart.
+    key = (w2, gamma, n) if w2 and gamma else (
+        w2, gamma, n, math.copysign(1.0, w2), math.copysign(1.0, gamma))
+    eng = engines.get(key)
+    if eng is None:
+        eng = engines[key] = Engine(w2, gamma, n, meth, guard, energy_check)
+    i = grp.sl.start + j
+    st = stats.get(i)
+    if st is None:
+        st = stats[i] = GuardStats()
+    p1, v1, _ = eng.careful(p, v, hh, ain, st)
+    return p1, v1
+
+
 def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
              ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray) -> None:
@@ -431,22 +454,13 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     refused = np.flatnonzero(~ok)
     if refused.size:
         consts = [np.broadcast_to(c, p.shape)[refused] for c in (ain, w2, ga)]
-        start, n = grp.sl.start, grp.n
         ps: list[float] = []
         vs: list[float] = []
         for j, pj, vj, aj, w2j, gj in zip(refused.tolist(), p[refused].tolist(),
                                           vv[refused].tolist(), *(c.tolist() for c in consts),
                                           strict=True):
-            # Pendulums with the same (ω0², γ, n) share an Engine; a zero's sign is kept apart.
-            key = (w2j, gj, n) if w2j and gj else (
-                w2j, gj, n, math.copysign(1.0, w2j), math.copysign(1.0, gj))
-            eng = engines.get(key)
-            if eng is None:
-                eng = engines[key] = Engine(w2j, gj, n, meth, guard, energy_check)
-            st = stats.get(start + j)
-            if st is None:
-                st = stats[start + j] = GuardStats()
-            pj, vj, _ = eng.careful(pj, vj, hh, aj, st)
+            pj, vj = _careful_one(grp, j, pj, vj, hh, aj, w2j, gj, engines, stats, meth, guard,
+                                  energy_check)
             ps.append(pj)
             vs.append(vj)
         p1[refused], v1[refused] = ps, vs
@@ -526,7 +540,9 @@ class Sweep:
             tab = METHODS[method].tableau
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
             for grp in self._groups:
-                grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n))
+                grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n, careful_step))
+                # The compiled careful step serves guarded laws with n >= 1.
+                grp.use_careful = self.guard and grp.n >= 1.0
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
         self._bounds = ain_bounds(self._tau)
         for grp in self._groups:
@@ -593,8 +609,14 @@ class Sweep:
             rec_p.append(np.concatenate([grp.p for grp in groups]) if loaded else phi.copy())
             rec_v.append(np.concatenate([grp.v for grp in groups]) if loaded else v.copy())
 
+        every = record_every or 0
+        rows = 1 + total // every + (1 if total % every else 0) if every else 0
+        records = [(np.empty((rows, grp.sl.stop - grp.sl.start)),
+                    np.empty((rows, grp.sl.stop - grp.sl.start))) for grp in groups]
         if record_every is not None:
             record(0.0)
+            for grp, (rp, rv) in zip(groups, records, strict=True):
+                rp[0], rv[0] = phi[grp.sl], v[grp.sl]
         done = 0
         g = guard_for(meth.tableau)
         with np.errstate(all='ignore'):
@@ -604,7 +626,10 @@ class Sweep:
                         grp.use_step(g, hh, om2, gam, self._bounds)
                     grp.load(phi, v, energy, om2, gam)
                 loaded = True
-                for _ in range(count):
+                if self.jit:
+                    self._run_compiled(hh, count, done, total, t_end, every, records, stats)
+                    done += count
+                for _ in range(0 if self.jit else count):
                     for grp in groups:
                         _advance(grp, hh, self._engines, stats, meth, self.guard,
                                  self.energy_check)
@@ -615,6 +640,11 @@ class Sweep:
                 for grp in groups:
                     grp.store(phi, v, energy)
                 loaded = False
+        if self.jit and every:
+            rec_t = [0.0, *(t_end if d == total else d * h for d in range(1, total + 1)
+                            if d % every == 0 or d == total)]
+            rec_p = list(np.concatenate([rp for rp, _ in records], axis=1))
+            rec_v = list(np.concatenate([rv for _, rv in records], axis=1))
         return self._result(stats, rec_t, rec_p, rec_v, record_every is not None, total, t_end)
 
     def _params(self, i: int) -> PendulumParams:
@@ -623,16 +653,51 @@ class Sweep:
         cols = {'omega0_sq': self._om2, 'gamma': self._gam, 'n': self._nn}
         return _params(cols, j)
 
+    def _run_compiled(self, hh: float, count: int, base: int, total: int, t_end: float,
+                      every: int, records: list[tuple[FloatArray, FloatArray]],
+                      stats: dict[int, GuardStats]) -> None:
+        """Advance the loaded groups by ``count`` steps of their compiled runs (``jit=True``).
+
+        The steps the runs refuse are taken by :func:`_careful_one`, as the numpy path takes
+        them; a state beyond the run's speed bound is refused at the earliest step it occurs.
+        """
+        meth = METHODS[self.method]
+
+        def careful(grp: _Group, j: int, h: float) -> None:
+            w2 = float(grp.w2_col[j])
+            p1, v1 = _careful_one(grp, j, float(grp.p[j]), float(grp.v[j]), h,
+                                  float(grp.ain_col[j]), w2, float(grp.gamma_col[j]),
+                                  self._engines, stats, meth, self.guard, self.energy_check)
+            grp.p[j], grp.v[j] = p1, v1
+            if grp.check[j]:
+                grp.e[j] = specific_energy(v1, math.sin(0.5 * p1), w2)
+
+        g = guard_for(meth.tableau)
+        beyond, turns = run_piece(self._groups, hh, count, base, total, every, records,
+                                  self._vmax, careful, (g.disk, g.real, g.max_angle))
+        for i, k in turns.items():
+            st = stats.get(i)
+            if st is None:
+                st = stats[i] = GuardStats()
+            st.reversals += k
+        if beyond:
+            done, pos = min(beyond)
+            grp = next(grp for grp in self._groups if grp.sl.start <= pos < grp.sl.stop)
+            self._refuse_speed(pos, float(grp.v[pos - grp.sl.start]),
+                               t_end if done == total else done * self.h)
+
     def _check_speed(self, grp: _Group, t: float) -> None:
         """Refuse to go on from a state beyond the run's speed bound, naming the pendulum."""
         fast = np.flatnonzero(~(np.abs(grp.v) <= self._vmax[grp.sl]))
         if fast.size:
-            j = grp.sl.start + int(fast[0])
-            try:
-                check_speed(float(grp.v[fast[0]]), float(self._gam[j]), float(self._nn[j]),
-                            float(self._om2[j]), t)
-            except IntegratorError as exc:
-                raise IntegratorError(f'{exc} (index {int(self._order[j])})') from None
+            self._refuse_speed(grp.sl.start + int(fast[0]), float(grp.v[fast[0]]), t)
+
+    def _refuse_speed(self, j: int, v: float, t: float) -> None:
+        """Raise the model's speed refusal for the n-sorted pendulum ``j`` at time ``t``."""
+        try:
+            check_speed(v, float(self._gam[j]), float(self._nn[j]), float(self._om2[j]), t)
+        except IntegratorError as exc:
+            raise IntegratorError(f'{exc} (index {int(self._order[j])})') from None
 
     def _result(self, stats: dict[int, GuardStats], rec_t: list[float], rec_p: list[FloatArray],
                 rec_v: list[FloatArray], rec: bool, total: int, t_end: float) -> SweepResult:
@@ -687,8 +752,11 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     max_steps : int
         Refuse runs of more steps than this.
     jit : bool
-        Run the fast path compiled by numba (the ``jit`` extra) instead of with numpy: the
-        same generated step and decisions (``decisions.kernel_source``) in one loop.
+        Run each group of one n compiled by numba (the ``jit`` extra) instead of with numpy:
+        the same generated step and decisions (``decisions.kernel_source``) run step after
+        step per pendulum, in parallel over the pendulums, the careful path's split step
+        compiled too (``compiled_careful.py``) and every other refused step taken by
+        ``Engine.careful`` (``compiled_sweep.py``).
 
     Returns
     -------
