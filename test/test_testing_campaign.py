@@ -201,10 +201,11 @@ def test_a_campaign_writes_its_table_summary_figures_and_failing_recordings(
     import pyarrow.parquet as pq
 
     assert pq.read_table(out / 'episodes.parquet').column_names == [
-        'episode', 'phi0', 'gamma', 'sensor.position_noise', 'm', 'inertia', *METRIC_NAMES,
+        'episode', 'phi0', 'gamma', 'sensor.position_noise', 'm', 'inertia', 'target',
+        *METRIC_NAMES,
         'passed', 'reason', *RUN_COLUMNS]
     assert (out / 'episodes.csv').read_text().splitlines()[0].startswith(
-        'episode,phi0,gamma,sensor.position_noise,m,inertia,rise_time,')
+        'episode,phi0,gamma,sensor.position_noise,m,inertia,target,rise_time,')
     spec = parse_spec(path.read_text())
     for r in rows:
         assert same_rows([r], [{k: v for k, v in run_episode(spec.text, r['episode'],
