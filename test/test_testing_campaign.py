@@ -118,6 +118,19 @@ BASE = {'controller': 'pendulum_sim.testing.examples:pd', 'episodes': 4, 'period
     ({'scene': 'nope'}, "unknown scene 'nope'; known scenes: "),
     ({'parameters': {'synchronous': False}}, 'parameters.synchronous is fixed for a closed '
      'loop'),
+    ({'controller': 'campaign_laws:hold',
+      'target': {'distribution': 'uniform', 'low': 0.2, 'high': 0.8}},
+     "target varies per episode but controller 'campaign_laws:hold' takes no keyword argument "
+     'target to receive it'),
+    ({'controller': [PD_CONTROLLER, '--ros-args', '-p', 'target:=0.5'], 'target': [0.3, 0.6]},
+     'target varies per episode but the controller command line has no {target} placeholder '
+     "to receive it (e.g. '-p', 'target:={target}')"),
+    ({'target': {'distribution': 'uniform', 'low': 1.0, 'high': 0.5}},
+     'target: uniform needs low < high, got low = 1, high = 0.5'),
+    ({'target': [0.3, 'up']}, "target must be a number, got 'up'"),
+    ({'target': []}, 'target: a list of values must not be empty'),
+    ({'target': {'low': 0.1}}, 'target: distribution must be one of uniform, normal, '
+     'loguniform, got None'),
     ({'episode': 3}, "campaign.yaml: unknown key 'episode'; keys: controller, scene, episodes, "
      'seed, periods, target, parameters, requirements'),
 ])
