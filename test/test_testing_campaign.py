@@ -316,11 +316,12 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[by
         while not scheduler_file.is_file() or not scheduler_file.read_text().strip():
             assert procs[0].poll() is None and time.monotonic() < end, 'no scheduler'
             time.sleep(0.05)
-        for _ in range(2):
+        for _ in range(2):   # as the campaign tutorial starts them: no statistical profiler
             procs.append(subprocess.Popen(
                 [dask, 'worker', '--scheduler-file', str(scheduler_file), '--nthreads', '1',
                  '--host', '127.0.0.1', '--no-dashboard', '--no-nanny'],
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                env={**os.environ, 'DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED': 'False'}))
         address = json.loads(scheduler_file.read_text())['address']
         from distributed import Client
 
@@ -336,6 +337,28 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[by
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+def _profiling(dask_worker: Any) -> bool:
+    """Return True when the worker runs Dask's statistical profiler (its periodic sampling)."""
+    return 'profile' in dask_worker.periodic_callbacks
+
+
+def test_the_local_cluster_runs_its_workers_without_the_statistical_profiler() -> None:
+    import dask
+
+    from pendulum_sim.testing.campaign.execute import make_client
+
+    assert dask.config.get('distributed.worker.profile.enabled') is True   # Dask's default
+    client = make_client(None, 1)
+    cluster = client.cluster
+    try:
+        assert list(client.run(_profiling).values()) == [False]
+        assert list(client.run(dask.config.get,
+                               'distributed.worker.profile.enabled').values()) == [False]
+    finally:
+        client.close()
+        cluster.close()
 
 
 ROS_CAMPAIGN = f"""
@@ -356,6 +379,10 @@ requirements: ['overshoot < 30']
 def test_a_campaign_on_a_dask_cluster_gets_exactly_the_local_table(
         tmp_path: Path, dask_cluster: tuple[str, list[subprocess.Popen[bytes]]]) -> None:
     address, _ = dask_cluster
+    from distributed import Client
+
+    with Client(address, timeout='30s') as client:   # the documented setting took effect
+        assert list(client.run(_profiling).values()) == [False, False]
     path = campaign(tmp_path, episodes=50, periods=150)
     remote = cli(str(path), '--out', str(tmp_path / 'remote'), '--scheduler', address)
     local = cli(str(path), '--out', str(tmp_path / 'local'), '--workers', '2')

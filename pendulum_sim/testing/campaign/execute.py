@@ -27,6 +27,16 @@ from .store import EpisodeStore
 MAX_BATCH = 10_000
 MAX_CHUNK = 25
 
+# Dask settings the local cluster's workers run with (``dask.config``; for ``dask worker``
+# processes started by hand, the same key as the environment variable
+# DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False or in a YAML file under ~/.config/dask/,
+# https://docs.dask.org/en/stable/configuration.html). Dask's statistical profiler samples the
+# stack of the running task every 10 ms for the dashboard's profile page (distributed's
+# "Diagnosing Performance: Statistical Profiling"); a campaign has no dashboard, and each
+# sample takes the GIL from the pure-Python episode loop (bench/bench_testbench.py, part (d),
+# runs both configurations).
+WORKER_CONFIG: dict[str, Any] = {'distributed.worker.profile.enabled': False}
+
 
 class ProgressBar:
     """One line on stderr: episodes done, pass rate, ETA (redrawn in place)."""
@@ -69,7 +79,11 @@ class ProgressBar:
 
 
 def make_client(scheduler: str | None, workers: int | None) -> Any:
-    """Return a Dask client: to ``scheduler``, or to a new local cluster of ``workers``."""
+    """Return a Dask client: to ``scheduler``, or to a new local cluster of ``workers``.
+
+    The local cluster's workers run with :data:`WORKER_CONFIG`; the workers of an existing
+    cluster run with the configuration they were started with.
+    """
     try:
         from distributed import Client, LocalCluster
     except ImportError:
@@ -79,9 +93,12 @@ def make_client(scheduler: str | None, workers: int | None) -> Any:
             return Client(scheduler, timeout='20s')
         except (OSError, TimeoutError) as exc:
             raise CampaignError(f'cannot reach the Dask scheduler {scheduler}: {exc}') from None
+    import dask
+
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=40)
+    with dask.config.set(WORKER_CONFIG):   # each worker's nanny hands it this configuration
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=40)
     return Client(cluster)
 
 

@@ -102,11 +102,6 @@ class CampaignSpec:
         return (*self.parameter_names, 'target')
 
     @property
-    def target_varies(self) -> bool:
-        """Return True when episodes may have different targets (a distribution or a list)."""
-        return varies(self.target)
-
-    @property
     def is_command_line(self) -> bool:
         """Return True when the controller is a command line (ROS episodes)."""
         return isinstance(self.controller, tuple)
