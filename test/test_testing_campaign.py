@@ -346,9 +346,11 @@ def _profiling(dask_worker: Any) -> bool:
 
 def test_the_local_cluster_runs_its_workers_without_the_statistical_profiler() -> None:
     import dask
+    import distributed  # its defaults join dask.config
 
     from pendulum_sim.testing.campaign.execute import make_client
 
+    assert distributed.__version__
     assert dask.config.get('distributed.worker.profile.enabled') is True   # Dask's default
     client = make_client(None, 1)
     cluster = client.cluster
