@@ -12,9 +12,10 @@
 (d) Dask overhead: the same in-process campaign episodes (each run, a failing one recorded,
     each row stored) by a plain loop in a process of its own, by ``pendulum_campaign``'s
     executor on its local Dask cluster of one single-threaded worker, and on the same cluster
-    with Dask's default configuration (the statistical profiler on), in turn for ``--rounds``
-    rounds: (dask − loop) / loop per round and the median; the cluster's start-up apart; the
-    load average before and after (the machine may be shared).
+    with Dask's default configuration (statistical profiler on, 20 ms ticks), in turn for
+    ``--rounds`` rounds, wall and CPU time: (dask − loop) / loop per round and the median;
+    the cluster's start-up apart; the load average before and after (the machine may be
+    shared).
 
     ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py
     ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py --skip-ros --skip-campaign
@@ -123,9 +124,9 @@ def dask_overhead(episodes: int, periods: int,
     Three ways do a campaign's work (each episode run, a failing one recorded, each row
     stored), in turn, round after round (the order rotates), one core each: a plain loop in a
     process of its own; ``pendulum_campaign``'s local cluster of one single-threaded worker
-    (``make_client``, with ``WORKER_CONFIG``); and the same cluster with Dask's default
+    (``make_client``, with ``CLUSTER_CONFIG``); and the same cluster with Dask's default
     configuration. CPU seconds count every process of the way (the loop's; this process with
-    the scheduler and the client, the worker and its nanny), so they hold still better than
+    the scheduler, the nanny and the client, and the worker), so they hold still better than
     the wall time when the machine is shared; and the load moves, so compare within a round.
     """
     import psutil
@@ -153,9 +154,9 @@ def dask_overhead(episodes: int, periods: int,
         if way == 'campaign' and math.isnan(startup):
             startup = time.perf_counter() - start
         try:
-            # This process (scheduler, client, the rows stored), each worker and its nanny.
-            workers = [psutil.Process(pid) for pid in client.run(os.getpid).values()]
-            procs = [psutil.Process(), *workers, *(w.parent() for w in workers)]
+            # This process (scheduler, nannies, client, the rows stored) and each worker.
+            procs = [psutil.Process(), *(psutil.Process(pid) for pid in
+                                         client.run(os.getpid).values())]
             store = EpisodeStore(folder)
             store.create(text, False)
             start, cpu = time.perf_counter(), _cpu_seconds(procs)

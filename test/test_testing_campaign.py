@@ -316,12 +316,13 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[by
         while not scheduler_file.is_file() or not scheduler_file.read_text().strip():
             assert procs[0].poll() is None and time.monotonic() < end, 'no scheduler'
             time.sleep(0.05)
-        for _ in range(2):   # as the campaign tutorial starts them: no statistical profiler
+        for _ in range(2):   # as the campaign tutorial starts them (its Dask settings)
             procs.append(subprocess.Popen(
                 [dask, 'worker', '--scheduler-file', str(scheduler_file), '--nthreads', '1',
                  '--host', '127.0.0.1', '--no-dashboard', '--no-nanny'],
                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                env={**os.environ, 'DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED': 'False'}))
+                env={**os.environ, 'DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED': 'False',
+                     'DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL': '200ms'}))
         address = json.loads(scheduler_file.read_text())['address']
         from distributed import Client
 
@@ -344,20 +345,31 @@ def _profiling(dask_worker: Any) -> bool:
     return 'profile' in dask_worker.periodic_callbacks
 
 
-def test_the_local_cluster_runs_its_workers_without_the_statistical_profiler() -> None:
+def _scheduler_tick(dask_scheduler: Any) -> float:
+    """Return the seconds between the scheduler's event-loop health checks."""
+    return float(dask_scheduler._tick_interval)
+
+
+def _tick(dask_worker: Any) -> float:
+    """Return the seconds between the worker's event-loop health checks."""
+    return float(dask_worker._tick_interval)
+
+
+def test_the_local_cluster_runs_without_the_profiler_and_with_slower_ticks() -> None:
     import dask
     import distributed  # its defaults join dask.config
 
     from pendulum_sim.testing.campaign.execute import make_client
 
     assert distributed.__version__
-    assert dask.config.get('distributed.worker.profile.enabled') is True   # Dask's default
+    assert dask.config.get('distributed.worker.profile.enabled') is True   # Dask's defaults
+    assert dask.config.get('distributed.admin.tick.interval') == '20ms'
     client = make_client(None, 1)
     cluster = client.cluster
     try:
         assert list(client.run(_profiling).values()) == [False]
-        assert list(client.run(dask.config.get,
-                               'distributed.worker.profile.enabled').values()) == [False]
+        assert list(client.run(_tick).values()) == [0.2]
+        assert client.run_on_scheduler(_scheduler_tick) == 0.2
     finally:
         client.close()
         cluster.close()
@@ -383,8 +395,9 @@ def test_a_campaign_on_a_dask_cluster_gets_exactly_the_local_table(
     address, _ = dask_cluster
     from distributed import Client
 
-    with Client(address, timeout='30s') as client:   # the documented setting took effect
+    with Client(address, timeout='30s') as client:   # the documented settings took effect
         assert list(client.run(_profiling).values()) == [False, False]
+        assert list(client.run(_tick).values()) == [0.2, 0.2]
     path = campaign(tmp_path, episodes=50, periods=150)
     remote = cli(str(path), '--out', str(tmp_path / 'remote'), '--scheduler', address)
     local = cli(str(path), '--out', str(tmp_path / 'local'), '--workers', '2')

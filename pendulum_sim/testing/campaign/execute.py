@@ -27,15 +27,19 @@ from .store import EpisodeStore
 MAX_BATCH = 10_000
 MAX_CHUNK = 25
 
-# Dask settings the local cluster's workers run with (``dask.config``; for ``dask worker``
-# processes started by hand, the same key as the environment variable
-# DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False or in a YAML file under ~/.config/dask/,
-# https://docs.dask.org/en/stable/configuration.html). Dask's statistical profiler samples the
-# stack of the running task every 10 ms for the dashboard's profile page (distributed's
-# "Diagnosing Performance: Statistical Profiling"); a campaign has no dashboard, and each
-# sample takes the GIL from the pure-Python episode loop (bench/bench_testbench.py, part (d),
-# runs both configurations).
-WORKER_CONFIG: dict[str, Any] = {'distributed.worker.profile.enabled': False}
+# Dask settings of the local cluster (``dask.config``, https://docs.dask.org/en/stable/
+# configuration.html; for ``dask scheduler`` and ``dask worker`` processes started by hand, the
+# same keys as environment variables, DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False and
+# DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL=200ms, or in a YAML file under ~/.config/dask/).
+# Both are periodic callbacks of the event loops that a campaign does not use and that take
+# the GIL from the pure-Python episode loop each time: the workers' statistical profiler,
+# which samples the running task's stack every 10 ms for the dashboard's profile page
+# (distributed's "Diagnosing Performance: Statistical Profiling"), and the event-loop health
+# check of every server (scheduler, nanny, worker), every 20 ms by default, which warns when
+# a loop was blocked for over ``distributed.admin.tick.limit`` (3 s); it still does at 200 ms.
+# bench/bench_testbench.py, part (d), runs this and Dask's default configuration.
+CLUSTER_CONFIG: dict[str, Any] = {'distributed.worker.profile.enabled': False,
+                                  'distributed.admin.tick.interval': '200ms'}
 
 
 class ProgressBar:
@@ -81,8 +85,8 @@ class ProgressBar:
 def make_client(scheduler: str | None, workers: int | None) -> Any:
     """Return a Dask client: to ``scheduler``, or to a new local cluster of ``workers``.
 
-    The local cluster's workers run with :data:`WORKER_CONFIG`; the workers of an existing
-    cluster run with the configuration they were started with.
+    The local cluster runs with :data:`CLUSTER_CONFIG`; an existing cluster runs with the
+    configuration its processes were started with.
     """
     try:
         from distributed import Client, LocalCluster
@@ -96,7 +100,7 @@ def make_client(scheduler: str | None, workers: int | None) -> Any:
     import dask
 
     n = workers or os.cpu_count() or 1
-    with dask.config.set(WORKER_CONFIG):   # each worker's nanny hands it this configuration
+    with dask.config.set(CLUSTER_CONFIG):   # each worker's nanny hands it this configuration
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=40)
     return Client(cluster)
