@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from .errors import ControllerFailed, TestingError
 from .metrics import StepMetrics, step_metrics
 from .scene import Value, epoch_ns, finite_limit, scene_values
+from .target import bind_target, substitute_target
 
 FloatArray = NDArray[np.float64]
 Law = Callable[[float, float, float], float]
@@ -152,8 +153,6 @@ def closed_loop(controller: Law | Callable[..., float] | Sequence[str], *,
         When the controller raises, answers with a non-finite command, cannot be started or
         leaves a state unanswered.
     """
-    from .target import bind_target, substitute_target
-
     periods = _check_periods(periods)
     target = _check_target(target)
     values = scene_values(scene, overrides)
