@@ -10,10 +10,12 @@
     time of runs of two lengths; the intercept is the per-episode cost beyond the loop (three
     process starts, discovery, the recording), the slope the cost per control period;
 (d) Dask overhead: the same in-process campaign episodes (each run, a failing one recorded,
-    each row stored) by a plain loop in a process of its own and by ``pendulum_campaign``'s
-    executor on a local Dask cluster of one single-threaded worker, in turn for ``--rounds``
-    rounds:
-    (dask − loop) / loop per round and the median; the cluster's start-up apart.
+    each row stored) by a plain loop in a process of its own, by ``pendulum_campaign``'s
+    executor on its local Dask cluster of one single-threaded worker, and on the same cluster
+    with Dask's default configuration (statistical profiler on, 20 ms ticks), in turn for
+    ``--rounds`` rounds, wall and CPU time: (dask − loop) / loop per round and the median;
+    the cluster's start-up apart; the load average before and after (the machine may be
+    shared).
 
     ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py
     ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py --skip-ros --skip-campaign
@@ -23,6 +25,7 @@ Targets (issue 16): (b) >= 10x (a) at N = 10^4; (d) <= 10 %. Figures to read, no
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import statistics
 import subprocess
@@ -30,6 +33,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -113,59 +117,90 @@ def ros_costs(short: int, long: int) -> tuple[float, float]:
     return times[short] - slope * short, slope
 
 
-def dask_overhead(episodes: int, periods: int, rounds: int) -> tuple[list[float], list[float],
-                                                                    float]:
-    """Return the plain loop's and Dask's times per round, and the cluster's start-up time.
+def dask_overhead(episodes: int, periods: int,
+                  rounds: int) -> tuple[dict[str, list[tuple[float, float]]], float]:
+    """Return each way's (wall, CPU) seconds per round, and the campaign cluster's start-up.
 
-    Both do a campaign's work (each episode run, a failing one recorded, each row stored), in
-    turn, round after round, on one core each: on a shared machine the load moves.
+    Three ways do a campaign's work (each episode run, a failing one recorded, each row
+    stored), in turn, round after round (the order rotates), one core each: a plain loop in a
+    process of its own; ``pendulum_campaign``'s local cluster of one single-threaded worker
+    (``make_client``, with ``CLUSTER_CONFIG``); and the same cluster with Dask's default
+    configuration. CPU seconds count every process of the way (the loop's; this process with
+    the scheduler, the nanny and the client, and the worker), so they hold still better than
+    the wall time when the machine is shared; and the load moves, so compare within a round.
     """
+    import psutil
     from distributed import Client, LocalCluster
 
-    from pendulum_sim.testing.campaign.execute import run_pending
+    from pendulum_sim.testing.campaign.execute import make_client, run_pending
     from pendulum_sim.testing.campaign.spec import parse_spec
     from pendulum_sim.testing.campaign.store import EpisodeStore
 
     text = CAMPAIGN.format(episodes=episodes, periods=periods)
     spec = parse_spec(text)
     run_episode(text, 0, None)                              # warm-up
-    loops: list[float] = []
-    dasks: list[float] = []
-    with tempfile.TemporaryDirectory() as tmp:
+    times: dict[str, list[tuple[float, float]]] = {'loop': [], 'campaign': [], 'defaults': []}
+    startup = math.nan
+
+    def on_dask(way: str, folder: Path) -> tuple[float, float]:
+        nonlocal startup
         start = time.perf_counter()
-        cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=40)
-        client = Client(cluster)
+        if way == 'campaign':
+            client = make_client(None, 1)
+        else:
+            client = Client(LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                         dashboard_address=None, silence_logs=40))
         client.run(run_episode, text, 0, None)              # the worker's warm-up
-        startup = time.perf_counter() - start
-        for r in range(rounds):
-            # In a process of its own: this one runs the Dask scheduler's threads.
-            proc = subprocess.run([sys.executable, __file__, '--plain-loop', str(episodes),
-                                   str(periods), str(Path(tmp) / f'loop{r}')],
-                                  capture_output=True, text=True, check=True)
-            loops.append(float(proc.stdout.split()[-1]))
-            store = EpisodeStore(Path(tmp) / f'dask{r}')
+        if way == 'campaign' and math.isnan(startup):
+            startup = time.perf_counter() - start
+        try:
+            # This process (scheduler, nannies, client, the rows stored) and each worker.
+            procs = [psutil.Process(), *(psutil.Process(pid) for pid in
+                                         client.run(os.getpid).values())]
+            store = EpisodeStore(folder)
             store.create(text, False)
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), _cpu_seconds(procs)
             run_pending(spec, store, client, progress=False)
-            dasks.append(time.perf_counter() - start)
-        client.close()
-        cluster.close()
-    return loops, dasks, startup
+            return time.perf_counter() - start, _cpu_seconds(procs) - cpu
+        finally:
+            cluster = client.cluster
+            client.close()
+            cluster.close()
+
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(rounds):
+            ways = list(times)
+            for way in ways[r % 3:] + ways[:r % 3]:
+                folder = Path(tmp) / f'{way}{r}'
+                if way == 'loop':
+                    # In a process of its own: this one runs the Dask scheduler's threads.
+                    proc = subprocess.run([sys.executable, __file__, '--plain-loop',
+                                           str(episodes), str(periods), str(folder)],
+                                          capture_output=True, text=True, check=True)
+                    wall, cpu = proc.stdout.split()[-2:]
+                    times[way].append((float(wall), float(cpu)))
+                else:
+                    times[way].append(on_dask(way, folder))
+    return times, startup
 
 
-def plain_loop(episodes: int, periods: int, out: str) -> float:
-    """Run a campaign's episodes one after the other here; return the time it took."""
+def plain_loop(episodes: int, periods: int, out: str) -> tuple[float, float]:
+    """Run a campaign's episodes one after the other here; return the wall and CPU time."""
     from pendulum_sim.testing.campaign.store import EpisodeStore
 
     text = CAMPAIGN.format(episodes=episodes, periods=periods)
     run_episode(text, 0, None)                              # warm-up, as the worker's
     store = EpisodeStore(Path(out))
     store.create(text, False)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     for i in range(episodes):
         store.write(run_episode(text, i, out))
-    return time.perf_counter() - start
+    return time.perf_counter() - start, time.process_time() - cpu
+
+
+def _cpu_seconds(procs: list[Any]) -> float:
+    """Return the user + system CPU seconds the processes (psutil) have used so far."""
+    return float(sum(p.cpu_times().user + p.cpu_times().system for p in procs))
 
 
 def main() -> int:
@@ -184,7 +219,7 @@ def main() -> int:
                         help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.plain_loop:
-        print(plain_loop(int(args.plain_loop[0]), int(args.plain_loop[1]), args.plain_loop[2]))
+        print(*plain_loop(int(args.plain_loop[0]), int(args.plain_loop[1]), args.plain_loop[2]))
         return 0
     print('# controller test bench', flush=True)
     scalar = scalar_rate(args.scalar_episodes)
@@ -203,16 +238,23 @@ def main() -> int:
               f'({1 / per:.0f} periods/s)', flush=True)
     if args.skip_campaign:
         return 0
-    loops, dasks, startup = dask_overhead(args.campaign_episodes, args.campaign_periods,
-                                          args.rounds)
-    ratios = [d / lp - 1.0 for lp, d in zip(loops, dasks, strict=True)]
+    load = os.getloadavg()[0]
+    times, startup = dask_overhead(args.campaign_episodes, args.campaign_periods, args.rounds)
     print(f'(d) {args.campaign_episodes} episodes of {args.campaign_periods} periods, one core '
-          f'each, {args.rounds} rounds: plain loop '
-          + ', '.join(f'{x:.2f}' for x in loops) + ' s; Dask (one worker) '
-          + ', '.join(f'{x:.2f}' for x in dasks) + ' s; overhead median '
-          f'{100 * statistics.median(ratios):+.1f} % (rounds '
-          + ', '.join(f'{100 * x:+.1f}' for x in ratios) + ' %); cluster start-up '
-          f'{startup:.2f} s', flush=True)
+          f'each, {args.rounds} rounds (load average {load:.2f} before, '
+          f'{os.getloadavg()[0]:.2f} after; cluster start-up {startup:.2f} s):', flush=True)
+    labels = {'loop': 'plain loop', 'campaign': 'Dask, campaign configuration',
+              'defaults': 'Dask, Dask defaults'}
+    for what, k in (('wall', 0), ('CPU', 1)):
+        for way, label in labels.items():
+            x = [t[k] for t in times[way]]
+            line = f'    {what:4s} {label:29s}: ' + ', '.join(f'{v:6.2f}' for v in x) + ' s'
+            if way != 'loop':
+                ratios = [d[k] / lp[k] - 1.0 for lp, d in zip(times['loop'], times[way],
+                                                               strict=True)]
+                line += ('; overhead per round ' + ', '.join(f'{100 * r:+.1f}' for r in ratios)
+                         + f' %, median {100 * statistics.median(ratios):+.1f} %')
+            print(line, flush=True)
     return 0
 
 

@@ -20,3 +20,14 @@ def fragile(t: float, position: float, velocity: float) -> float:
 def pd_batch_one(t: float, position: float, velocity: float) -> float:
     """Return the numpy example law for one state (the batched law, run one by one)."""
     return float(pd_batch(t, np.array([position]), np.array([velocity]))[0])
+
+
+def pd_batch_one_to(t: float, position: float, velocity: float, *, target: float) -> float:
+    """Return the numpy example law for one state towards ``target`` (run one by one)."""
+    return float(pd_batch(t, np.array([position]), np.array([velocity]),
+                          target=np.array([target]))[0])
+
+
+def hold(t: float, position: float, velocity: float) -> float:
+    """Return the example PD torque towards its fixed 0.5 rad (a law that takes no target)."""
+    return pd(t, position, velocity)

@@ -118,6 +118,19 @@ BASE = {'controller': 'pendulum_sim.testing.examples:pd', 'episodes': 4, 'period
     ({'scene': 'nope'}, "unknown scene 'nope'; known scenes: "),
     ({'parameters': {'synchronous': False}}, 'parameters.synchronous is fixed for a closed '
      'loop'),
+    ({'controller': 'campaign_laws:hold',
+      'target': {'distribution': 'uniform', 'low': 0.2, 'high': 0.8}},
+     "target varies per episode but controller 'campaign_laws:hold' takes no keyword argument "
+     'target to receive it'),
+    ({'controller': [PD_CONTROLLER, '--ros-args', '-p', 'target:=0.5'], 'target': [0.3, 0.6]},
+     'target varies per episode but the controller command line has no {target} placeholder '
+     "to receive it (e.g. '-p', 'target:={target}')"),
+    ({'target': {'distribution': 'uniform', 'low': 1.0, 'high': 0.5}},
+     'target: uniform needs low < high, got low = 1, high = 0.5'),
+    ({'target': [0.3, 'up']}, "target must be a number, got 'up'"),
+    ({'target': []}, 'target: a list of values must not be empty'),
+    ({'target': {'low': 0.1}}, 'target: distribution must be one of uniform, normal, '
+     'loguniform, got None'),
     ({'episode': 3}, "campaign.yaml: unknown key 'episode'; keys: controller, scene, episodes, "
      'seed, periods, target, parameters, requirements'),
 ])
@@ -201,10 +214,11 @@ def test_a_campaign_writes_its_table_summary_figures_and_failing_recordings(
     import pyarrow.parquet as pq
 
     assert pq.read_table(out / 'episodes.parquet').column_names == [
-        'episode', 'phi0', 'gamma', 'sensor.position_noise', 'm', 'inertia', *METRIC_NAMES,
+        'episode', 'phi0', 'gamma', 'sensor.position_noise', 'm', 'inertia', 'target',
+        *METRIC_NAMES,
         'passed', 'reason', *RUN_COLUMNS]
     assert (out / 'episodes.csv').read_text().splitlines()[0].startswith(
-        'episode,phi0,gamma,sensor.position_noise,m,inertia,rise_time,')
+        'episode,phi0,gamma,sensor.position_noise,m,inertia,target,rise_time,')
     spec = parse_spec(path.read_text())
     for r in rows:
         assert same_rows([r], [{k: v for k, v in run_episode(spec.text, r['episode'],
@@ -302,11 +316,13 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[by
         while not scheduler_file.is_file() or not scheduler_file.read_text().strip():
             assert procs[0].poll() is None and time.monotonic() < end, 'no scheduler'
             time.sleep(0.05)
-        for _ in range(2):
+        for _ in range(2):   # as the campaign tutorial starts them (its Dask settings)
             procs.append(subprocess.Popen(
                 [dask, 'worker', '--scheduler-file', str(scheduler_file), '--nthreads', '1',
                  '--host', '127.0.0.1', '--no-dashboard', '--no-nanny'],
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                env={**os.environ, 'DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED': 'False',
+                     'DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL': '200ms'}))
         address = json.loads(scheduler_file.read_text())['address']
         from distributed import Client
 
@@ -322,6 +338,41 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[by
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+def _profiling(dask_worker: Any) -> bool:
+    """Return True when the worker runs Dask's statistical profiler (its periodic sampling)."""
+    return 'profile' in dask_worker.periodic_callbacks
+
+
+def _scheduler_tick(dask_scheduler: Any) -> float:
+    """Return the seconds between the scheduler's event-loop health checks."""
+    return float(dask_scheduler._tick_interval)
+
+
+def _tick(dask_worker: Any) -> float:
+    """Return the seconds between the worker's event-loop health checks."""
+    return float(dask_worker._tick_interval)
+
+
+def test_the_local_cluster_runs_without_the_profiler_and_with_slower_ticks() -> None:
+    import dask
+    import distributed  # its defaults join dask.config
+
+    from pendulum_sim.testing.campaign.execute import make_client
+
+    assert distributed.__version__
+    assert dask.config.get('distributed.worker.profile.enabled') is True   # Dask's defaults
+    assert dask.config.get('distributed.admin.tick.interval') == '20ms'
+    client = make_client(None, 1)
+    cluster = client.cluster
+    try:
+        assert list(client.run(_profiling).values()) == [False]
+        assert list(client.run(_tick).values()) == [0.2]
+        assert client.run_on_scheduler(_scheduler_tick) == 0.2
+    finally:
+        client.close()
+        cluster.close()
 
 
 ROS_CAMPAIGN = f"""
@@ -342,6 +393,11 @@ requirements: ['overshoot < 30']
 def test_a_campaign_on_a_dask_cluster_gets_exactly_the_local_table(
         tmp_path: Path, dask_cluster: tuple[str, list[subprocess.Popen[bytes]]]) -> None:
     address, _ = dask_cluster
+    from distributed import Client
+
+    with Client(address, timeout='30s') as client:   # the documented settings took effect
+        assert list(client.run(_profiling).values()) == [False, False]
+        assert list(client.run(_tick).values()) == [0.2, 0.2]
     path = campaign(tmp_path, episodes=50, periods=150)
     remote = cli(str(path), '--out', str(tmp_path / 'remote'), '--scheduler', address)
     local = cli(str(path), '--out', str(tmp_path / 'local'), '--workers', '2')

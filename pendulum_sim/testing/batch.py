@@ -1,11 +1,13 @@
 """Batched in-process episodes: N closed loops of a numpy law stepped in lockstep.
 
 A law declared :func:`~pendulum_sim.testing.vectorised` answers all episodes' states at once,
-``(t, position[], velocity[]) -> command[]``. Each control period the answers are saturated at
-each episode's ``max_effort`` as :meth:`SimulatedJoint.command` does, and the N pendulums, each
-with its own ω0², γ, n, inertia, advance one period together through the core's vectorized
-driver, a :class:`pendulum_sim.core.sweep.Sweep` prepared once and advanced a period at a time
-(the Stepper's numerics on arrays: the same decisions, the same results to round-off).
+``(t, position[], velocity[]) -> command[]``; a law with a keyword ``target``
+(:mod:`pendulum_sim.testing.target`) is also given ``target[]``, each episode's own. Each
+control period the answers are saturated at each episode's ``max_effort`` as
+:meth:`SimulatedJoint.command` does, and the N pendulums, each with its own ω0², γ, n,
+inertia, advance one period together through the core's vectorized driver, a
+:class:`pendulum_sim.core.sweep.Sweep` prepared once and advanced a period at a time (the
+Stepper's numerics on arrays: the same decisions, the same results to round-off).
 
 The batch takes the common path of the joint only: effort commands, an ideal sensor, no
 command or sensor delay, a command timeout longer than a period, an explicit method the sweep
@@ -26,6 +28,7 @@ import numpy as np
 from .errors import TestingError
 from .loop import ClosedLoopRun, answer_reason, run_in_process
 from .scene import Value, epoch_ns
+from .target import takes_target
 
 BatchLaw = Callable[[float, Any, Any], Any]
 
@@ -56,22 +59,34 @@ def _why_not(c: Any) -> str:
     return next((why for ok, why in checks if not ok), '')
 
 
-def _scalar(law: BatchLaw) -> Callable[[float, float, float], float]:
+def _scalar(law: BatchLaw, target: float | None) -> Callable[[float, float, float], float]:
     """Return the batched law as a scalar one (one-element arrays in, the element out)."""
+    extra = {} if target is None else {'target': np.array([target])}
+
     def one(t: float, position: float, velocity: float) -> float:
-        out = np.asarray(law(t, np.array([position]), np.array([velocity])), dtype=float)
+        out = np.asarray(law(t, np.array([position]), np.array([velocity]), **extra),
+                         dtype=float)
         return float(out.reshape(-1)[0])
     return one
 
 
-def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]],
-              periods: int) -> list[ClosedLoopRun | TestingError]:
-    """Run one episode per parameter set in ``episodes``; return each run or its failure."""
+def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]], periods: int,
+              targets: Sequence[float] | None = None) -> list[ClosedLoopRun | TestingError]:
+    """Run one episode per parameter set in ``episodes``; return each run or its failure.
+
+    ``targets`` (one per episode) reach a law that takes a keyword ``target`` as an array of
+    the live episodes' targets; a law without it gets none.
+    """
     from pendulum_sim.core.errors import PendulumError
     from pendulum_sim.core.sweep import Sweep
     from pendulum_sim.node.parameters import joint_config
 
     results: list[ClosedLoopRun | TestingError | None] = [None] * len(episodes)
+    given = (np.array(targets, dtype=float) if targets is not None and takes_target(law)
+             else None)
+    if given is not None and given.shape != (len(episodes),):
+        raise TestingError(f'run_batch needs one target per episode: got {given.size} for '
+                           f'{len(episodes)} episodes')
     configs = [joint_config(v, epoch_ns(v)) for v in episodes]
     batch = [i for i, c in enumerate(configs) if not _why_not(c)]
     if batch:
@@ -82,17 +97,19 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]],
     redo = sorted(set(range(len(episodes))) - set(batch))
     if batch:
         redo += _lockstep(law, [configs[i] for i in batch], [episodes[i] for i in batch],
+                          None if given is None else given[batch],
                           batch, periods, results, Sweep, PendulumError)
     for i in sorted(redo):
         try:
-            results[i] = run_in_process(_scalar(law), episodes[i], periods)
+            results[i] = run_in_process(
+                _scalar(law, None if given is None else float(given[i])), episodes[i], periods)
         except TestingError as exc:
             results[i] = exc
     return [r if r is not None else TestingError('not run') for r in results]
 
 
 def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value]],
-              ids: list[int], periods: int,
+              targets: Any, ids: list[int], periods: int,
               results: list[Any], prepare: Any, pendulum_error: type[Exception]) -> list[int]:
     """Step the episodes ``ids`` together; store their runs; return the ids to redo.
 
@@ -134,7 +151,8 @@ def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value
             if live.size == 0:
                 break
         try:
-            cmd = np.asarray(law(t, phi[live].copy(), vel[live].copy()), dtype=float)
+            extra = {} if targets is None else {'target': targets[live]}
+            cmd = np.asarray(law(t, phi[live].copy(), vel[live].copy(), **extra), dtype=float)
         except Exception:
             redo.extend(ids[j] for j in live.tolist())   # the scalar joint says who raised
             active[live] = False

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from .errors import ControllerFailed, TestingError
 from .metrics import StepMetrics, step_metrics
 from .scene import Value, epoch_ns, finite_limit, scene_values
+from .target import bind_target, substitute_target
 
 FloatArray = NDArray[np.float64]
 Law = Callable[[float, float, float], float]
@@ -105,9 +106,19 @@ def _check_periods(periods: int) -> int:
     return periods
 
 
-def closed_loop(controller: Law | Sequence[str], *, scene: str = 'controller_test',
-                periods: int, overrides: Mapping[str, Any] | None = None,
-                record: str | Path | None = None, timeout: float = 120.0) -> ClosedLoopRun:
+def _check_target(target: float | None) -> float | None:
+    if target is None:
+        return None
+    if isinstance(target, bool) or not isinstance(target, (int, float)) or not math.isfinite(
+            target):
+        raise TestingError(f'target must be a finite number (rad), got {target!r}')
+    return float(target)
+
+
+def closed_loop(controller: Law | Callable[..., float] | Sequence[str], *,
+                scene: str = 'controller_test', periods: int,
+                overrides: Mapping[str, Any] | None = None, record: str | Path | None = None,
+                timeout: float = 120.0, target: float | None = None) -> ClosedLoopRun:
     """Run ``controller`` against the joint of ``scene`` for ``periods`` control periods.
 
     Parameters
@@ -126,16 +137,24 @@ def closed_loop(controller: Law | Sequence[str], *, scene: str = 'controller_tes
         Write the run to this MCAP file (replaced if it exists).
     timeout : float
         Command-line path: wall-clock seconds the whole run may take.
+    target : float, optional
+        The reference (rad). A law whose signature has a parameter ``target`` is called with
+        it bound (``law(t, position, velocity, target=target)``), a command line gets it where
+        an argument holds ``{target}`` (:mod:`pendulum_sim.testing.target`); the run keeps it
+        as its ``target``, the default of ``metrics()`` and ``plot()``. None (the default):
+        the controller gets no target and the run has none.
 
     Raises
     ------
     TestingError
-        For a bad scene, override or ``periods``.
+        For a bad scene, override, ``periods`` or ``target``, or a command line with a
+        ``{target}`` placeholder and no ``target``.
     ControllerFailed
         When the controller raises, answers with a non-finite command, cannot be started or
         leaves a state unanswered.
     """
     periods = _check_periods(periods)
+    target = _check_target(target)
     values = scene_values(scene, overrides)
     if isinstance(controller, (list, tuple)):
         if not controller or not all(isinstance(a, str) for a in controller):
@@ -143,12 +162,16 @@ def closed_loop(controller: Law | Sequence[str], *, scene: str = 'controller_tes
                                f'strings, got {controller!r}')
         from .ros import run_command_line
 
-        return run_command_line(list(controller), values, periods,
-                                None if record is None else Path(record), timeout)
+        return run_command_line(substitute_target(controller, target), values, periods,
+                                None if record is None else Path(record), timeout,
+                                target=target)
     if not callable(controller):
         raise TestingError(f'controller must be a callable (t, position, velocity) -> '
                            f'command or a command line (list of str), got {controller!r}')
-    run = run_in_process(controller, values, periods)
+    law = controller if target is None else bind_target(controller, target)
+    run = run_in_process(law, values, periods)
+    if target is not None:
+        run = run.with_target(target)
     if record is not None:
         from .record import write_run
 

@@ -96,8 +96,13 @@ def _tail(text: str, lines: int = 15) -> str:
 
 
 def run_command_line(cmd: list[str], values: Mapping[str, Value], periods: int,
-                     record: Path | None, timeout: float) -> ClosedLoopRun:
-    """Run the controller command line ``cmd`` against the node; return the recorded run."""
+                     record: Path | None, timeout: float,
+                     target: float | None = None) -> ClosedLoopRun:
+    """Run the controller command line ``cmd`` against the node; return the recorded run.
+
+    ``target`` is the run's reference, kept in the returned run (the node's recording does not
+    hold it).
+    """
     from pendulum_sim.node.joint import SimulatedJoint
     from pendulum_sim.node.parameters import joint_config
 
@@ -157,4 +162,4 @@ def run_command_line(cmd: list[str], values: Mapping[str, Value], periods: int,
                 f'mode holds the last command after sync_timeout); node output:\n'
                 f'{_tail(node_log)}')
         return ClosedLoopRun(run.t, run.position, run.velocity, run.effort, run.command,
-                             parameters=dict(values), failed=None)
+                             parameters=dict(values), failed=None, target=target)

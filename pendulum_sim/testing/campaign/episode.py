@@ -20,7 +20,7 @@ from ..errors import TestingError
 from ..loop import ClosedLoopRun, closed_loop
 from ..metrics import METRIC_NAMES, StepMetrics
 from ..vector import is_vectorised
-from .scenarios import scenario
+from .scenarios import episode_scenario
 from .spec import CampaignSpec, load_controller, parse_spec
 
 # Columns that say where and when an episode ran: not part of its result.
@@ -45,20 +45,24 @@ def verdict(spec: CampaignSpec, metrics: StepMetrics) -> str:
     return '; '.join(r for r in reasons if r)
 
 
-def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any],
+def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any], target: float,
            run: ClosedLoopRun | None, reason: str, started: float) -> dict[str, Any]:
-    """Return the table row of an episode (a run of None failed before it had samples)."""
+    """Return the table row of an episode (a run of None failed before it had samples).
+
+    The metrics are measured towards the episode's ``target``.
+    """
     metrics: dict[str, float] = {name: math.nan for name in METRIC_NAMES}
     if run is not None and not reason:
         try:
-            m = run.metrics(spec.target)
+            m = run.metrics(target)
         except TestingError as exc:
             reason = str(exc)
         else:
             metrics = m.as_dict()
             reason = (f'the simulation stopped: {run.failed}' if run.failed else
                       verdict(spec, m))
-    return {'episode': episode, **values, **metrics, 'passed': not reason, 'reason': reason,
+    return {'episode': episode, **values, 'target': target, **metrics, 'passed': not reason,
+            'reason': reason,
             'worker_host': socket.gethostname(), 'worker_pid': os.getpid(),
             'wall_time_s': time.perf_counter() - started}
 
@@ -85,17 +89,17 @@ def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
     if not spec.is_command_line and is_vectorised(load_controller(str(spec.controller))):
         return run_episodes(text, [episode], out)[0]
     started = time.perf_counter()
-    values = scenario(spec, episode)
+    drawn = episode_scenario(spec, episode)
     controller: Any = (list(spec.controller) if isinstance(spec.controller, tuple)
                        else load_controller(spec.controller))
     run: ClosedLoopRun | None = None
     reason = ''
     try:
         run = closed_loop(controller, scene=spec.scene, periods=spec.periods,
-                          overrides=values).with_target(spec.target)
+                          overrides=drawn.values, target=drawn.target)
     except TestingError as exc:
         reason = str(exc).splitlines()[0]
-    row = row_of(spec, episode, values, run, reason, started)
+    row = row_of(spec, episode, drawn.values, drawn.target, run, reason, started)
     _keep_failure(out, row, run)
     return row
 
@@ -111,22 +115,24 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
     started = time.perf_counter()
     spec = cached_spec(text)
     law = load_controller(str(spec.controller))
-    values = [scenario(spec, i) for i in episodes]
+    drawn = [episode_scenario(spec, i) for i in episodes]
     params: list[Any] = []
-    for v in values:
+    for v in (d.values for d in drawn):
         try:
             params.append(scene_values(spec.scene, v))
         except TestingError as exc:
             params.append(exc)
     ok = [i for i, p in enumerate(params) if not isinstance(p, TestingError)]
     results: list[Any] = list(params)
-    for i, res in zip(ok, run_batch(law, [params[i] for i in ok], spec.periods), strict=True):
+    batch = run_batch(law, [params[i] for i in ok], spec.periods,
+                      targets=[drawn[i].target for i in ok])
+    for i, res in zip(ok, batch, strict=True):
         results[i] = res
     rows = []
-    for i, value, res in zip(episodes, values, results, strict=True):
-        run = res.with_target(spec.target) if isinstance(res, ClosedLoopRun) else None
+    for i, d, res in zip(episodes, drawn, results, strict=True):
+        run = res.with_target(d.target) if isinstance(res, ClosedLoopRun) else None
         reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
-        row = row_of(spec, i, value, run, reason, started)
+        row = row_of(spec, i, d.values, d.target, run, reason, started)
         row['wall_time_s'] = (time.perf_counter() - started) / len(episodes)
         _keep_failure(out, row, run)
         rows.append(row)

@@ -27,6 +27,20 @@ from .store import EpisodeStore
 MAX_BATCH = 10_000
 MAX_CHUNK = 25
 
+# Dask settings of the local cluster (``dask.config``, https://docs.dask.org/en/stable/
+# configuration.html; for ``dask scheduler`` and ``dask worker`` processes started by hand, the
+# same keys as environment variables, DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False and
+# DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL=200ms, or in a YAML file under ~/.config/dask/).
+# Both are periodic callbacks of the event loops that a campaign does not use and that take
+# the GIL from the pure-Python episode loop each time: the workers' statistical profiler,
+# which samples the running task's stack every 10 ms for the dashboard's profile page
+# (distributed's "Diagnosing Performance: Statistical Profiling"), and the event-loop health
+# check of every server (scheduler, nanny, worker), every 20 ms by default, which warns when
+# a loop was blocked for over ``distributed.admin.tick.limit`` (3 s); it still does at 200 ms.
+# bench/bench_testbench.py, part (d), runs this and Dask's default configuration.
+CLUSTER_CONFIG: dict[str, Any] = {'distributed.worker.profile.enabled': False,
+                                  'distributed.admin.tick.interval': '200ms'}
+
 
 class ProgressBar:
     """One line on stderr: episodes done, pass rate, ETA (redrawn in place)."""
@@ -69,7 +83,11 @@ class ProgressBar:
 
 
 def make_client(scheduler: str | None, workers: int | None) -> Any:
-    """Return a Dask client: to ``scheduler``, or to a new local cluster of ``workers``."""
+    """Return a Dask client: to ``scheduler``, or to a new local cluster of ``workers``.
+
+    The local cluster runs with :data:`CLUSTER_CONFIG`; an existing cluster runs with the
+    configuration its processes were started with.
+    """
     try:
         from distributed import Client, LocalCluster
     except ImportError:
@@ -79,9 +97,12 @@ def make_client(scheduler: str | None, workers: int | None) -> Any:
             return Client(scheduler, timeout='20s')
         except (OSError, TimeoutError) as exc:
             raise CampaignError(f'cannot reach the Dask scheduler {scheduler}: {exc}') from None
+    import dask
+
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=40)
+    with dask.config.set(CLUSTER_CONFIG):   # each worker's nanny hands it this configuration
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=40)
     return Client(cluster)
 
 

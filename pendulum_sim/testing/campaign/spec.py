@@ -4,7 +4,10 @@ Keys: ``controller`` (``module:function`` or a command line as a list), ``scene`
 ``episodes``, ``seed``, ``periods``, ``target``, ``parameters`` (node parameter names mapped to
 a value, a list taken in episode order, or a distribution ``{distribution: uniform, low,
 high}``, ``{distribution: normal, mean, std}``, ``{distribution: loguniform, low, high}``) and
-``requirements`` (strings such as ``'settling_time < 3.0'``). Every problem is a
+``requirements`` (strings such as ``'settling_time < 3.0'``). ``target`` is a scenario
+dimension read by the same rules as a parameter (a number, a list of numbers or a
+distribution); when it varies, the controller must be able to receive it (a law with a keyword
+``target``, or a command line with the placeholder ``{target}``). Every problem is a
 :class:`~pendulum_sim.testing.errors.CampaignError` with a one-line reason.
 """
 from __future__ import annotations
@@ -24,6 +27,7 @@ import yaml
 from ..errors import CampaignError
 from ..metrics import METRIC_NAMES
 from ..scene import FORCED
+from ..target import PLACEHOLDER, has_placeholder, takes_target
 
 KEYS = ('controller', 'scene', 'episodes', 'seed', 'periods', 'target', 'parameters',
         'requirements')
@@ -70,6 +74,7 @@ class Distribution:
 
 
 Space = Value | tuple[Value, ...] | Distribution
+TargetSpace = float | tuple[float, ...] | Distribution
 
 
 @dataclass(frozen=True)
@@ -81,7 +86,7 @@ class CampaignSpec:
     episodes: int
     seed: int
     periods: int
-    target: float
+    target: TargetSpace
     parameters: tuple[tuple[str, Space], ...]
     requirements: tuple[Requirement, ...]
     text: str
@@ -90,6 +95,11 @@ class CampaignSpec:
     def parameter_names(self) -> tuple[str, ...]:
         """Return the scenario parameters, in file order (the table's columns)."""
         return tuple(name for name, _ in self.parameters)
+
+    @property
+    def scenario_names(self) -> tuple[str, ...]:
+        """Return the table's scenario columns: the parameters in file order, then ``target``."""
+        return (*self.parameter_names, 'target')
 
     @property
     def is_command_line(self) -> bool:
@@ -142,8 +152,23 @@ def _controller(value: Any) -> str | tuple[str, ...]:
                         f'strings), got {value!r}')
 
 
-def _space(name: str, value: Any) -> Space:
-    where = f'parameters.{name}'
+def varies(space: Space) -> bool:
+    """Return True when ``space`` can give episodes different values."""
+    return isinstance(space, Distribution) or (isinstance(space, tuple) and len(set(space)) > 1)
+
+
+def describe(space: Space) -> str:
+    """Return ``space`` as a short text (for summaries)."""
+    if isinstance(space, Distribution):
+        a, b = DISTRIBUTIONS[space.kind]
+        return f'{space.kind}({a} = {space.a:g}, {b} = {space.b:g})'
+    if isinstance(space, tuple):
+        return '[' + ', '.join(f'{v:g}' if isinstance(v, float) else str(v) for v in space) + ']'
+    return f'{space:g}' if isinstance(space, float) else str(space)
+
+
+def _space(where: str, value: Any) -> Space:
+    """Return the space of a scenario dimension: a value, a list or a distribution."""
     if isinstance(value, dict):
         kind = value.get('distribution')
         if kind not in DISTRIBUTIONS:
@@ -177,6 +202,30 @@ def _fixed(where: str, value: Any) -> Value:
             raise CampaignError(f'{where} must not be nan')
         return value
     raise CampaignError(f'{where} must be a value, a list or a distribution, got {value!r}')
+
+
+def _target(value: Any) -> TargetSpace:
+    """Return the target's space: as a parameter's, with numbers only."""
+    space = _space('target', value)
+    if isinstance(space, tuple):
+        return tuple(_number('target', v) for v in space)
+    if isinstance(space, Distribution):
+        return space
+    return _number('target', space)
+
+
+def _receives_target(controller: str | tuple[str, ...], target: TargetSpace) -> None:
+    """Refuse a target that varies per episode when the controller cannot be given it."""
+    if not varies(target):
+        return
+    if isinstance(controller, tuple):
+        if not has_placeholder(controller):
+            raise CampaignError(f'target varies per episode but the controller command line '
+                                f'has no {PLACEHOLDER} placeholder to receive it (e.g. '
+                                f"'-p', 'target:={PLACEHOLDER}')")
+    elif not takes_target(load_controller(controller)):
+        raise CampaignError(f'target varies per episode but controller {controller!r} takes '
+                            'no keyword argument target to receive it')
 
 
 def _requirement(text: Any) -> Requirement:
@@ -235,16 +284,19 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
             raise CampaignError(reason)
         if name in FORCED:
             raise CampaignError(f'parameters.{name} is fixed for a closed loop')
-        spaces.append((str(name), _space(str(name), value)))
+        spaces.append((str(name), _space(f'parameters.{name}', value)))
     reqs = data.get('requirements') or []
     if not isinstance(reqs, list):
         raise CampaignError(f'requirements must be a list of strings, got {reqs!r}')
+    controller = _controller(data['controller'])
+    target = _target(data['target'])
+    _receives_target(controller, target)
     return CampaignSpec(
-        controller=_controller(data['controller']), scene=scene,
+        controller=controller, scene=scene,
         episodes=_integer('episodes', data['episodes'], 1, MAX_EPISODES),
         seed=_integer('seed', data.get('seed', 0), 0, 2**63 - 1),
         periods=_integer('periods', data['periods'], 1, 10_000_000),
-        target=_number('target', data['target']), parameters=tuple(spaces),
+        target=target, parameters=tuple(spaces),
         requirements=tuple(_requirement(r) for r in reqs), text=text)
 
 
@@ -263,5 +315,5 @@ def read_spec(path: str | Path) -> CampaignSpec:
 def as_mapping(spec: CampaignSpec) -> Mapping[str, Any]:
     """Return the campaign as plain values (for summaries)."""
     return {'controller': spec.controller, 'scene': spec.scene, 'episodes': spec.episodes,
-            'seed': spec.seed, 'periods': spec.periods, 'target': spec.target,
+            'seed': spec.seed, 'periods': spec.periods, 'target': describe(spec.target),
             'requirements': [str(r) for r in spec.requirements]}

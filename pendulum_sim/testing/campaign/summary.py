@@ -1,6 +1,7 @@
 """The campaign's results: the episode table (Parquet and CSV), ``summary.md``, figures.
 
-Table columns: ``episode``, one per scenario parameter (named as the parameter), one per metric
+Table columns: ``episode``, one per scenario parameter (named as the parameter), ``target`` (the
+episode's reference, always there, fixed or drawn), one per metric
 (named as the :class:`~pendulum_sim.testing.StepMetrics` field), ``passed``, ``reason``, and
 the columns that say where and when the episode ran (``worker_host``, ``worker_pid``,
 ``wall_time_s``).
@@ -16,7 +17,7 @@ import numpy as np
 
 from ..metrics import METRIC_NAMES
 from .episode import RUN_COLUMNS, failure_path
-from .spec import CampaignSpec
+from .spec import CampaignSpec, describe
 
 QUANTILES = (0.05, 0.5, 0.95)
 WORST = 10
@@ -24,7 +25,7 @@ WORST = 10
 
 def columns(spec: CampaignSpec) -> list[str]:
     """Return the table's columns in order."""
-    return ['episode', *spec.parameter_names, *METRIC_NAMES, 'passed', 'reason', *RUN_COLUMNS]
+    return ['episode', *spec.scenario_names, *METRIC_NAMES, 'passed', 'reason', *RUN_COLUMNS]
 
 
 def _cell(value: Any) -> str:
@@ -63,10 +64,11 @@ def _fmt(value: Any) -> str:
 
 
 def influence(spec: CampaignSpec, rows: list[dict[str, Any]]) -> list[tuple[str, float]]:
-    """Return the numeric scenario parameters by |correlation with passing|, largest first."""
+    """Return the numeric scenario dimensions (parameters, target) that vary, by |correlation
+    with passing|, largest first."""
     passed = np.array([float(r['passed']) for r in rows])
     ranked: list[tuple[str, float]] = []
-    for name in spec.parameter_names:
+    for name in spec.scenario_names:
         values = [r[name] for r in rows]
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
             continue
@@ -85,7 +87,7 @@ def write_summary(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path,
     passed = sum(1 for r in rows if r['passed'])
     lines = [f'# Campaign: {n} episodes, {passed} passed ({100.0 * passed / max(n, 1):.1f} %)',
              '', f'Controller `{spec.controller}`, scene `{spec.scene}`, {spec.periods} control '
-             f'periods per episode, target {spec.target:g} rad, seed {spec.seed}.', '',
+             f'periods per episode, target {describe(spec.target)} rad, seed {spec.seed}.', '',
              '## Requirements', '']
     lines += [f'- `{r}`: {sum(1 for row in rows if not r.check(row[r.metric]))} of {n} met'
               for r in spec.requirements] or ['- none (every episode that runs passes)']
@@ -102,14 +104,14 @@ def write_summary(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path,
         r['settling_time']) else math.inf), r['episode']))[:WORST]
     lines += ['', f'## The worst episodes (failed first, then the slowest to settle; '
               f'at most {WORST})', '',
-              '| episode | ' + ' | '.join(spec.parameter_names)
+              '| episode | ' + ' | '.join(spec.scenario_names)
               + ' | settling_time | overshoot | passed | reason | recording |',
-              '|---|' + '---|' * (len(spec.parameter_names) + 5)]
+              '|---|' + '---|' * (len(spec.scenario_names) + 5)]
     for r in worst:
         mcap = failure_path(out, r['episode'])
         rec = f'failures/{mcap.name}' if mcap.is_file() else ''
         lines.append(f'| {r["episode"]} | ' + ' | '.join(_fmt(r[p]) for p in
-                                                          spec.parameter_names)
+                                                          spec.scenario_names)
                      + f' | {_fmt(r["settling_time"])} | {_fmt(r["overshoot"])} | '
                      f'{"yes" if r["passed"] else "no"} | {r["reason"]} | {rec} |')
     lines += ['', '## Figures', '']
