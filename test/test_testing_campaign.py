@@ -334,7 +334,7 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[by
             p.terminate()
         for p in reversed(procs):
             try:
-                p.wait(20)
+                p.wait(3)   # a worker closing gracefully may wait on its scheduler: not needed
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
