@@ -6,9 +6,10 @@ For those, :meth:`Engine.careful <pendulum_sim.core.engine.Engine.careful>` take
 step (the guard asks for one substep), split at the reversal by
 :meth:`SplitSteps.split <pendulum_sim.core.split.SplitSteps.split>`. :func:`careful_step`
 takes the same operations in the same order, with the same generated steps (``plain``,
-``branch``: ``explicit.step_source`` with the exponent an argument), the same Hermite start
-(``reversal.hermite_root``), the same slope (``model.slope_formula``) and eigenvalues, and
-the same decision texts, so the compiled sweep takes it without leaving compiled code
+``branch``: ``explicit.step_source`` with the exponent an argument), the same reversal location
+(``reversal.locate_on_branch``: the form of ``reversal.LOCATE_SRC`` that calls ``branch``
+itself, which numba compiles), the same slope (``model.slope_formula``) and eigenvalues, and the
+same decision texts, so the compiled sweep takes it without leaving compiled code
 (``decisions.kernel_source``), graded substeps near a reversal (``reversal.graded_mesh``)
 included. Everything else (a stiff transient, guard substeps or the fallback, Coulomb and
 near-Coulomb friction, n < 1, an energy redo, a non-finite result) it declines, and the sweep
@@ -23,7 +24,7 @@ from typing import Any
 from .decisions import ENERGY_TOL
 from .law import slope_formula
 from .model import _eigs
-from .reversal import graded_mesh, hermite_root
+from .reversal import graded_mesh, locate_on_branch
 
 NEWTON_TOL = 1e-14
 """Newton's tolerance on |φ'| at the located reversal, relative to |φ'| at the start."""
@@ -139,22 +140,11 @@ def split(plain: Any, branch: Any, p: float, v: float, h: float, ain: float, w2:
             lens = graded_mesh(max(x - h, 0.0), x, h, n, reach)
             p1, v1 = branch_run(branch, p, v, lens, True, ain, w2, gamma, sign, n)
         return True, p1, v1, 0
-    # reversal.locate_reversal: the Hermite root (end slope: φ'' on the branch at the step's
-    # end, reversal.branch_accel), then Newton on the partial step's own φ'(θh).
+    # The reversal location (reversal.LOCATE_SRC): the Hermite root (end slope: φ'' on the
+    # branch at the step's end, reversal.branch_accel), then Newton on the partial step's φ'(θh).
     a1 = branch(p1, v1, 0.0, ain, w2, gamma, sign, n)[3]
-    th = hermite_root(v, v1, h * a0, h * a1)
-    pm, vm, _, _ = branch(p, v, th * h, ain, w2, gamma, sign, n)
-    for _ in range(NEWTON_ITERATIONS):
-        if abs(vm) <= NEWTON_TOL * abs(v):
-            break
-        acc = branch(pm, vm, 0.0, ain, w2, gamma, sign, n)[3]  # reversal.branch_accel
-        if acc == 0.0:
-            break
-        nth = th - vm / (acc * h)
-        if not 0.0 < nth < 1.0:
-            break
-        th = nth
-        pm, vm, _, _ = branch(p, v, th * h, ain, w2, gamma, sign, n)
+    th, pm, vm, _ = locate_on_branch(branch, p, v, v1, a0, a1, h, ain, w2, gamma, sign, n,
+                                     NEWTON_TOL, NEWTON_ITERATIONS)
     lens = graded_mesh(0.0, th * h, h, n, reach)
     if len(lens) > 1:
         acc = 0.0

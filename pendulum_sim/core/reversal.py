@@ -1,15 +1,21 @@
 """Velocity reversals where the damping is not smooth: locating one, grading steps near it.
 
 Where the law φ'|φ'|^(n−1) is not smooth at φ' = 0 (n even, non-integer, or 0) a step is split
-at a reversal; :func:`hermite_root` locates it on a step, and for non-integer n < 3 the steps
-within a window of it are graded (:func:`graded_mesh`) so the method keeps its order. Used by
-the engine's careful path and by the embedded cover's reversal cut.
+at a reversal, and for non-integer n < 3 the steps within a window of it are graded
+(:func:`graded_mesh`) so the method keeps its order. The location (a Hermite guess,
+:func:`hermite_root`, then Newton on the partial step's own φ'(θh)) is written once, as the
+source text :data:`LOCATE_SRC` with its two evaluations as named fields, and defined in two
+forms by ``codegen.define``: :func:`locate_reversal` on Python callables (the explicit family's
+split, ``split.py``, and the embedded cover's reversal cut, ``embedded.py``) and
+:func:`locate_on_branch` on a generated branch step, which numba compiles for the compiled
+careful step (``compiled_careful.py``).
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
 
+from .codegen import define
 from .law import compile_damping
 
 GRADE_WINDOW = 1.0
@@ -67,32 +73,76 @@ def branch_accel(p: float, v: float, ain: float, sign: float, gamma: float, n: f
     return float(ain - compile_damping(n, True)(v, gamma, sign) - w2 * math.sin(p))
 
 
-def locate_reversal(at: Callable[[float], tuple[float, float, float]],
-                    accel: Callable[[float, float], float], v: float, v1: float, a0: float,
-                    a1: float, h: float, tol: float,
-                    iterations: int) -> tuple[float, float, float, float]:
-    """Return (θ, φ, φ', w) where a step of h from φ' = ``v`` to ``v1`` reverses, θ in (0, 1).
-
-    The first guess is the root of the cubic Hermite interpolant of φ' (:func:`hermite_root`,
-    end slopes h ``a0`` and h ``a1``, φ'' on the start's branch); Newton iterations on the
-    partial step's own φ'(θh) (``at(θh)`` returns its φ, φ', w; ``accel`` is the branch's φ'')
-    then put θ where the method itself says φ' = 0, until |φ'| <= ``tol`` |v| or for
-    ``iterations`` at most; a Newton step that leaves (0, 1) ends them.
-    """
+LOCATE_SRC = """\
+def {name}({params}):
     th = hermite_root(v, v1, h * a0, h * a1)
-    pm, vm, wm = at(th * h)
+    pm, vm, wm = {at}
     for _ in range(iterations):
         if abs(vm) <= tol * abs(v):
             break
-        acc = accel(pm, vm)
+        acc = {accel}
         if acc == 0.0:
             break
         nth = th - vm / (acc * h)
         if not 0.0 < nth < 1.0:
             break
         th = nth
-        pm, vm, wm = at(th * h)
+        pm, vm, wm = {at}
     return th, pm, vm, wm
+"""
+"""The reversal location, written once: a step of h from φ' = ``v`` to ``v1`` reverses at θh.
+
+The first guess is the root of the cubic Hermite interpolant of φ' (:func:`hermite_root`, end
+slopes h ``a0`` and h ``a1``, φ'' on the start's branch); Newton iterations on the partial
+step's own φ'(θh) then put θ where the method itself says φ' = 0, until |φ'| <= ``tol`` |v|
+or for ``iterations`` at most; a Newton step that leaves (0, 1) ends them. Returns
+``(θ, φ, φ', w)`` at θh. The two evaluations are named fields: ``{at}``, the partial step's
+(φ, φ', w) at θh, and ``{accel}``, the branch's φ'' at (``pm``, ``vm``); each form in
+:data:`LOCATE_FORMS` fills them with calls of its own (:func:`locate_form`).
+"""
+
+LOCATE_FORMS: dict[str, tuple[str, str, str]] = {
+    'locate_reversal': ('at, accel, v, v1, a0, a1, h, tol, iterations',
+                        'at(th * h)', 'accel(pm, vm)'),
+    'locate_on_branch': ('branch, p, v, v1, a0, a1, h, ain, w2, gamma, sign, n, tol, iterations',
+                         'branch(p, v, th * h, ain, w2, gamma, sign, n)[:3]',
+                         'branch(pm, vm, 0.0, ain, w2, gamma, sign, n)[3]'),
+}
+"""The forms of :data:`LOCATE_SRC`: name → (parameters, the ``at`` call, the ``accel`` call).
+
+``locate_reversal`` takes Python callables (``at(θh)`` → (φ, φ', w), ``accel(φ, φ')`` → φ''),
+for the explicit family's split (``split.py``) and the embedded cover's reversal cut
+(``embedded.py``). ``locate_on_branch`` calls a generated branch step
+``branch(φ, φ', dt, a_in, ω0², γ, s, n)`` → (φ₁, φ'₁, w, φ''₀) itself (its φ'' is the step's
+φ''₀ at dt = 0), so numba compiles it for the compiled careful step (``compiled_careful.py``),
+which cannot pass Python closures.
+"""
+
+LocateFn = Callable[..., tuple[float, float, float, float]]
+
+
+def locate_form(name: str) -> LocateFn:
+    """Return the form ``name`` of :data:`LOCATE_FORMS`, defined from :data:`LOCATE_SRC`."""
+    params, at, accel = LOCATE_FORMS[name]
+    src = LOCATE_SRC.format(name=name, params=params, at=at, accel=accel)
+    fn: LocateFn = define(src, name, {'hermite_root': hermite_root, '__name__': __name__},
+                          f'<{name}>')
+    return fn
+
+
+locate_reversal = locate_form('locate_reversal')
+"""``locate_reversal(at, accel, v, v1, a0, a1, h, tol, iterations)`` → (θ, φ, φ', w).
+
+The reversal location (:data:`LOCATE_SRC`) on Python callables: ``at(θh)`` returns the partial
+step's φ, φ', w, ``accel(φ, φ')`` the branch's φ'' (:func:`branch_accel`).
+"""
+
+locate_on_branch = locate_form('locate_on_branch')
+"""``locate_on_branch(branch, p, v, v1, a0, a1, h, ain, w2, gamma, sign, n, tol, iterations)``.
+
+The reversal location (:data:`LOCATE_SRC`) on a generated branch step from (``p``, ``v``), its
+arguments passed on; numba compiles it (``compiled_careful.split``).
+"""
 
 
 def graded_mesh(x_a: float, x_b: float, h: float, n: float, window: float) -> list[float]:
@@ -125,5 +175,6 @@ def graded_mesh(x_a: float, x_b: float, h: float, n: float, window: float) -> li
     return lens
 
 
-__all__ = ['GRADE_WINDOW', 'branch_accel', 'grade_window', 'graded_law', 'graded_mesh',
-           'hermite_root', 'locate_reversal']
+__all__ = ['GRADE_WINDOW', 'LOCATE_FORMS', 'LOCATE_SRC', 'LocateFn', 'branch_accel',
+           'grade_window', 'graded_law', 'graded_mesh', 'hermite_root', 'locate_form',
+           'locate_on_branch', 'locate_reversal']

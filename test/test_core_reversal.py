@@ -1,0 +1,75 @@
+"""The reversal location: one source text, its Python and compiled forms locating alike."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pendulum_sim.core import reversal
+from pendulum_sim.core.compiled_careful import careful_step
+from pendulum_sim.core.decisions import compile_kernel
+from pendulum_sim.core.explicit import compile_step
+from pendulum_sim.core.jit import available, numba_twin
+from pendulum_sim.core.reversal import branch_accel, locate_on_branch, locate_reversal
+from pendulum_sim.core.tableaus import TABLEAUS
+
+
+def test_both_forms_are_defined_from_the_one_source_text() -> None:
+    # Each form is LOCATE_SRC with its own calls in the two named fields, nothing else.
+    for name, fn in (('locate_reversal', locate_reversal), ('locate_on_branch', locate_on_branch)):
+        params = reversal.LOCATE_FORMS[name][0]
+        assert fn.__name__ == name
+        assert fn.__code__.co_filename == f'<{name}>'
+        assert fn.__code__.co_varnames[:len(params.split(', '))] == tuple(params.split(', '))
+        again = reversal.locate_form(name)
+        assert again.__code__ is fn.__code__  # codegen.define: one compile per text
+
+
+def _closures(branch_fn: Any, p: float, v: float, ain: float, w2: float, gamma: float,
+              sign: float, n: float) -> tuple[Any, Any]:
+    """Return ``SplitSteps.split``'s ``at`` and ``accel`` for a branch step from (φ, φ')."""
+    def at(x: float) -> tuple[float, float, float]:
+        pa, va, wa, _ = branch_fn(p, v, x, ain, w2, gamma, sign)
+        return pa, va, wa
+
+    def accel(pp: float, vv: float) -> float:
+        return branch_accel(pp, vv, ain, sign, gamma, n, w2)
+
+    return at, accel
+
+
+@pytest.mark.parametrize('n', [2.0, 2.5, 3.7, 4.0])
+def test_the_branch_form_locates_where_the_closures_do(n: float) -> None:
+    # A branch step of h that reverses: both forms must return the same (θ, φ, φ', w) to the
+    # bit (the split's tolerances: 1e-14, 4 iterations), and φ' at θh must be ~0.
+    branch_fn = compile_step(TABLEAUS['rk4'], n, branch=True)
+    branch = compile_kernel(TABLEAUS['rk4'], n, careful_step).__globals__['branch']
+    compiled = (numba_twin(locate_on_branch), numba_twin(branch)) if available() else None
+    rng = np.random.default_rng(int(10 * n))
+    located = 0
+    for _ in range(200):
+        gamma = float(rng.choice([0.1, 1.0, 30.0]))
+        w2 = float(rng.choice([0.0, 9.8, 40.0]))
+        h = float(rng.choice([1e-3, 2e-2]))
+        ain = float(rng.choice([0.0, 1.7, -3.0]))
+        p = float(rng.uniform(-3.0, 3.0))
+        v = float(rng.uniform(-0.05, 0.05))
+        sign = 1.0 if v > 0.0 else -1.0
+        p1, v1, _, a0 = branch_fn(p, v, h, ain, w2, gamma, sign)
+        if not v1 * v < 0.0:
+            continue
+
+        at, accel = _closures(branch_fn, p, v, ain, w2, gamma, sign, n)
+        a1 = accel(p1, v1)
+        assert branch(p1, v1, 0.0, ain, w2, gamma, sign, n)[3] == a1
+        want = locate_reversal(at, accel, v, v1, a0, a1, h, 1e-14, 4)
+        args = (p, v, v1, a0, a1, h, ain, w2, gamma, sign, n, 1e-14, 4)
+        assert locate_on_branch(branch, *args) == want
+        if compiled is not None:
+            assert compiled[0](compiled[1], *args) == want
+        th, _, vm, _ = want
+        assert 0.0 < th < 1.0
+        assert abs(vm) <= 1e-12 * abs(v)
+        located += 1
+    assert located > 30
