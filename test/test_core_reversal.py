@@ -11,7 +11,13 @@ from pendulum_sim.core.compiled_careful import careful_step
 from pendulum_sim.core.decisions import compile_kernel
 from pendulum_sim.core.explicit import compile_step
 from pendulum_sim.core.jit import available, numba_twin
-from pendulum_sim.core.reversal import branch_accel, locate_on_branch, locate_reversal
+from pendulum_sim.core.reversal import (
+    NEWTON_ITERATIONS,
+    NEWTON_TOL,
+    branch_accel,
+    locate_on_branch,
+    locate_reversal,
+)
 from pendulum_sim.core.tableaus import TABLEAUS
 
 
@@ -42,7 +48,7 @@ def _closures(branch_fn: Any, p: float, v: float, ain: float, w2: float, gamma: 
 @pytest.mark.parametrize('n', [2.0, 2.5, 3.7, 4.0])
 def test_the_branch_form_locates_where_the_closures_do(n: float) -> None:
     # A branch step of h that reverses: both forms must return the same (θ, φ, φ', w) to the
-    # bit (the split's tolerances: 1e-14, 4 iterations), and φ' at θh must be ~0.
+    # bit (with the split's tolerances), and φ' at θh must be ~0.
     branch_fn = compile_step(TABLEAUS['rk4'], n, branch=True)
     branch = compile_kernel(TABLEAUS['rk4'], n, careful_step).__globals__['branch']
     compiled = (numba_twin(locate_on_branch), numba_twin(branch)) if available() else None
@@ -63,8 +69,8 @@ def test_the_branch_form_locates_where_the_closures_do(n: float) -> None:
         at, accel = _closures(branch_fn, p, v, ain, w2, gamma, sign, n)
         a1 = accel(p1, v1)
         assert branch(p1, v1, 0.0, ain, w2, gamma, sign, n)[3] == a1
-        want = locate_reversal(at, accel, v, v1, a0, a1, h, 1e-14, 4)
-        args = (p, v, v1, a0, a1, h, ain, w2, gamma, sign, n, 1e-14, 4)
+        want = locate_reversal(at, accel, v, v1, a0, a1, h, NEWTON_TOL, NEWTON_ITERATIONS)
+        args = (p, v, v1, a0, a1, h, ain, w2, gamma, sign, n, NEWTON_TOL, NEWTON_ITERATIONS)
         assert locate_on_branch(branch, *args) == want
         if compiled is not None:
             assert compiled[0](compiled[1], *args) == want

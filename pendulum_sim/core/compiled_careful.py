@@ -24,15 +24,14 @@ from typing import Any
 from .decisions import ENERGY_TOL
 from .law import slope_formula
 from .model import _eigs
-from .reversal import graded_mesh, locate_on_branch
-
-NEWTON_TOL = 1e-14
-"""Newton's tolerance on |φ'| at the located reversal, relative to |φ'| at the start."""
-NEWTON_ITERATIONS = 4
-"""Newton iterations on the partial step's own φ'(θh) (``SplitSteps.split``)."""
-GRADED_ITERATIONS = 3
-GRADED_TOL = 1e-13
-"""Newton on a graded run's own φ'(θh) = 0: iterations and tolerance (``SplitSteps.split``)."""
+from .reversal import (
+    GRADED_ITERATIONS,
+    GRADED_TOL,
+    NEWTON_ITERATIONS,
+    NEWTON_TOL,
+    graded_mesh,
+    locate_on_branch,
+)
 
 Result = tuple[bool, float, float, int]
 
@@ -176,5 +175,4 @@ def split(plain: Any, branch: Any, p: float, v: float, h: float, ain: float, w2:
     return True, p2, v2, 1
 
 
-__all__ = ['GRADED_ITERATIONS', 'GRADED_TOL', 'NEWTON_ITERATIONS', 'NEWTON_TOL',
-           'branch_run', 'careful_step', 'one_substep', 'split', 'terminal']
+__all__ = ['branch_run', 'careful_step', 'one_substep', 'split', 'terminal']

@@ -28,7 +28,7 @@ from .jit import compile_step as jit_step
 from .law import compile_damping, damping_derivative
 from .model import FloatArray, run_speed_limit
 from .problem import Problem
-from .reversal import branch_accel, locate_reversal
+from .reversal import CUT_ITERATIONS, CUT_TOL, branch_accel, locate_reversal
 from .rosenbrock import compile_rosenbrock
 from .tableaus import Extrapolation, Tableau
 
@@ -210,7 +210,7 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
                     return pa, va, wa
 
                 th, pm, _, wm = locate_reversal(at, accel, v, v1, a0, accel(p1, v1), step_h,
-                                                1e-15, 8)
+                                                CUT_TOL, CUT_ITERATIONS)
                 stats.reversals += 1
                 p, v = pm, 0.0
                 w_total += wm

@@ -73,6 +73,17 @@ def branch_accel(p: float, v: float, ain: float, sign: float, gamma: float, n: f
     return float(ain - compile_damping(n, True)(v, gamma, sign) - w2 * math.sin(p))
 
 
+NEWTON_TOL = 1e-14
+NEWTON_ITERATIONS = 4
+"""The split of a plain step (``SplitSteps.split``, ``compiled_careful.split``): Newton on the
+partial step's own φ'(θh) until |φ'| <= NEWTON_TOL |φ'₀|, for NEWTON_ITERATIONS at most."""
+GRADED_TOL = 1e-13
+GRADED_ITERATIONS = 3
+"""The same split's Newton on a graded run's own φ'(θh) = 0: tolerance and iterations."""
+CUT_TOL = 1e-15
+CUT_ITERATIONS = 8
+"""The embedded cover's reversal cut (``embedded.cover``): Newton's tolerance and iterations."""
+
 LOCATE_SRC = """\
 def {name}({params}):
     th = hermite_root(v, v1, h * a0, h * a1)
@@ -127,6 +138,8 @@ def locate_form(name: str) -> LocateFn:
     src = LOCATE_SRC.format(name=name, params=params, at=at, accel=accel)
     fn: LocateFn = define(src, name, {'hermite_root': hermite_root, '__name__': __name__},
                           f'<{name}>')
+    fn.__doc__ = (f"Return (θ, φ, φ', w) where a step of h from φ' = v to v1 reverses "
+                  f'(reversal.LOCATE_SRC, its form {name!r}).')
     return fn
 
 
@@ -175,6 +188,7 @@ def graded_mesh(x_a: float, x_b: float, h: float, n: float, window: float) -> li
     return lens
 
 
-__all__ = ['GRADE_WINDOW', 'LOCATE_FORMS', 'LOCATE_SRC', 'LocateFn', 'branch_accel',
-           'grade_window', 'graded_law', 'graded_mesh', 'hermite_root', 'locate_form',
-           'locate_on_branch', 'locate_reversal']
+__all__ = ['CUT_ITERATIONS', 'CUT_TOL', 'GRADED_ITERATIONS', 'GRADED_TOL', 'GRADE_WINDOW',
+           'LOCATE_FORMS', 'LOCATE_SRC', 'NEWTON_ITERATIONS', 'NEWTON_TOL', 'LocateFn',
+           'branch_accel', 'grade_window', 'graded_law', 'graded_mesh', 'hermite_root',
+           'locate_form', 'locate_on_branch', 'locate_reversal']

@@ -17,7 +17,15 @@ from .explicit import StepFn, compile_step
 from .guard import GuardStats
 from .law import compile_damping
 from .problem import Problem
-from .reversal import branch_accel, graded_mesh, locate_reversal
+from .reversal import (
+    GRADED_ITERATIONS,
+    GRADED_TOL,
+    NEWTON_ITERATIONS,
+    NEWTON_TOL,
+    branch_accel,
+    graded_mesh,
+    locate_reversal,
+)
 from .tableaus import Tableau
 
 Fallback = Callable[[float, float, float, float], tuple[float, float, float]]
@@ -115,15 +123,16 @@ class SplitSteps:
                 lens = graded_mesh(max(x - h, 0.0), x, h, n, self.reach)[::-1]
                 return self._branch_run(p, v, lens, ain, sign)
             return p1, v1, w1
-        th, pm, vm, wm = locate_reversal(at, accel, v, v1, a0, accel(p1, v1), h, 1e-14, 4)
+        th, pm, vm, wm = locate_reversal(at, accel, v, v1, a0, accel(p1, v1), h, NEWTON_TOL,
+                                         NEWTON_ITERATIONS)
         lens = graded_mesh(0.0, th * h, h, n, self.reach)[::-1]
         if len(lens) > 1:
-            for _ in range(3):
+            for _ in range(GRADED_ITERATIONS):
                 # Newton on the graded run's own φ'(θh) = 0 (its θ differs from the single
                 # step's by the single step's O(h^(n+1)) error).
                 pm, vm, wm = self._branch_run(p, v, lens, ain, sign)
                 acc = accel(pm, vm)
-                if acc == 0.0 or abs(vm) <= 1e-13 * abs(v):
+                if acc == 0.0 or abs(vm) <= GRADED_TOL * abs(v):
                     break
                 nth = th - vm / (acc * h)
                 if not 0.0 < nth < 1.0:
