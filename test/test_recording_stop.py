@@ -25,17 +25,26 @@ MOST = 1_000_000          # messages: far more than the pipe (1 MiB at most) and
 STEP_NS = 1_000_000
 
 
-def _record_until_stopped(path: Path) -> tuple[McapRecorder, int]:
-    """Record Float64 k at k ms with the writer stopped until the recording stops; return where.
+def _recorder_with_writer_stopped(path: Path, **options: int) -> tuple[McapRecorder, int]:
+    """Open a recorder of /energy at ``path`` and stop its writer process (SIGSTOP).
 
-    Returns the recorder (closed) and the index of the first message the recording left out.
+    Returns the recorder and the writer's pid (the caller continues it with SIGCONT).
     """
-    rec = McapRecorder(path, max_backlog=LIMIT)
+    rec = McapRecorder(path, **options)
     rec.open()
     rec.add_channel('/energy', Float64, 10)
     pid = rec.writer_pid
     assert pid is not None
     os.kill(pid, signal.SIGSTOP)
+    return rec, pid
+
+
+def _record_until_stopped(path: Path) -> tuple[McapRecorder, int]:
+    """Record Float64 k at k ms with the writer stopped until the recording stops; return where.
+
+    Returns the recorder (closed) and the index of the first message the recording left out.
+    """
+    rec, pid = _recorder_with_writer_stopped(path, max_backlog=LIMIT)
     try:
         k = 0
         while rec.error is None:
@@ -110,12 +119,8 @@ def test_closing_while_the_writer_is_stopped_with_frames_not_handed_over_says_cu
     """close() returns at once on a stopped writer; continued, it finishes the file by itself,
     and since the CLOSE frame (and more) never reached it the file says it was cut short."""
     path = tmp_path / 'stopped_at_close.mcap'
-    rec = McapRecorder(path)   # the default backlog: nothing is dropped before close()
-    rec.open()
-    rec.add_channel('/energy', Float64, 10)
-    pid = rec.writer_pid
-    assert pid is not None
-    os.kill(pid, signal.SIGSTOP)
+    # The default backlog: nothing is dropped before close().
+    rec, pid = _recorder_with_writer_stopped(path)
     try:
         k = 0
         while not rec._backlog:   # the pipe is full: what follows waits here
@@ -167,12 +172,7 @@ def test_closing_while_the_writer_is_stopped_with_everything_handed_over_is_comp
         tmp_path: Path) -> None:
     """A stopped writer that was handed every frame, CLOSE included, ends the file whole."""
     path = tmp_path / 'handed_over.mcap'
-    rec = McapRecorder(path)
-    rec.open()
-    rec.add_channel('/energy', Float64, 10)
-    pid = rec.writer_pid
-    assert pid is not None
-    os.kill(pid, signal.SIGSTOP)
+    rec, pid = _recorder_with_writer_stopped(path)
     try:
         for k in range(100):   # far less than the pipe holds
             rec.write('/energy', Float64(data=float(k)), k * STEP_NS)

@@ -233,16 +233,20 @@ def cli_markdown() -> str:
 
 # ---------------------------------------------------------------- benchmark results
 def benchmarks_markdown() -> str:
-    """Return each results file under bench/results/ as a section (``make bench`` writes them)."""
-    files = sorted((ROOT / 'bench' / 'results').glob('*.txt'))
-    if not files:
-        return 'No results are stored yet: run `make bench`.\n'
-    out = []
-    for path in files:
-        out.append(f'## `{path.stem}`\n\n`bench/results/{path.name}`, written by '
-                   f'`bench/record.py`:\n\n````text\n{path.read_text(encoding="utf-8")}'
-                   '\n````\n')
-    return '\n'.join(out)
+    """Return a table of the benchmarks under bench/: what each measures and its results file.
+
+    The figures stay in ``bench/results/<script>.txt`` (``make bench`` writes them, with the
+    machine, the date and the load of that run); the docs name the file, not one run's figures.
+    """
+    import ast
+
+    rows = []
+    for script in sorted((ROOT / 'bench').glob('bench_*.py')):
+        doc = ast.get_docstring(ast.parse(script.read_text(encoding='utf-8'))) or ''
+        result = ROOT / 'bench' / 'results' / f'{script.stem}.txt'
+        stored = f'`bench/results/{result.name}`' if result.is_file() else 'not stored'
+        rows.append([f'`bench/{script.name}`', cell(doc.split('\n\n')[0]), stored])
+    return table(['benchmark', 'what it measures', 'recorded output'], rows)
 
 
 # ---------------------------------------------------------------- Python API pages
