@@ -1,12 +1,13 @@
 """The reversal location: one source text, its Python and compiled forms locating alike."""
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
-from pendulum_sim.core import reversal
+from pendulum_sim.core import compiled_careful, reversal, split
 from pendulum_sim.core.compiled_careful import careful_step
 from pendulum_sim.core.decisions import compile_kernel
 from pendulum_sim.core.explicit import compile_step
@@ -79,3 +80,18 @@ def test_the_branch_form_locates_where_the_closures_do(n: float) -> None:
         assert abs(vm) <= 1e-12 * abs(v)
         located += 1
     assert located > 30
+
+
+def test_the_split_and_its_graded_newton_run_are_written_once() -> None:
+    # The Newton run on a graded run's own φ'(θh) after the location is one function,
+    # reversal.graded_landing, called by split.split_step; the Stepper's split (SplitSteps)
+    # and the compiled sweep's careful step both call split_step itself, and the friction
+    # decisions after a reversal are coulomb's (rest_step, creep_state).
+    core = Path(reversal.__file__).parent
+    users = {f.name for f in core.glob('*.py') if 'GRADED_ITERATIONS' in f.read_text('utf-8')}
+    assert users == {'reversal.py'}
+    assert {'graded_landing', 'locate_on_branch', 'rest_step',
+            'creep_state'} <= set(split.split_step.__code__.co_names)
+    assert 'split_step' in split.SplitSteps.split.__code__.co_names
+    assert compiled_careful.split_step is split.split_step
+    assert {'split_step', 'friction_step'} <= set(compiled_careful.careful_step.__code__.co_names)

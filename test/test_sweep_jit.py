@@ -10,6 +10,7 @@ the C library's pow).
 from __future__ import annotations
 
 import itertools
+import math
 from typing import Any
 
 import numpy as np
@@ -17,6 +18,7 @@ import pytest
 
 from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen, jit
 from pendulum_sim.core.compiled_careful import careful_step
+from pendulum_sim.core.coulomb import creep_rate, friction_step
 from pendulum_sim.core.decisions import compile_kernel, kernel_source
 from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.explicit import step_source
@@ -113,23 +115,35 @@ def test_jit_must_be_a_bool() -> None:
     assert str(info.value) == 'jit must be True or False, got 1'
 
 
-def _careful_steps(n: float) -> tuple[Any, Any]:
-    """Return the generated plain and branch steps (exponent an argument) the kernel calls."""
+_TWINS: dict[Any, tuple[Any, ...]] = {}
+
+
+def _careful_steps(n: float) -> tuple[Any, Any, Any]:
+    """Return the generated plain and branch steps and the laws (exponent an argument)."""
     kern = compile_kernel(TABLEAUS['rk4'], n, careful_step)
-    return kern.__globals__['plain'], kern.__globals__['branch']
+    return kern.__globals__['plain'], kern.__globals__['branch'], kern.__globals__['laws']
 
 
-@pytest.mark.parametrize('n', [1.0, 1.5, 2.0, 2.5, 3.7, 4.0, 5.0])
+def _compiled(steps: tuple[Any, Any, Any]) -> tuple[Any, ...]:
+    """Return careful_step and ``steps`` compiled, once per text (exponents spelled alike)."""
+    key = tuple(fn.__code__ for fn in steps)
+    if key not in _TWINS:
+        _TWINS[key] = (numba_twin(careful_step), *(numba_twin(fn) for fn in steps))
+    return _TWINS[key]
+
+
+@pytest.mark.parametrize('n', [0.0, 0.01, 0.3, 0.5, 1.0, 1.5, 2.0, 2.5, 4.0, 5.0])
 def test_the_compiled_careful_step_is_the_engines_careful_path(n: float) -> None:
     # Where the compiled careful step takes a step it must be Engine.careful's step to the bit,
-    # with the same reversal count and nothing else counted; where the engine needs more
-    # (substeps, the fallback, a stiff transient, an energy redo) it must decline. The same
-    # function run as Python and compiled must agree as well.
-    plain, branch = _careful_steps(n)
-    compiled = (numba_twin(careful_step), numba_twin(plain), numba_twin(branch))
+    # with the same reversal and stick counts and nothing else counted; where the engine needs
+    # more (substeps, the fallback, a stiff transient, an energy redo) it must decline. The
+    # same function run as Python and compiled must agree as well. Coulomb friction at rest
+    # and the near-Coulomb creep must be among the steps it takes.
+    plain, branch, laws = _careful_steps(n)
+    compiled = _compiled((plain, branch, laws))
     g = guard_for(TABLEAUS['rk4'])
     rng = np.random.default_rng(int(10 * n))
-    took = declined = turned = 0
+    took = declined = turned = held = stuck = 0
     for _ in range(400):
         gamma = float(rng.choice([0.1, 1.0, 30.0, 1e3]))
         w2 = float(rng.choice([0.0, 9.8, 40.0]))
@@ -137,23 +151,30 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(n: float) -> None
         ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
         p = float(rng.uniform(-3.0, 3.0))
         v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.7 else rng.uniform(-6.0, 6.0))
+        v = 0.0 if rng.uniform() < 0.2 else v
         eng = Engine(w2, gamma, n, METHODS['rk4'])
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
         args = (p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth,
-                g.disk, g.real, g.max_angle)
-        got = compiled[0](compiled[1], compiled[2], *args)
-        assert careful_step(plain, branch, *args) == got
+                eng.coulomb, g.disk, g.real, g.max_angle)
+        got = compiled[0](*compiled[1:], *args)
+        assert careful_step(plain, branch, laws, *args) == got
         if got[0]:
             assert (got[1], got[2]) == want[:2], (gamma, w2, h, ain, p, v)
-            assert got[3] == st.reversals
+            assert (got[3], got[4]) == (st.reversals, st.sticks)
             assert st.substeps == st.fallbacks == st.energy_rejections == 0
             took += 1
             turned += got[3]
+            stuck += got[4]
+            held += friction_step(branch, laws, p, v, h, ain, w2, gamma, n, eng.coulomb,
+                                  True)[0]
         else:
             declined += 1
-    assert took > 100 and declined > 10
+    # Coulomb friction (n = 0) has no slope: the guard never asks for substeps there.
+    assert took > 100 and (declined > 10 or n == 0.0)
     assert turned > 30 if n != int(n) or n % 2 == 0 else turned == 0  # smooth: no split
+    assert held > 20 if n < 1.0 else held == 0  # Coulomb at rest, the creep
+    assert stuck > 0 if n == 0.0 else stuck == 0
 
 
 # Cells whose steps the careful path takes: near-Coulomb creep and Coulomb sticking, a stiff
@@ -215,3 +236,39 @@ def test_distinct_exponents_share_their_generated_code() -> None:
     assert codegen._code.cache_info().misses - before <= 3
     assert len(jit._KERNELS) - kernels <= 1
     assert len({id(grp.kernel[0]) for grp in prepared._groups}) == 1
+
+
+# (γ, n, φ0, φ'0, τ/I) at h = 1 ms: Coulomb friction sticking after a reversal, breaking away
+# under input, held at rest against an input; near-Coulomb laws creeping from rest (the issue's
+# n = 0.001 and 0.01 at γ = 100), swinging, reversing and creeping, with input.
+FRICTION = [(5.0, 0.0, 0.2, 0.3, 0.0), (5.0, 0.0, 2.0, 1.0, 1.5), (12.0, 0.0, 1.0, 0.0, -3.0),
+            (100.0, 0.001, 0.3, 0.0, 0.0), (100.0, 0.01, 0.3, 0.0, 0.0),
+            (100.0, 0.3, 0.3, 0.0, 0.0), (4.0, 0.1, 1.5, 0.0, 0.0), (5.0, 0.5, 1.0, 3.0, 1.0)]
+
+
+def test_friction_steps_run_compiled_as_the_stepper_takes_them() -> None:
+    # Coulomb sticking and break-away, the near-Coulomb creep and the n < 1 splits are taken
+    # inside the compiled run (nothing handed back to Engine.careful), to the Stepper's bit,
+    # counters included; the numpy sweep decides alike (its power differs from C's pow in the
+    # last bit for non-integer n). A stiff γ's guard substeps are still handed back.
+    h, steps = 1e-3, 1000
+    gam, nn, p0, v0, tau = (np.array(col) for col in zip(*FRICTION, strict=True))
+    a = sweep(W2, gam, nn, p0, v0, steps * h, h, torque=tau)
+    b = sweep(W2, gam, nn, p0, v0, steps * h, h, torque=tau, jit=True)
+    assert b.handed_back == 0
+    for i, (g, n, x0, dx0, ain) in enumerate(FRICTION):
+        st = Stepper(PendulumParams.from_omega0_sq(W2, g, n), x0, dx0, h)
+        for _ in range(steps):
+            st.step(ain)
+        want = tuple(getattr(st.stats, k) for k in COUNTERS)
+        assert want[:2] == (0, 0)  # no guard substeps, no fallback
+        for res in (a, b):
+            assert tuple(int(getattr(res, k)[i]) for k in COUNTERS) == want, (g, n)
+        assert (b.phi[i], b.dphi[i]) == (st.phi, st.dphi), (g, n)
+        assert abs(a.phi[i] - st.phi) <= 1e-12 and abs(a.dphi[i] - st.dphi) <= 1e-12
+        if 0.0 < n < 1.0 and g == 100.0:  # on the creep: φ' is the closed-form creep speed
+            assert b.dphi[i] == creep_rate(ain - W2 * math.sin(b.phi[i]), g, n)
+    assert b.sticks.sum() > 0 and b.reversals.sum() >= 3
+    assert (b.phi[2], b.dphi[2]) == (1.0, 0.0)  # held at rest: |τ/I − ω0² sin φ| <= γ
+    stiff = sweep(W2, 1e4, 1.0, 1.0, 3.0, 0.01, h, jit=True)
+    assert stiff.substeps[0] > 0 and stiff.handed_back > 0

@@ -4,10 +4,12 @@ With ``jit=True`` a :class:`~pendulum_sim.core.sweep.Sweep` advances each group 
 (one exponent n) by its compiled run (``decisions.kernel_source``, compiled by
 ``jit.compile_kernel``): every pendulum takes fast steps, its state in registers, in parallel
 over the pendulums, until a step is refused or the piece of the run is done. The refused
-steps are handed to the one careful path (``engine.Engine.careful``, through the sweep's
-callback), and the run goes on from the next step. Each pendulum thus takes exactly the steps
-the numpy sweep and the ``Stepper`` take (parity tests: ``test_sweep_jit.py``), in another
-order across pendulums: they do not interact.
+steps the compiled careful step takes (``compiled_careful.careful_step``: Coulomb friction at rest,
+the near-Coulomb creep, one guarded step split at a reversal) stay in the run; the others are
+handed back to the one careful path (``engine.Engine.careful``, through the sweep's callback;
+counted as ``handed_back``), and the run goes on from the next step. Each pendulum thus takes
+exactly the steps the numpy sweep and the ``Stepper`` take (parity tests: ``test_sweep_jit.py``),
+in another order across pendulums: they do not interact.
 """
 from __future__ import annotations
 
@@ -29,7 +31,8 @@ in place in the group's state arrays ``p``, ``v``, ``e``."""
 def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, every: int,
               records: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]],
               vmax: npt.NDArray[np.float64], careful: CarefulFn,
-              guard: tuple[float, float, float]) -> tuple[list[tuple[int, int]], dict[int, int]]:
+              guard: tuple[float, float, float]
+              ) -> tuple[list[tuple[int, int]], dict[int, tuple[int, int]], int]:
     """Advance every group's pendulums by ``count`` steps of ``h`` (steps ``base`` + 1 …).
 
     Each group's ``kernel`` is its (parallel, serial) pair of ``jit.compile_kernel``;
@@ -37,11 +40,13 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
     when not recording), ``vmax`` the run's speed bound over the n-sorted pendulums, ``guard``
     the guard's (disk, real, max_angle) for the compiled careful step (a group takes it where
     its ``use_careful`` is set). Returns ``(step, position)`` of every pendulum whose |φ'|
-    went beyond its bound (it stops there; the caller refuses the run), and the reversals the
-    compiled careful step split per position.
+    went beyond its bound (it stops there; the caller refuses the run), the (reversals, sticks)
+    the compiled careful step counted per position, and ``handed_back``: the steps handed
+    back to ``careful`` (Python's ``Engine.careful``) in the piece.
     """
     beyond: list[tuple[int, int]] = []
-    turns: dict[int, int] = {}
+    turns: dict[int, tuple[int, int]] = {}
+    handed_back = 0
     for grp, (rp, rv) in zip(groups, records, strict=True):
         sl = grp.sl
         size = sl.stop - sl.start
@@ -50,17 +55,19 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
         idx = np.arange(size, dtype=np.int64)
         rows = rp.shape[0]
         rev = np.zeros(size, dtype=np.int64)
+        stick = np.zeros(size, dtype=np.int64)
         while idx.size:
             run = grp.kernel[0] if idx.size >= PARALLEL_MIN else grp.kernel[1]
             run(grp.p, grp.v, grp.e, k, idx, h, count, grp.ain_col, grp.w2_col, grp.gamma_col,
                 grp.n, grp.lo, grp.hi, grp.reach, grp.v_acc, grp.check, grp.nonsmooth,
-                grp.coulomb, vm, base, every, total, rp, rv, rev, grp.use_careful, *guard)
+                grp.coulomb, vm, base, every, total, rp, rv, rev, stick, grp.use_careful, *guard)
             fast = ~(np.abs(grp.v[idx]) <= vm[idx])
             for j in idx[fast].tolist():
                 beyond.append((base + int(k[j]), sl.start + j))
             left = []
             for j in idx[~fast & (k[idx] < count)].tolist():
                 careful(grp, j, h)
+                handed_back += 1
                 k[j] += 1
                 done = base + int(k[j])
                 r = record_row(done, every, total, rows)
@@ -71,9 +78,9 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
                 else:
                     beyond.append((done, sl.start + j))
             idx = np.array(left, dtype=np.int64)
-        for j in np.flatnonzero(rev).tolist():
-            turns[sl.start + j] = int(rev[j])
-    return beyond, turns
+        for j in np.flatnonzero(rev | stick).tolist():
+            turns[sl.start + j] = (int(rev[j]), int(stick[j]))
+    return beyond, turns, handed_back
 
 
 __all__ = ['CarefulFn', 'run_piece']

@@ -12,121 +12,180 @@ of the law there). Where that time is far below the step, the velocity is slaved
 (a singular perturbation: Hairer and Wanner, *Solving ODEs II*, VI.1, the reduced problem) and
 :func:`creep` integrates the reduced equation φ' = sgn(F) v_c(φ) instead of the stiff one, whose
 slope γ n |φ'|^(n−1) is unbounded at rest and beyond any explicit step.
+
+Each decision is one function written to compile (floats and the generated steps and laws in, a
+tuple out, no exception on its path: :func:`rest_step`, :func:`creep_state`, :func:`settle_shift`,
+:func:`friction_step`, :func:`stuck`): the Stepper's careful path calls them in Python
+(``split.py``, ``engine.py``), and the compiled sweep's careful step calls the very same functions
+compiled by numba (``compiled_careful.py``). :func:`from_rest`, :func:`creep` and
+:func:`creep_speed` are their forms on a :class:`~pendulum_sim.core.problem.Problem`.
 """
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
-from .explicit import StepFn
-from .law import compile_damping
+from .law import compile_laws
 from .problem import Problem
 
 CREEP_RELAX = 0.01
 """A step is taken on the creep where the time to settle onto it is at most this part of h."""
 
+StepResult = tuple[float, float, float]
 
-def from_rest(prob: Problem, branch: StepFn, p: float, h: float, ain: float,
-              v: float = 0.0) -> tuple[float, float, float]:
-    """Take a step of h from rest (or within round-off of it) under Coulomb friction.
+
+def rest_step(branch: Any, p: float, v: float, h: float, ain: float, w2: float, gamma: float,
+              n: float) -> StepResult:
+    """Take a step of h from rest (or within round-off of it, φ' = ``v``) under Coulomb friction.
 
     The pendulum sticks while |a_in − ω0² sin φ| <= γ; otherwise it breaks away on the branch
-    of the law in the direction of the force (``branch``: the method's branch step), and stops
-    again if that step reversed.
+    of the law in the direction of the force (``branch(φ, φ', h, a_in, ω0², γ, s, n)``: the
+    method's branch step, ``explicit.step_source_with_n``), and stops again if that step
+    reversed. Returns (φ₁, φ'₁, w).
     """
-    force = ain - prob.w2 * math.sin(p)
-    if abs(force) <= prob.gamma:
+    force = ain - w2 * math.sin(p)
+    if abs(force) <= gamma:
         return p, 0.0, 0.0
     sign = 1.0 if force > 0.0 else -1.0
-    p1, v1, w, _ = branch(p, v, h, ain, prob.w2, prob.gamma, sign)
+    p1, v1, w, _ = branch(p, v, h, ain, w2, gamma, sign, n)
     if v1 * sign < 0.0:
         return p, 0.0, 0.0  # the break-away reversed within the step: it stops again
     return p1, v1, w
 
 
-def creep_speed(prob: Problem, force: float) -> float:
+def stuck(coulomb: bool, v: float, v1: float) -> bool:
+    """Return True where a step from φ' = ``v`` came to rest under Coulomb friction (a stick)."""
+    return coulomb and v1 == 0.0 and v != 0.0
+
+
+def from_rest(prob: Problem, branch: Any, p: float, h: float, ain: float,
+              v: float = 0.0) -> StepResult:
+    """Return :func:`rest_step` for the pendulum ``prob`` (``branch``: exponent an argument)."""
+    return rest_step(branch, p, v, h, ain, prob.w2, prob.gamma, prob.n)
+
+
+def creep_rate(force: float, gamma: float, n: float) -> float:
     """Return the signed creep velocity sgn(F) (|F|/γ)^(1/n) under the force ``F``."""
-    ratio = abs(force) / prob.gamma
-    return math.copysign(ratio ** (1.0 / prob.n), force) if ratio > 0.0 else 0.0
+    ratio = abs(force) / gamma
+    return math.copysign(ratio ** (1.0 / n), force) if ratio > 0.0 else 0.0
 
 
-_NODES, _WEIGHTS = (x.tolist() for x in np.polynomial.legendre.leggauss(16))
+def creep_speed(prob: Problem, force: float) -> float:
+    """Return :func:`creep_rate` for the pendulum ``prob``."""
+    return creep_rate(force, prob.gamma, prob.n)
 
 
-def settle_shift(n: float, v: float, vc: float, force: float) -> float:
+_NODES = tuple(float(x) for x in np.polynomial.legendre.leggauss(16)[0])
+_WEIGHTS = tuple(float(x) for x in np.polynomial.legendre.leggauss(16)[1])
+
+
+def _quadrature(laws: Any, n: float, a: float, b: float) -> float:
+    """Return ∫ from a to b of (u − 1) / (1 − u|u|^(n−1)) du by Gauss-Legendre (16 nodes)."""
+    mid, half = 0.5 * (a + b), 0.5 * (b - a)
+    total = 0.0
+    for k in range(len(_NODES)):
+        u = mid + half * _NODES[k]
+        den = 1.0 - laws(u, 1.0, 1.0, n)[0]  # u|u|^(n−1): the law at γ = 1 (``law.py``)
+        total += _WEIGHTS[k] * ((u - 1.0) / den if den != 0.0 else -1.0 / n)
+    return half * total
+
+
+def settle_shift(laws: Any, n: float, v: float, vc: float, force: float) -> float:
     """Return ∫ (φ' − v_c) dt as φ' settles from ``v`` onto the creep speed ``v_c`` (rad).
 
     With F fixed over the transient, dφ'/dt = F − γ φ'|φ'|^(n−1) and γ v_c^n = |F|, so with
     u = φ'/v_c the integral is (v_c² / F) ∫ from u₀ to 1 of (u − 1) / (1 − u|u|^(n−1)) du
     (the integrand tends to −1/n at u = 1); Gauss-Legendre quadrature on each side of u = 0,
-    where the law has its kink.
+    where the law has its kink. ``laws`` is ``law.compile_laws(n)`` (or its compiled form).
     """
     u0 = v / vc
-    law = compile_damping(n)  # u|u|^(n−1): the law at γ = 1 (``law.py``)
-
-    def part(a: float, b: float) -> float:
-        mid, half = 0.5 * (a + b), 0.5 * (b - a)
-        total = 0.0
-        for x, wt in zip(_NODES, _WEIGHTS, strict=True):
-            u = mid + half * x
-            den = 1.0 - law(u, 1.0, 1.0)
-            total += wt * ((u - 1.0) / den if den != 0.0 else -1.0 / n)
-        return half * total
-
-    integral = part(u0, 0.0) + part(0.0, 1.0) if u0 < 0.0 else part(u0, 1.0)
+    if u0 < 0.0:
+        integral = _quadrature(laws, n, u0, 0.0) + _quadrature(laws, n, 0.0, 1.0)
+    else:
+        integral = _quadrature(laws, n, u0, 1.0)
     return vc * vc / force * integral
 
 
-def creep(prob: Problem, p: float, v: float, h: float,
-          ain: float) -> tuple[float, float, float] | None:
-    """Advance a near-Coulomb creep by h; return (φ₁, φ'₁, w), or None where it does not creep.
+def _rate_at(x: float, ain: float, w2: float, gamma: float, n: float) -> tuple[float, float]:
+    """Return (the creep velocity, the force) at the angle ``x``."""
+    f = ain - w2 * math.sin(x)
+    return creep_rate(f, gamma, n), f
 
-    It creeps for 0 < n < 1 and γ > 0 where the creep speed is below 1 rad/s (the damping
-    dominates the force: |F| < γ) and the pendulum settles onto it from φ' within CREEP_RELAX h:
-    the relaxation time v_c / (n |F|) plus the time to bring φ' to v_c, at most |φ' − v_c| over
+
+def creep_state(laws: Any, n: float, gamma: float, w2: float, p: float, v: float, h: float,
+                ain: float) -> tuple[bool, float, float, float]:
+    """Advance a near-Coulomb creep by h; return (crept, φ₁, φ'₁, w).
+
+    ``crept`` is False (and the state unchanged) where the pendulum does not creep. It creeps
+    for 0 < n < 1 and γ > 0 where the creep speed is below 1 rad/s (the damping dominates the
+    force: |F| < γ) and the pendulum settles onto it from φ' within CREEP_RELAX h: the
+    relaxation time v_c / (n |F|) plus the time to bring φ' to v_c, at most |φ' − v_c| over
     the least deceleration towards it (|F| against the motion, |γ |φ'|^n − |F|| with it).
     The reduced equation φ' = sgn(F) (|F(φ)|/γ)^(1/n) is then taken by one RK4 step; the
     damping balances the force on the creep, so its work per unit inertia is ∫ F φ' dt (the
     same quadrature). Where h v_c is below half an ulp of φ, φ stays and so does v_c.
+    ``laws`` is ``law.compile_laws(n)`` (or its compiled form).
     """
-    n, g, w2 = prob.n, prob.gamma, prob.w2
-    if not (0.0 < n < 1.0 and g > 0.0):
-        return None
+    if not (0.0 < n < 1.0 and gamma > 0.0):
+        return False, p, v, 0.0
     force = ain - w2 * math.sin(p)
     a = abs(force)
-    if a >= g:
-        return None
-    if a == 0.0:
-        return (p, 0.0, 0.0) if v == 0.0 else None  # balanced at rest: no creep speed
-    vc = creep_speed(prob, force)
+    if a >= gamma:
+        return False, p, v, 0.0
+    if a == 0.0:  # balanced at rest: no creep speed
+        return (True, p, 0.0, 0.0) if v == 0.0 else (False, p, v, 0.0)
+    vc = creep_rate(force, gamma, n)
     settle = abs(vc) / (n * a)
     if v != 0.0 and v != vc:
-        toward = a if v * force < 0.0 else abs(abs(prob.damping(v)) - a)
+        toward = a if v * force < 0.0 else abs(abs(laws(v, gamma, 1.0, n)[0]) - a)
         settle += abs(v - vc) / toward if toward > 0.0 else math.inf
     if not settle <= CREEP_RELAX * h:
-        return None
+        return False, p, v, 0.0
     w0 = 0.0
     if v != vc:
         # The lag (or lead) the settling leaves behind, ∫ (φ' − v_c) dt over the transient,
         # and the damping work in it beyond the creep's: F · shift + ½ (φ'² − v_c²).
-        shift = settle_shift(n, v, vc, force)
+        shift = settle_shift(laws, n, v, vc, force)
         p += shift
         w0 = force * shift + 0.5 * (v * v - vc * vc)
     if p + h * vc == p:
-        return p, vc, w0 + h * vc * force
-
-    def rate(x: float) -> tuple[float, float]:
-        f = ain - w2 * math.sin(x)
-        return creep_speed(prob, f), f
-
-    k2, f2 = rate(p + 0.5 * h * vc)
-    k3, f3 = rate(p + 0.5 * h * k2)
-    k4, f4 = rate(p + h * k3)
+        return True, p, vc, w0 + h * vc * force
+    k2, f2 = _rate_at(p + 0.5 * h * vc, ain, w2, gamma, n)
+    k3, f3 = _rate_at(p + 0.5 * h * k2, ain, w2, gamma, n)
+    k4, f4 = _rate_at(p + h * k3, ain, w2, gamma, n)
     p1 = p + h / 6.0 * (vc + 2.0 * (k2 + k3) + k4)
     w = w0 + h / 6.0 * (vc * force + 2.0 * (k2 * f2 + k3 * f3) + k4 * f4)
-    v1, _ = rate(p1)
-    return p1, v1, w
+    v1 = _rate_at(p1, ain, w2, gamma, n)[0]
+    return True, p1, v1, w
 
 
-__all__ = ['CREEP_RELAX', 'creep', 'creep_speed', 'from_rest', 'settle_shift']
+def friction_step(branch: Any, laws: Any, p: float, v: float, h: float, ain: float, w2: float,
+                  gamma: float, n: float, coulomb: bool,
+                  creeps: bool) -> tuple[bool, float, float, float]:
+    """Take the careful path's step where friction holds the pendulum: (taken, φ₁, φ'₁, w).
+
+    Under Coulomb friction at rest, :func:`rest_step` (stick or break away); where a
+    near-Coulomb law may creep (``creeps``: guarded explicit steps), :func:`creep_state`.
+    ``taken`` is False (the state unchanged) where neither applies: the step is then the
+    guard's. ``Engine.careful`` calls it first, in Python, and the compiled sweep's careful
+    step (``compiled_careful.py``) compiled.
+    """
+    if coulomb and v == 0.0:
+        p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n)
+        return True, p1, v1, w
+    if creeps:
+        return creep_state(laws, n, gamma, w2, p, v, h, ain)
+    return False, p, v, 0.0
+
+
+def creep(prob: Problem, p: float, v: float, h: float, ain: float) -> StepResult | None:
+    """Return :func:`creep_state`'s (φ₁, φ'₁, w) for ``prob``, or None where it does not creep."""
+    crept, p1, v1, w = creep_state(compile_laws(prob.n), prob.n, prob.gamma, prob.w2, p, v, h,
+                                   ain)
+    return (p1, v1, w) if crept else None
+
+
+__all__ = ['CREEP_RELAX', 'creep', 'creep_rate', 'creep_speed', 'creep_state', 'friction_step',
+           'from_rest', 'rest_step', 'settle_shift', 'stuck']

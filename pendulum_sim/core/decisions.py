@@ -17,8 +17,8 @@ import numpy as np
 import numpy.typing as npt
 
 from .codegen import define
-from .explicit import step_source
-from .law import SCALAR_ENV, damping_expression
+from .explicit import step_source, step_source_with_n
+from .law import SCALAR_ENV, damping_expression, laws_source
 from .tableaus import Tableau
 
 ENERGY_TOL = 1e-12
@@ -143,7 +143,7 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
 
 KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'n', 'LO', 'HI',
                'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base', 'every',
-               'total', 'RP', 'RV', 'REV', 'use_careful', 'disk', 'real', 'max_angle')
+               'total', 'RP', 'RV', 'REV', 'STICK', 'use_careful', 'disk', 'real', 'max_angle')
 """The arguments of a compiled sweep run (:func:`kernel_source`), arrays in capitals."""
 
 
@@ -162,18 +162,12 @@ def record_row(done: int, every: int, total: int, rows: int) -> int:
     return -1
 
 
-def _step_with_n(tableau: Tableau, n: float, branch: bool, name: str) -> list[str]:
-    """Return the scalar step of ``explicit.step_source`` as ``name``, the exponent an argument."""
-    lines = step_source(tableau, damping_expression(n, branch, scalar=True)).splitlines()
-    return [f'def {name}(p0, v0, h, ain, w2, gamma, s, n):', *lines[1:]]
-
-
 @functools.lru_cache(maxsize=256)
 def kernel_source(tableau: Tableau, n: float) -> str:
     """Return the sweep's run of many steps for one exponent, over arrays, as source text.
 
     ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, n, LO, HI, REACH, V_ACC, CHECK,
-    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, REV, use_careful, disk, real,
+    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, REV, STICK, use_careful, disk, real,
     max_angle)`` advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
     ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
     step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
@@ -181,19 +175,24 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
     stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``).
     A refused step is taken, where ``use_careful``, by ``careful_step`` (the careful path's
-    split step, ``compiled_careful.py``; its reversals counted in ``REV[i]``, the guard's
-    ``disk``, ``real`` and ``max_angle`` its constants). The run stops at a step neither takes
+    one-substep steps, ``compiled_careful.py``: Coulomb friction at rest, the near-Coulomb
+    creep, the split at a reversal; its reversals counted in ``REV[i]``, its Coulomb sticks
+    in ``STICK[i]``, the guard's ``disk``, ``real`` and ``max_angle`` its constants).
+    The run stops at a step neither takes
     (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'|
     above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
     step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``.
     The texts are the ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`;
     the exponent is an argument, so one text serves every exponent whose law it spells alike.
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
-    with the exponent an argument, which ``careful_step`` takes.
+    with the exponent an argument (``explicit.step_source_with_n``), and ``laws``, the two laws
+    themselves (``law.laws_source``), which ``careful_step`` takes.
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
     pad = '        '
-    lines = [*_step_with_n(tableau, n, False, 'plain'), *_step_with_n(tableau, n, True, 'branch'),
+    lines = [*step_source_with_n(tableau, n, False, 'plain').splitlines(),
+             *step_source_with_n(tableau, n, True, 'branch').splitlines(),
+             *laws_source(n).splitlines(),
              f'def kernel({", ".join(KERNEL_ARGS)}):',
              '    rows = RP.shape[0]',
              '    for j in prange(IDX.shape[0]):',
@@ -218,11 +217,11 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '                else:', '                    e = e1',
              '            if not ok:',
              '                if not use_careful:', '                    break',
-             '                done, p1, v1, turns = careful_step(',
-             '                    plain, branch, p0, v0, h, ain, w2, gamma, n, v_acc, reach,',
-             '                    check, nonsmooth, disk, real, max_angle)',
+             '                done, p1, v1, turns, stuck = careful_step(',
+             '                    plain, branch, laws, p0, v0, h, ain, w2, gamma, n, v_acc,',
+             '                    reach, check, nonsmooth, coulomb, disk, real, max_angle)',
              '                if not done:', '                    break',
-             '                REV[i] += turns',
+             '                REV[i] += turns', '                STICK[i] += stuck',
              '                if check:', '                    v = v1',
              '                    s = sin(0.5 * p1)', f'                    e = {ENERGY_SRC}',
              '            p0 = p1', '            v0 = v1', '            k += 1',

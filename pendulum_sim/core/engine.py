@@ -22,7 +22,7 @@ import math
 from typing import Any
 
 from . import embedded
-from .coulomb import creep
+from .coulomb import stuck
 from .decisions import (
     ENERGY_TOL,
     STIFF_MAX_TRIALS,
@@ -166,10 +166,9 @@ class Engine:
         non-finite result is replaced by the fallback's.
         """
         try:
-            if self.coulomb and v == 0.0:
-                p1, v1, w = self.plain.from_rest(p, h, ain)
-            elif self.near_coulomb and (crept := creep(self.problem, p, v, h, ain)):
-                p1, v1, w = crept
+            held, p1, v1, w = self.plain.friction(p, v, h, ain, self.near_coulomb)
+            if held:  # Coulomb friction at rest, the near-Coulomb creep
+                pass
             elif self.guard is None:
                 p1, v1, w = self.micro(p, v, h, ain, stats)
             elif abs(v) > self.v_acc and stiff_transient(
@@ -209,7 +208,7 @@ class Engine:
                 raise self._diverged(p, v)
             stats.fallbacks += 1
             p1, v1, w = self.last_resort(p, v, h, ain)
-        if v1 == 0.0 and v != 0.0 and self.coulomb:
+        if stuck(self.coulomb, v, v1):
             stats.sticks += 1
         return p1, v1, w
 

@@ -172,6 +172,24 @@ def compile_damping(n: float, branch: bool = False, vector: bool = False) -> Any
     return define(src, 'damping', env, '<damping>')
 
 
+def laws_source(n: float, name: str = 'laws') -> str:
+    """Return source for ``name(v, gamma, s, n)`` → (plain law, branch law) at ``v``.
+
+    The two texts of :func:`damping_expression` for the exponent ``n``, with the exponent an
+    argument (not a name of the namespace), so that one compiled function serves every
+    exponent its text serves: the form the careful path's shared functions call
+    (``coulomb.creep_state``, ``reversal.graded_landing``), in Python and compiled.
+    """
+    return (f'def {name}(v, gamma, s, n):\n'
+            f'    return {damping_expression(n)}, {damping_expression(n, True)}\n')
+
+
+@functools.lru_cache(maxsize=256)
+def compile_laws(n: float) -> Any:
+    """Return :func:`laws_source`'s function for the exponent ``n`` (scalar, ``math``)."""
+    return define(laws_source(n), 'laws', dict(SCALAR_ENV), '<laws>')
+
+
 @functools.lru_cache(maxsize=256)
 def compile_power(n: float) -> Any:
     """Return the damping power ``P(v, gamma)`` = γ |v|^(n+1) for exponent ``n`` (numpy)."""
@@ -186,9 +204,11 @@ __all__ = [
     'WHOLE_MAX',
     'DampingFn',
     'compile_damping',
+    'compile_laws',
     'compile_power',
     'damping_derivative',
     'damping_expression',
+    'laws_source',
     'power_expression',
     'power_source',
     'slope_expression',

@@ -8,12 +8,16 @@ source text :data:`LOCATE_SRC` with its two evaluations as named fields, and def
 forms by ``codegen.define``: :func:`locate_reversal` on Python callables (the explicit family's
 split, ``split.py``, and the embedded cover's reversal cut, ``embedded.py``) and
 :func:`locate_on_branch` on a generated branch step, which numba compiles for the compiled
-careful step (``compiled_careful.py``).
+careful step (``compiled_careful.py``). What follows the location in a split, the Newton run on
+a graded run's own φ'(θh) and the landing on φ' = 0 (:func:`graded_landing`, over
+:func:`branch_run`), is one function written to compile, which ``split.split_step`` calls in
+Python and compiled alike.
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 from .codegen import define
 from .law import compile_damping
@@ -75,11 +79,11 @@ def branch_accel(p: float, v: float, ain: float, sign: float, gamma: float, n: f
 
 NEWTON_TOL = 1e-14
 NEWTON_ITERATIONS = 4
-"""The split of a plain step (``SplitSteps.split``, ``compiled_careful.split``): Newton on the
+"""The split of a plain step (``split.split_step``, in Python and compiled): Newton on the
 partial step's own φ'(θh) until |φ'| <= NEWTON_TOL |φ'₀|, for NEWTON_ITERATIONS at most."""
 GRADED_TOL = 1e-13
 GRADED_ITERATIONS = 3
-"""The same split's Newton on a graded run's own φ'(θh) = 0: tolerance and iterations."""
+"""The same split's Newton on a graded run's own φ'(θh) = 0 (:func:`graded_landing`)."""
 CUT_TOL = 1e-15
 CUT_ITERATIONS = 8
 """The embedded cover's reversal cut (``embedded.cover``): Newton's tolerance and iterations."""
@@ -158,6 +162,57 @@ arguments passed on; numba compiles it (``compiled_careful.split``).
 """
 
 
+def branch_run(branch: Any, p: float, v: float, lens: list[float], back: bool, ain: float,
+               w2: float, gamma: float, sign: float, n: float) -> tuple[float, float, float]:
+    """Return (φ, φ', w) after branch steps of the lengths ``lens`` (in reverse where ``back``).
+
+    ``branch(φ, φ', dt, a_in, ω0², γ, s, n)`` is the generated branch step with the exponent an
+    argument (``explicit.step_source_with_n``); ``w`` sums the steps' damping work.
+    """
+    m = len(lens)
+    w = 0.0
+    for k in range(m):
+        p, v, wi, _ = branch(p, v, lens[m - 1 - k] if back else lens[k], ain, w2, gamma, sign,
+                             n)
+        w += wi
+    return p, v, w
+
+
+def graded_landing(branch: Any, laws: Any, p: float, v: float, th: float, pm: float,
+                   vm: float, wm: float, h: float, ain: float, w2: float, gamma: float,
+                   sign: float, n: float, reach: float) -> tuple[float, float, float, float]:
+    """Return the reversal at θh of a step from (φ, φ') = (``p``, ``v``) as graded steps see it.
+
+    ``(th, pm, vm, wm)`` is the location by one partial step (:data:`LOCATE_SRC`); where the
+    first side is graded (:func:`graded_mesh`), Newton iterations on the graded run's own
+    φ'(θh) = 0 move θ (its θ differs from the single step's by the single step's O(h^(n+1))
+    error; GRADED_TOL, GRADED_ITERATIONS), and a last Newton step in time lands the run on
+    φ' = 0 exactly, its damping work on the branch law (``laws``: ``law.compile_laws(n)`` or
+    its compiled form). Returns (θ, φ, φ', w) at the reversal. Written to compile: the split
+    of ``split.split_step`` calls it in Python and compiled alike.
+    """
+    lens = graded_mesh(0.0, th * h, h, n, reach)
+    if len(lens) > 1:
+        acc = 0.0
+        for _ in range(GRADED_ITERATIONS):
+            pm, vm, wm = branch_run(branch, p, v, lens, True, ain, w2, gamma, sign, n)
+            acc = branch(pm, vm, 0.0, ain, w2, gamma, sign, n)[3]
+            if acc == 0.0 or abs(vm) <= GRADED_TOL * abs(v):
+                break
+            nth = th - vm / (acc * h)
+            if not 0.0 < nth < 1.0:
+                break
+            th = nth
+            lens = graded_mesh(0.0, th * h, h, n, reach)
+        if acc != 0.0:
+            dt = min(max(-vm / acc, -th * h), (1.0 - th) * h)
+            pm += dt * (vm + 0.5 * dt * acc)
+            wm += dt * vm * laws(vm, gamma, sign, n)[1]
+            vm = 0.0
+            th += dt / h
+    return th, pm, vm, wm
+
+
 def graded_mesh(x_a: float, x_b: float, h: float, n: float, window: float) -> list[float]:
     """Return substep lengths covering distances [x_a, x_b] (s) from a velocity reversal.
 
@@ -188,7 +243,25 @@ def graded_mesh(x_a: float, x_b: float, h: float, n: float, window: float) -> li
     return lens
 
 
-__all__ = ['CUT_ITERATIONS', 'CUT_TOL', 'GRADED_ITERATIONS', 'GRADED_TOL', 'GRADE_WINDOW',
-           'LOCATE_FORMS', 'LOCATE_SRC', 'NEWTON_ITERATIONS', 'NEWTON_TOL', 'LocateFn',
-           'branch_accel', 'grade_window', 'graded_law', 'graded_mesh', 'hermite_root',
-           'locate_form', 'locate_on_branch', 'locate_reversal']
+__all__ = [
+    'CUT_ITERATIONS',
+    'CUT_TOL',
+    'GRADED_ITERATIONS',
+    'GRADED_TOL',
+    'GRADE_WINDOW',
+    'LOCATE_FORMS',
+    'LOCATE_SRC',
+    'NEWTON_ITERATIONS',
+    'NEWTON_TOL',
+    'LocateFn',
+    'branch_accel',
+    'branch_run',
+    'grade_window',
+    'graded_landing',
+    'graded_law',
+    'graded_mesh',
+    'hermite_root',
+    'locate_form',
+    'locate_on_branch',
+    'locate_reversal',
+]

@@ -2,33 +2,96 @@
 
 Where the damping law is not smooth at φ' = 0 (``Problem.nonsmooth``) a plain step that
 straddles a reversal has a local error of low order (the paper's Fig 9 remark on n = 2);
-:class:`SplitSteps` locates the reversal inside the step (``reversal.locate_reversal``),
-integrates each side on its own branch of the law in graded substeps (``reversal.graded_mesh``)
-and lets Coulomb friction stick at rest (``coulomb.from_rest``).
+:func:`split_step` locates the reversal inside the step (``reversal.locate_on_branch``),
+integrates each side on its own branch of the law in graded substeps (``reversal.graded_mesh``,
+``reversal.graded_landing``), lets Coulomb friction stick at rest (``coulomb.rest_step``) and a
+near-Coulomb law creep (``coulomb.creep_state``). It is written to compile: :class:`SplitSteps`
+(the Stepper's careful path) calls it in Python, the compiled sweep compiled.
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
-from .coulomb import creep, from_rest
+from .coulomb import creep_state, friction_step, rest_step
 from .decisions import reversal_suspect
-from .explicit import StepFn, compile_step
+from .explicit import StepFn, compile_step, compile_step_with_n
 from .guard import GuardStats
-from .law import compile_damping
+from .law import compile_laws
 from .problem import Problem
 from .reversal import (
-    GRADED_ITERATIONS,
-    GRADED_TOL,
     NEWTON_ITERATIONS,
     NEWTON_TOL,
-    branch_accel,
+    branch_run,
+    graded_landing,
     graded_mesh,
-    locate_reversal,
+    locate_on_branch,
 )
 from .tableaus import Tableau
 
 Fallback = Callable[[float, float, float, float], tuple[float, float, float]]
+
+SplitResult = tuple[bool, float, float, float, int, float, float, float, float]
+"""``split_step``'s (done, φ₁, φ'₁, w, reversals, φm, φ'm, wm, rest)."""
+
+
+def split_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
+               w2: float, gamma: float, n: float, a0: float, reach: float,
+               coulomb: bool) -> SplitResult:
+    """Split a step of h that straddles φ' = 0 at the reversal (the paper's Fig 9 remark).
+
+    A first guess comes from the cubic Hermite interpolant of φ' on the step, with the end
+    slope from the damping branch of the start (its smooth continuation); Newton iterations
+    on the partial step's own φ'(θh) put the reversal where the method says φ' = 0
+    (``reversal.locate_on_branch``). Each side is then integrated on its own branch in graded
+    substeps (``reversal.graded_mesh``), a last Newton step in time landing the first side on
+    φ' = 0 exactly (``reversal.graded_landing``); from rest, Coulomb friction sticks or breaks
+    away (``coulomb.rest_step``) and a near-Coulomb law may creep (``coulomb.creep_state``).
+
+    ``plain``, ``branch`` are the generated steps and ``laws`` the laws with the exponent an
+    argument (``explicit.step_source_with_n``, ``law.laws_source``), ``a0`` φ'' at the start.
+    Returns (done, φ₁, φ'₁, w, reversals, φm, φ'm, wm, rest): where ``done`` is False the branch
+    run from rest broke its bounds (a law too steep at rest for explicit steps) and the
+    fallback must take ``rest`` from the reversal's (φm, φ'm), wm being the work up to it.
+    Written to compile: :meth:`SplitSteps.split` calls it in Python and the compiled sweep's
+    careful step (``compiled_careful.py``) compiled, the same function.
+    """
+    sign = 1.0 if v > 0.0 else -1.0
+    p1, v1, w1, _ = branch(p, v, h, ain, w2, gamma, sign, n)
+    if v1 * v > 0.0:
+        # The branch step does not reach φ' = 0: no kink inside (graded if it is near).
+        if reach > 0.0 and a0 != 0.0:
+            x = abs(v) / abs(a0)
+            lens = graded_mesh(max(x - h, 0.0), x, h, n, reach)
+            p1, v1, w1 = branch_run(branch, p, v, lens, True, ain, w2, gamma, sign, n)
+        return True, p1, v1, w1, 0, p, v, 0.0, 0.0
+    a1 = branch(p1, v1, 0.0, ain, w2, gamma, sign, n)[3]  # φ'' on the branch at the end
+    th, pm, vm, wm = locate_on_branch(branch, p, v, v1, a0, a1, h, ain, w2, gamma, sign, n,
+                                      NEWTON_TOL, NEWTON_ITERATIONS)
+    th, pm, vm, wm = graded_landing(branch, laws, p, v, th, pm, vm, wm, h, ain, w2, gamma,
+                                    sign, n, reach)
+    rest = (1.0 - th) * h
+    if coulomb:
+        p2, v2, w2_ = rest_step(branch, pm, vm, rest, ain, w2, gamma, n)
+        return True, p2, v2, wm + w2_, 1, pm, vm, wm, rest
+    crept, p2, v2, w2_ = creep_state(laws, n, gamma, w2, pm, vm, rest, ain)
+    if crept:
+        return True, p2, v2, wm + w2_, 1, pm, vm, wm, rest
+    after = ain - w2 * math.sin(pm)
+    if after == 0.0:
+        p2, v2, w2_, _ = plain(pm, vm, rest, ain, w2, gamma, 1.0, n)
+        return True, p2, v2, wm + w2_, 1, pm, vm, wm, rest
+    side = 1.0 if after > 0.0 else -1.0
+    p2, v2, w2_ = branch_run(branch, pm, vm, graded_mesh(0.0, rest, h, n, reach), False, ain,
+                             w2, gamma, side, n)
+    # From rest the pendulum moves with the force and no faster than the force alone would
+    # take it (damping only opposes the motion; ``Problem.speed_gain``). A branch run that
+    # breaks either bound met a law too steep at rest for explicit steps (n < 1 with a large
+    # γ: the creep's rate is beyond any step): the fallback takes the rest of the step.
+    if not (v2 * side >= 0.0 and abs(v2) <= rest * (abs(ain) + w2) * (1.0 + 1e-9)):
+        return False, p2, v2, w2_, 1, pm, vm, wm, rest
+    return True, p2, v2, wm + w2_, 1, pm, vm, wm, rest
 
 
 class SplitSteps:
@@ -50,12 +113,23 @@ class SplitSteps:
         self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
         self.step_fn: StepFn = compile_step(tableau, prob.n)
         self.branch_fn: StepFn = compile_step(tableau, prob.n, branch=True)
+        # The same steps and the laws with the exponent an argument: what the functions
+        # written to compile (split_step, coulomb.rest_step) take, in Python as compiled.
+        self.plain_n: StepFn = compile_step_with_n(tableau, prob.n)
+        self.branch_n: StepFn = compile_step_with_n(tableau, prob.n, branch=True)
+        self.laws = compile_laws(prob.n)
         self.last_resort = last_resort
 
     def from_rest(self, p: float, h: float, ain: float,
                   v: float = 0.0) -> tuple[float, float, float]:
-        """Coulomb friction at (or within round-off of) rest: stick, or break away."""
-        return from_rest(self.problem, self.branch_fn, p, h, ain, v)
+        """Coulomb friction at rest: stick, or break away (``coulomb.rest_step``)."""
+        return rest_step(self.branch_n, p, v, h, ain, self.w2, self.gamma, self.n)
+
+    def friction(self, p: float, v: float, h: float, ain: float,
+                 creeps: bool) -> tuple[bool, float, float, float]:
+        """Return ``coulomb.friction_step``: (taken, φ₁, φ'₁, w) where friction holds."""
+        return friction_step(self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma,
+                             self.n, self.coulomb, creeps)
 
     def speed_gain(self, h: float, ain: float) -> float:
         """Return the most |φ'| can grow in h (:meth:`Problem.speed_gain`)."""
@@ -88,85 +162,21 @@ class SplitSteps:
 
     def _branch_run(self, p: float, v: float, lengths: list[float], ain: float,
                     sign: float) -> tuple[float, float, float]:
-        w = 0.0
-        for hh in lengths:
-            p, v, wi, _ = self.branch_fn(p, v, hh, ain, self.w2, self.gamma, sign)
-            w += wi
-        return p, v, w
+        return branch_run(self.branch_n, p, v, lengths, False, ain, self.w2, self.gamma, sign,
+                          self.n)
 
     def split(self, p: float, v: float, h: float, ain: float, a0: float,
               stats: GuardStats) -> tuple[float, float, float]:
-        """Split a step that straddles φ' = 0 at the reversal (the paper's Fig 9 remark).
-
-        A first guess comes from the cubic Hermite interpolant of φ' on the step, with the end
-        slope from the damping branch of the start (its smooth continuation); Newton iterations
-        on the partial step's own φ'(θh) put the reversal where the method says φ' = 0. Each
-        side is then integrated on its own branch in graded substeps (:func:`graded_mesh`),
-        and a last Newton step in time lands the first side on φ' = 0 exactly.
-        """
-        sign = 1.0 if v > 0.0 else -1.0
-        n, g, w2 = self.n, self.gamma, self.w2
-        before = self.branch_fn
-
-        def accel(pp: float, vv: float) -> float:
-            return branch_accel(pp, vv, ain, sign, g, n, w2)
-
-        def at(hh: float) -> tuple[float, float, float]:
-            pa, va, wa, _ = before(p, v, hh, ain, w2, g, sign)
-            return pa, va, wa
-
-        p1, v1, w1, _ = before(p, v, h, ain, w2, g, sign)
-        if v1 * v > 0.0:
-            # The branch step does not reach φ' = 0: no kink inside (graded if it is near).
-            if self.reach > 0.0 and a0 != 0.0:
-                x = abs(v) / abs(a0)
-                lens = graded_mesh(max(x - h, 0.0), x, h, n, self.reach)[::-1]
-                return self._branch_run(p, v, lens, ain, sign)
-            return p1, v1, w1
-        th, pm, vm, wm = locate_reversal(at, accel, v, v1, a0, accel(p1, v1), h, NEWTON_TOL,
-                                         NEWTON_ITERATIONS)
-        lens = graded_mesh(0.0, th * h, h, n, self.reach)[::-1]
-        if len(lens) > 1:
-            for _ in range(GRADED_ITERATIONS):
-                # Newton on the graded run's own φ'(θh) = 0 (its θ differs from the single
-                # step's by the single step's O(h^(n+1)) error).
-                pm, vm, wm = self._branch_run(p, v, lens, ain, sign)
-                acc = accel(pm, vm)
-                if acc == 0.0 or abs(vm) <= GRADED_TOL * abs(v):
-                    break
-                nth = th - vm / (acc * h)
-                if not 0.0 < nth < 1.0:
-                    break
-                th = nth
-                lens = graded_mesh(0.0, th * h, h, n, self.reach)[::-1]
-            if acc != 0.0:
-                dt = min(max(-vm / acc, -th * h), (1.0 - th) * h)
-                pm += dt * (vm + 0.5 * dt * acc)
-                wm += dt * vm * compile_damping(n, True)(vm, g, sign)
-                vm = 0.0
-                th += dt / h
-        stats.reversals += 1
-        rest = (1.0 - th) * h
-        if self.coulomb:
-            p2, v2, w2_ = self.from_rest(pm, rest, ain, vm)
-            return p2, v2, wm + w2_
-        crept = creep(self.problem, pm, vm, rest, ain)
-        if crept is not None:
-            return crept[0], crept[1], wm + crept[2]
-        after = ain - w2 * math.sin(pm)
-        if after == 0.0:
-            p2, v2, w2_, _ = self.step_fn(pm, vm, rest, ain, w2, g, 1.0)
-            return p2, v2, wm + w2_
-        side = 1.0 if after > 0.0 else -1.0
-        p2, v2, w2_ = self._branch_run(pm, vm, graded_mesh(0.0, rest, h, n, self.reach), ain, side)
-        # From rest the pendulum moves with the force and no faster than the force alone would
-        # take it (damping only opposes the motion). A branch run that breaks either bound met
-        # a law too steep at rest for explicit steps (n < 1 with a large γ: the creep's rate is
-        # beyond any step): the fallback takes the rest of the step.
-        if not (v2 * side >= 0.0 and abs(v2) <= self.speed_gain(rest, ain) * (1.0 + 1e-9)):
-            stats.fallbacks += 1
-            p2, v2, w2_ = self.last_resort(pm, vm, rest, ain)
+        """Split a step that straddles φ' = 0 at the reversal (:func:`split_step`)."""
+        done, p2, v2, w, turns, pm, vm, wm, rest = split_step(
+            self.plain_n, self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma, self.n,
+            a0, self.reach, self.coulomb)
+        stats.reversals += turns
+        if done:
+            return p2, v2, w
+        stats.fallbacks += 1
+        p2, v2, w2_ = self.last_resort(pm, vm, rest, ain)
         return p2, v2, wm + w2_
 
 
-__all__ = ['SplitSteps']
+__all__ = ['SplitResult', 'SplitSteps', 'split_step']

@@ -111,6 +111,9 @@ class SweepResult:
         Step and final time in s.
     method : str
         Name of the explicit method.
+    handed_back : int
+        With ``jit=True``: the steps the compiled runs handed back to Python's careful path
+        (``Engine.careful``), over all pendulums; 0 for the numpy sweep (all in Python).
     """
 
     phi: FloatArray
@@ -127,6 +130,7 @@ class SweepResult:
     h: float
     t_end: float
     method: str
+    handed_back: int = 0
 
     @property
     def capped(self) -> int:
@@ -541,9 +545,10 @@ class Sweep:
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
             for grp in self._groups:
                 grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n, careful_step))
-                # The compiled careful step serves guarded laws with n >= 1.
-                grp.use_careful = self.guard and grp.n >= 1.0
+                # The compiled careful step serves the guarded laws (compiled_careful.py).
+                grp.use_careful = self.guard
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
+        self._handed_back = 0  # steps the compiled runs handed to Engine.careful (an advance)
         self._bounds = ain_bounds(self._tau)
         for grp in self._groups:
             grp.use_torque(self._tau, self.energy_check)
@@ -597,6 +602,7 @@ class Sweep:
         om2, gam, phi, v = self._om2, self._gam, self._phi, self._v
         energy = specific_energy(v, np.sin(0.5 * phi), om2)
         stats: dict[int, GuardStats] = {}
+        self._handed_back = 0
         meth = METHODS[self.method]
         groups = self._groups
         rec_t: list[float] = []
@@ -673,13 +679,16 @@ class Sweep:
                 grp.e[j] = specific_energy(v1, math.sin(0.5 * p1), w2)
 
         g = guard_for(meth.tableau)
-        beyond, turns = run_piece(self._groups, hh, count, base, total, every, records,
-                                  self._vmax, careful, (g.disk, g.real, g.max_angle))
-        for i, k in turns.items():
+        beyond, turns, handed = run_piece(self._groups, hh, count, base, total, every,
+                                          records, self._vmax, careful,
+                                          (g.disk, g.real, g.max_angle))
+        self._handed_back += handed
+        for i, (k, stick) in turns.items():
             st = stats.get(i)
             if st is None:
                 st = stats[i] = GuardStats()
             st.reversals += k
+            st.sticks += stick
         if beyond:
             done, pos = min(beyond)
             grp = next(grp for grp in self._groups if grp.sl.start <= pos < grp.sl.stop)
@@ -718,6 +727,7 @@ class Sweep:
             substeps=counters['substeps'][inv], fallbacks=counters['fallbacks'][inv],
             reversals=counters['reversals'][inv], sticks=counters['sticks'][inv],
             steps=total, h=self.h, t_end=t_end, method=self.method,
+            handed_back=self._handed_back,
         )
 
 
@@ -754,9 +764,10 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     jit : bool
         Run each group of one n compiled by numba (the ``jit`` extra) instead of with numpy:
         the same generated step and decisions (``decisions.kernel_source``) run step after
-        step per pendulum, in parallel over the pendulums, the careful path's split step
-        compiled too (``compiled_careful.py``) and every other refused step taken by
-        ``Engine.careful`` (``compiled_sweep.py``).
+        step per pendulum, in parallel over the pendulums, the careful path's one-substep
+        steps compiled too (``compiled_careful.py``: Coulomb sticking and break-away, the
+        near-Coulomb creep, the split at a reversal) and every other refused step taken by
+        ``Engine.careful`` (``compiled_sweep.py``; counted in ``SweepResult.handed_back``).
 
     Returns
     -------
