@@ -65,16 +65,31 @@ def check_jit(jit: object, method: str, adaptive: bool) -> bool:
     return jit
 
 
+def _formula(fn: Any) -> Any:
+    """Return the function numba compiles for ``fn``: its arithmetic alone where it has a guard.
+
+    The core's damping slope, terminal speed and saturated stage law catch OverflowError around
+    a formula (``law.slope_formula``, ``guard.terminal_formula``, ``dirk.saturated_formula``)
+    and return inf; numba does not catch
+    it and overflows to inf, so the formula alone is the compiled form of the wrapper.
+    """
+    from .dirk import saturated, saturated_formula
+    from .guard import terminal_formula, terminal_speed
+
+    forms = {damping_derivative: slope_formula, terminal_speed: terminal_formula,
+             saturated: saturated_formula}
+    return forms.get(fn, fn)
+
+
 @functools.cache
 def _helper(fn: Any) -> Any:
     """Return the compiled form of a function a generated step calls (numba needs it compiled).
 
-    The core's damping slope is compiled from its arithmetic alone (``slope_formula``): numba
-    does not catch OverflowError, and overflows to inf, the value the Python wrapper returns.
+    Compiled from :func:`_formula` (the damping slope from its arithmetic alone).
     """
     import numba
 
-    return numba.njit(slope_formula if fn is damping_derivative else fn)
+    return numba.njit(_formula(fn))
 
 
 @functools.lru_cache(maxsize=512)
@@ -112,8 +127,9 @@ def numba_twin(fn: Any) -> Any:
     """Return ``fn`` compiled by numba with everything it calls compiled (:func:`_twin` deep)."""
     import numba
 
-    if fn is damping_derivative:
-        return numba.njit(slope_formula)
+    form = _formula(fn)
+    if form is not fn:
+        return numba.njit(form)
     return numba.njit(_twin(fn, deep=True))
 
 
