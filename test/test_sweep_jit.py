@@ -10,27 +10,32 @@ the C library's pow).
 from __future__ import annotations
 
 import itertools
+import math
+import re
 from typing import Any
 
 import numpy as np
 import pytest
 
 from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen, jit
+from pendulum_sim.core.compiled_careful import COUNTERS as CAREFUL_COUNTERS
 from pendulum_sim.core.compiled_careful import careful_step
-from pendulum_sim.core.decisions import compile_kernel, kernel_source
+from pendulum_sim.core.decisions import compile_kernel, kernel_source, stiff_transient
 from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.explicit import step_source
-from pendulum_sim.core.guard import GuardStats
+from pendulum_sim.core.guard import FALLBACK, GuardStats, substep_count
+from pendulum_sim.core.implicit import MAX_FALLBACK_SUBSTEPS
 from pendulum_sim.core.jit import available, numba_twin
-from pendulum_sim.core.law import damping_expression
+from pendulum_sim.core.law import damping_derivative, damping_expression
 from pendulum_sim.core.methods import METHODS
+from pendulum_sim.core.model import _eigs
 from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import TABLEAUS
 
 pytestmark = pytest.mark.skipif(not available(), reason='numba is not installed (jit extra)')
 
 W2 = 9.8
-COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks')
+COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks', 'energy_rejections', 'projections')
 
 # (γ, n, h, φ0, φ'0, τ/I): smooth, fractional and Coulomb laws, stiff cells that take the
 # guard's substeps and the fallback, a spinning start, with and without input.
@@ -113,47 +118,118 @@ def test_jit_must_be_a_bool() -> None:
     assert str(info.value) == 'jit must be True or False, got 1'
 
 
-def _careful_steps(n: float) -> tuple[Any, Any]:
+def _careful_steps(method: str, n: float) -> tuple[Any, Any]:
     """Return the generated plain and branch steps (exponent an argument) the kernel calls."""
-    kern = compile_kernel(TABLEAUS['rk4'], n, careful_step)
+    kern = compile_kernel(TABLEAUS[method], n, careful_step)
     return kern.__globals__['plain'], kern.__globals__['branch']
 
 
-@pytest.mark.parametrize('n', [1.0, 1.5, 2.0, 2.5, 3.7, 4.0, 5.0])
-def test_the_compiled_careful_step_is_the_engines_careful_path(n: float) -> None:
+def _stats(st: GuardStats) -> tuple[int, ...]:
+    return tuple(getattr(st, k) for k in CAREFUL_COUNTERS)
+
+
+@pytest.mark.parametrize(('method', 'n'), [('rk4', 1.0), ('rk4', 2.0), ('rk4', 2.5),
+                                           ('rk4', 5.0), ('euler', 2.0)])
+def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: float) -> None:
     # Where the compiled careful step takes a step it must be Engine.careful's step to the bit,
-    # with the same reversal count and nothing else counted; where the engine needs more
-    # (substeps, the fallback, a stiff transient, an energy redo) it must decline. The same
-    # function run as Python and compiled must agree as well.
-    plain, branch = _careful_steps(n)
+    # every counter equal (the guard's substeps, the fallback, reversals, the energy redo and
+    # projection); it may decline only a stiff transient (the one kind of step it leaves to
+    # Engine.careful on these states). The same function run as Python and compiled must agree.
+    plain, branch = _careful_steps(method, n)
     compiled = (numba_twin(careful_step), numba_twin(plain), numba_twin(branch))
-    g = guard_for(TABLEAUS['rk4'])
+    consts = np.array(guard_for(TABLEAUS[method]).constants)
     rng = np.random.default_rng(int(10 * n))
-    took = declined = turned = 0
-    for _ in range(400):
-        gamma = float(rng.choice([0.1, 1.0, 30.0, 1e3]))
+    took = 0
+    seen = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
+    for _ in range(300):
+        gamma = float(rng.choice([0.001, 0.1, 1.0, 30.0, 1e3, 1e4]))
         w2 = float(rng.choice([0.0, 9.8, 40.0]))
-        h = float(rng.choice([1e-3, 2e-2]))
+        h = float(rng.choice([1e-3, 2e-2, 5e-2]))
         ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
         p = float(rng.uniform(-3.0, 3.0))
-        v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.7 else rng.uniform(-6.0, 6.0))
-        eng = Engine(w2, gamma, n, METHODS['rk4'])
+        v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.5 else rng.uniform(-8.0, 8.0))
+        eng = Engine(w2, gamma, n, METHODS[method])
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
-        args = (p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth,
-                g.disk, g.real, g.max_angle)
-        got = compiled[0](compiled[1], compiled[2], *args)
-        assert careful_step(plain, branch, *args) == got
+        args = (p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach, eng.energy_check,
+                eng.nonsmooth, consts)
+        counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
+        got = compiled[0](compiled[1], compiled[2], *args, counts)
+        again = np.zeros_like(counts)
+        assert careful_step(plain, branch, *args, again) == got
+        assert np.array_equal(again, counts)
         if got[0]:
-            assert (got[1], got[2]) == want[:2], (gamma, w2, h, ain, p, v)
-            assert got[3] == st.reversals
-            assert st.substeps == st.fallbacks == st.energy_rejections == 0
+            assert got[1:] == want[:2], (gamma, w2, h, ain, p, v)
+            assert tuple(counts.tolist()) == _stats(st), (gamma, w2, h, ain, p, v)
             took += 1
-            turned += got[3]
+            seen += counts
         else:
-            declined += 1
-    assert took > 100 and declined > 10
-    assert turned > 30 if n != int(n) or n % 2 == 0 else turned == 0  # smooth: no split
+            assert not counts.any()
+            assert abs(v) > eng.v_acc and stiff_transient(
+                v, ain - eng.damping(v) - w2 * math.sin(p), gamma, n, eng.v_acc)
+    assert took > 150
+    assert seen[0] > 0  # the guard's substeps taken compiled
+    if n in (1.0, 5.0) or method == 'euler':
+        assert seen[1] > 0  # and the fallback (for n = 2, 2.5 these states are stiff ones)
+    if n != int(n) or n % 2 == 0:
+        assert seen[2] > 10  # reversals split compiled
+    if method == 'euler':
+        assert seen[[4, 5]].all()  # energy redos and projections taken compiled
+
+
+def test_overflow_and_the_fallbacks_refusal_take_the_pythons_decision() -> None:
+    # A state so fast that the law overflows float64: Python's power raises OverflowError
+    # (the slope and the stage law catch it as inf), compiled code gives inf; the guard then
+    # calls for the fallback alike and the two take the same floats. Where the fallback
+    # refuses the step by its work bound, the compiled step declines and Engine.careful raises
+    # the refusal itself.
+    plain, branch = _careful_steps('rk4', 2.5)
+    compiled = (numba_twin(careful_step), numba_twin(plain), numba_twin(branch))
+    consts = np.array(guard_for(TABLEAUS['rk4']).constants)
+    eng = Engine(9.8, 1.0, 2.5, METHODS['rk4'])
+    for p, v, h in ((0.5, 1e150, 1e-147), (0.5, -3e200, 1e-198)):
+        st = GuardStats()
+        want = eng.careful(p, v, h, 0.0, st)
+        counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
+        got = compiled[0](compiled[1], compiled[2], p, v, h, 0.0, 9.8, 1.0, 2.5, eng.v_acc,
+                          eng.reach, eng.energy_check, eng.nonsmooth, consts, counts)
+        assert got == (True, *want[:2])
+        assert tuple(counts.tolist()) == _stats(st) and st.fallbacks == 1
+    p, v, h = 0.5, 1e150, 1e-3
+    counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
+    got = compiled[0](compiled[1], compiled[2], p, v, h, 0.0, 9.8, 1.0, 2.5, eng.v_acc,
+                      eng.reach, eng.energy_check, eng.nonsmooth, consts, counts)
+    assert got == (False, p, v) and not counts.any()
+    msg = (f'a step of 0.001 s from phi = 0.5 rad, dphi = 1e+150 rad/s needs more than '
+           f'MAX_FALLBACK_SUBSTEPS = {MAX_FALLBACK_SUBSTEPS} substeps of the fallback (each '
+           f'sweeps at most 0.5 rad); use a smaller h')
+    with pytest.raises(IntegratorError, match=re.escape(msg)):
+        eng.careful(p, v, h, 0.0, GuardStats())
+
+
+def test_the_guards_count_is_one_function_python_and_compiled() -> None:
+    # guard.substep_count (which StabilityGuard.substeps runs) compiled gives the Python count
+    # on states that take each of its branches: one substep, the real-axis count, the
+    # bisection on the stability polynomial (complex eigenvalues), the angle count, the cap.
+    twin = numba_twin(substep_count)
+    rng = np.random.default_rng(7)
+    branches = set()
+    for name in ('rk4', 'euler', 'midpoint'):
+        g = guard_for(TABLEAUS[name])
+        consts = np.array(g.constants)
+        for _ in range(400):
+            gamma = float(rng.choice([0.01, 1.0, 30.0, 1e3, 1e5]))
+            n = float(rng.choice([1.0, 1.5, 2.0, 3.0, 0.5]))
+            w2 = float(rng.choice([0.0, 9.8, 400.0, 1e4]))
+            h = float(rng.choice([1e-3, 1e-2, 5e-2]))
+            p, v = float(rng.uniform(-3.0, 3.0)), float(rng.uniform(-30.0, 30.0))
+            force, now = w2 + 1.0, abs(1.0 - w2 * math.sin(p))
+            want = g.substeps(h, w2, gamma, n, p, v, force, now)
+            assert twin(h, w2, gamma, n, p, v, force, now, consts) == want
+            lam = _eigs(damping_derivative(gamma, n, abs(v) + h * force), w2 * math.cos(p))
+            branches.add('fallback' if want == FALLBACK else 'one' if want == 1 else
+                         'complex' if lam[0].imag else 'real')
+    assert branches == {'fallback', 'one', 'complex', 'real'}
 
 
 # Cells whose steps the careful path takes: near-Coulomb creep and Coulomb sticking, a stiff
