@@ -260,7 +260,39 @@ def test_careful_cases_take_the_steppers_steps_on_both_sweeps() -> None:
             for res in (a, b):
                 assert tuple(int(getattr(res, k)[i]) for k in COUNTERS) == want, (g, n)
                 assert (res.phi[i], res.dphi[i]) == (st.phi, st.dphi), (g, n)
-    assert seen.all()  # substeps, fallbacks, reversals and sticks all took part
+    assert seen[:4].all()  # substeps, fallbacks, reversals and sticks all took part
+
+
+# (method, γ, n, h, φ0, φ'0): cells whose refused steps need the guard's substeps, the fallback,
+# reversal splits and the energy redo with its projection, and no stiff transient.
+COMPILED_CAREFUL = [('rk4', 1e4, 1.0, 2e-2, 1.0, 3.0), ('rk4', 1e3, 2.0, 2e-2, 2.0, 0.0),
+                    ('euler', 0.001, 1.0, 0.05, 0.5, 5.0), ('euler', 0.001, 2.0, 0.05, 0.5, 5.0),
+                    ('euler', 0.05, 5.0, 0.01, 3.1, 0.0)]
+
+
+def test_the_compiled_sweep_takes_the_careful_steps_without_handing_back() -> None:
+    # On these cells every refused step is taken compiled (handed_back 0, where the numpy
+    # sweep hands each to Engine.careful) with the Stepper's floats and counters.
+    seen = np.zeros(len(COUNTERS), dtype=np.int64)
+    steps = 40
+    for method in ('rk4', 'euler'):
+        cells = [c[1:] for c in COMPILED_CAREFUL if c[0] == method]
+        for h in sorted({c[2] for c in cells}):
+            on = [c for c in cells if c[2] == h]
+            gam, nn, _, p0, v0 = (np.array(col) for col in zip(*on, strict=True))
+            a = sweep(W2, gam, nn, p0, v0, steps * h, h, method=method)
+            b = sweep(W2, gam, nn, p0, v0, steps * h, h, method=method, jit=True)
+            assert b.handed_back == 0 < a.handed_back
+            for i, (g, n, _, x0, dx0) in enumerate(on):
+                st = Stepper(PendulumParams.from_omega0_sq(W2, g, n), x0, dx0, h, method=method)
+                for _ in range(steps):
+                    st.step(0.0)
+                want = tuple(getattr(st.stats, k) for k in COUNTERS)
+                seen += want
+                for res in (a, b):
+                    assert tuple(int(getattr(res, k)[i]) for k in COUNTERS) == want, (g, n)
+                    assert (res.phi[i], res.dphi[i]) == (st.phi, st.dphi), (g, n)
+    assert seen[[0, 1, 2, 4, 5]].all()  # all but Coulomb's sticks took part
 
 
 def test_a_run_beyond_the_speed_bound_is_refused_alike() -> None:
