@@ -177,34 +177,38 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
         assert seen[[4, 5]].all()  # energy redos and projections taken compiled
 
 
-def test_overflow_and_the_fallbacks_refusal_take_the_pythons_decision() -> None:
-    # A state so fast that the law overflows float64: Python's power raises OverflowError
-    # (the slope and the stage law catch it as inf), compiled code gives inf; the guard then
-    # calls for the fallback alike and the two take the same floats. Where the fallback
-    # refuses the step by its work bound, the compiled step declines and Engine.careful raises
-    # the refusal itself.
-    plain, branch = _careful_steps('rk4', 2.5)
+def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:
+    """Assert that the compiled careful step declines the step and leaves the counters."""
+    plain, branch = _careful_steps(method, eng.n)
     compiled = (numba_twin(careful_step), numba_twin(plain), numba_twin(branch))
-    consts = np.array(guard_for(TABLEAUS['rk4']).constants)
-    eng = Engine(9.8, 1.0, 2.5, METHODS['rk4'])
-    for p, v, h in ((0.5, 1e150, 1e-147), (0.5, -3e200, 1e-198)):
-        st = GuardStats()
-        want = eng.careful(p, v, h, 0.0, st)
-        counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-        got = compiled[0](compiled[1], compiled[2], p, v, h, 0.0, 9.8, 1.0, 2.5, eng.v_acc,
-                          eng.reach, eng.energy_check, eng.nonsmooth, consts, counts)
-        assert got == (True, *want[:2])
-        assert tuple(counts.tolist()) == _stats(st) and st.fallbacks == 1
-    p, v, h = 0.5, 1e150, 1e-3
+    consts = np.array(guard_for(TABLEAUS[method]).constants)
     counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-    got = compiled[0](compiled[1], compiled[2], p, v, h, 0.0, 9.8, 1.0, 2.5, eng.v_acc,
-                      eng.reach, eng.energy_check, eng.nonsmooth, consts, counts)
+    got = compiled[0](compiled[1], compiled[2], p, v, h, 0.0, eng.w2, eng.gamma, eng.n,
+                      eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth, consts, counts)
     assert got == (False, p, v) and not counts.any()
-    msg = (f'a step of 0.001 s from phi = 0.5 rad, dphi = 1e+150 rad/s needs more than '
+
+
+def test_overflow_and_the_fallbacks_refusal_are_left_to_python() -> None:
+    # The plain step's power overflows float64: Python raises OverflowError and Engine.careful
+    # hands the step to the fallback (its except), where compiled code gives inf; which of
+    # the two happened decides Python's path, so the compiled step declines the step and
+    # Engine.careful takes it. Where the fallback refuses a step by its work bound, the
+    # compiled step declines as well and Engine.careful raises the refusal itself.
+    eng = Engine(9.8, 1e-300, 2.5, METHODS['rk4'])
+    p, v, h = 0.5, 1e150, 1e-151
+    assert abs(v) <= eng.v_acc  # not a stiff transient: the guard takes it
+    st = GuardStats()
+    eng.careful(p, v, h, 0.0, st)
+    assert st.fallbacks > 0  # the except path (and _settle's replacement) took it
+    _decline(eng, 'rk4', p, v, h)
+    eng = Engine(9.8, 1e6, 1.0, METHODS['rk4'])
+    p, v, h = 0.5, 1e7, 0.01
+    msg = (f'a step of 0.01 s from phi = 0.5 rad, dphi = 1e+07 rad/s needs more than '
            f'MAX_FALLBACK_SUBSTEPS = {MAX_FALLBACK_SUBSTEPS} substeps of the fallback (each '
            f'sweeps at most 0.5 rad); use a smaller h')
     with pytest.raises(IntegratorError, match=re.escape(msg)):
         eng.careful(p, v, h, 0.0, GuardStats())
+    _decline(eng, 'rk4', p, v, h)
 
 
 def test_the_guards_count_is_one_function_python_and_compiled() -> None:

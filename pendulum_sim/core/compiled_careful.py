@@ -135,8 +135,13 @@ def guarded(plain: Any, branch: Any, p: float, v: float, h: float, ain: float, w
 def micro(plain: Any, branch: Any, p: float, v: float, h: float, ain: float, w2: float,
           gamma: float, n: float, reach: float,
           nonsmooth: bool) -> tuple[bool, float, float, int, int]:
-    """Return ``SplitSteps.micro``'s step for n >= 1: (done, φ₁, φ'₁, reversals, fallbacks)."""
+    """Return ``SplitSteps.micro``'s step for n >= 1: (done, φ₁, φ'₁, reversals, fallbacks).
+
+    ``done`` False where the plain step is not finite (Python may have raised inside it).
+    """
     p1, v1, _, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
+    if not (finite(p1, v1) and math.isfinite(a0)):
+        return False, p, v, 0, 0
     # decisions.REVERSAL_SRC, then the split or the graded branch run.
     if nonsmooth and ((v1 * v < 0.0) or ((a0 * v < 0.0) and (abs(v) <= h * abs(a0)))
                       or (abs(v) < reach * abs(a0))):

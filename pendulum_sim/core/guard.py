@@ -150,6 +150,11 @@ class StabilityGuard:
         self.disk = half_disk_radius(tableau) * safety
         self.real = real_axis_bound(tableau) * safety
         self.max_angle = MAX_ANGLE
+        # What substep_count reads: (disk, real, max_angle, safety, max_substeps, c_s, …, c_0),
+        # the bounds, the cap and R(z)'s coefficients, highest power first.
+        self.constants: tuple[float, ...] = (
+            self.disk, self.real, self.max_angle, safety, float(max_substeps),
+            *tableau.stability_poly[::-1].tolist())
 
     def fast_ok(self, h: float, d: float, omega0: float, speed: float) -> bool:
         """Return True when the cheap bound already proves the step stable and resolved."""
@@ -168,15 +173,6 @@ class StabilityGuard:
         return substep_count(h, omega0_sq, gamma, n, phi, dphi, force,
                              force if force_now is None else force_now, self.constants)
 
-    @property
-    def constants(self) -> tuple[float, ...]:
-        """Return (disk, real, max_angle, safety, max_substeps, c_s, …, c_0): the guard's numbers.
-
-        The numbers :func:`substep_count` reads: the bounds, the cap and the coefficients of
-        the method's stability polynomial R(z), highest power first.
-        """
-        return (self.disk, self.real, self.max_angle, self.safety, float(self.max_substeps),
-                *self.tableau.stability_poly[::-1].tolist())
 
 
 def stability_ok(z: complex, consts: tuple[float, ...]) -> bool:
