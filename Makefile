@@ -60,6 +60,7 @@ bench: setup
 	$(PY) bench/record.py bench/bench_core.py
 	$(PY) bench/record.py bench/bench_jit.py
 	$(PY) bench/record.py bench/bench_sweep_jit.py
+	$(PY) bench/record.py bench/bench_sweep_careful.py
 	$(PY) bench/record.py bench/bench_node.py --duration 60
 	$(PY) bench/record.py bench/bench_recording.py --seconds 10 --node
 	$(PY) bench/record.py bench/bench_sync.py --seconds 10

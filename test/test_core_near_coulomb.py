@@ -74,3 +74,29 @@ def test_sweep_creeps_as_the_stepper() -> None:
         assert res.phi[i] == pytest.approx(st.phi, abs=1e-13)
         assert res.dphi[i] == pytest.approx(st.dphi, abs=1e-13)
         assert res.fallbacks[i] == 0
+
+
+@pytest.mark.parametrize('v0', [0.01, -0.02])
+def test_a_creep_speed_below_the_smallest_double_comes_to_rest_where_dop853_does(
+        v0: float) -> None:
+    # n = 0.001, γ = 100 at 0.3 rad: v_c = (|F|/γ)^(1/n) = 0.0296^1000 underflows to 0. A
+    # pendulum arriving there with φ' ≠ 0 stops within the step, after the distance
+    # ∫ φ' dt (it divided by v_c = 0 before); scipy's DOP853, stopped where φ' reaches 0, is
+    # the oracle (up to there the flow is smooth; Radau's Newton fails on the |φ'|^(n−1) slope).
+    n, gamma, p0 = 0.001, 100.0, 0.3
+    assert creep_speed(Problem(W2, gamma, n), -W2 * math.sin(p0)) == 0.0
+
+    def f(_t: float, y: np.ndarray) -> list[float]:
+        return [y[1], -gamma * math.copysign(abs(y[1]) ** n, y[1]) - W2 * math.sin(y[0])]
+
+    def stop(_t: float, y: np.ndarray) -> float:
+        return float(y[1])
+
+    stop.terminal = True  # type: ignore[attr-defined]
+    sol = solve_ivp(f, (0.0, 1.0), [p0, v0], method='DOP853', rtol=1e-12, atol=1e-16,
+                    events=stop)
+    assert sol.status == 1  # it stopped, within the step below
+    st = Stepper(PendulumParams.from_omega0_sq(W2, gamma, n), p0, v0, 1e-3)
+    st.step()
+    assert st.dphi == 0.0
+    assert st.phi - p0 == pytest.approx(sol.y_events[0][0][0] - p0, rel=1e-8)

@@ -84,14 +84,18 @@ def test_the_branch_form_locates_where_the_closures_do(n: float) -> None:
 
 def test_the_split_and_its_graded_newton_run_are_written_once() -> None:
     # The Newton run on a graded run's own φ'(θh) after the location is one function,
-    # reversal.graded_landing, called by split.split_step; the Stepper's split (SplitSteps)
-    # and the compiled sweep's careful step both call split_step itself, and the friction
-    # decisions after a reversal are coulomb's (rest_step, creep_state).
+    # reversal.graded_landing, called by split.split_step; split.micro_step (the plain step,
+    # split at a reversal) calls split_step, the Stepper (SplitSteps) and the compiled sweep's
+    # careful step both call micro_step itself, and the friction decisions after a reversal
+    # are coulomb's (rest_step, creep_state).
     core = Path(reversal.__file__).parent
     users = {f.name for f in core.glob('*.py') if 'GRADED_ITERATIONS' in f.read_text('utf-8')}
     assert users == {'reversal.py'}
     assert {'graded_landing', 'locate_on_branch', 'rest_step',
             'creep_state'} <= set(split.split_step.__code__.co_names)
     assert 'split_step' in split.SplitSteps.split.__code__.co_names
-    assert compiled_careful.split_step is split.split_step
-    assert {'split_step', 'friction_step'} <= set(compiled_careful.careful_step.__code__.co_names)
+    assert {'split_step', 'rest_step'} <= set(split.micro_step.__code__.co_names)
+    assert 'micro_step' in split.SplitSteps.micro.__code__.co_names
+    assert compiled_careful.micro_step is split.micro_step
+    assert 'micro_step' in compiled_careful.guarded.__code__.co_names
+    assert 'friction_step' in compiled_careful.careful_step.__code__.co_names

@@ -11,28 +11,32 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from typing import Any
 
 import numpy as np
 import pytest
 
 from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen, jit
+from pendulum_sim.core.compiled_careful import COUNTERS as CAREFUL_COUNTERS
 from pendulum_sim.core.compiled_careful import careful_step
 from pendulum_sim.core.coulomb import creep_rate, friction_step
-from pendulum_sim.core.decisions import compile_kernel, kernel_source
+from pendulum_sim.core.decisions import compile_kernel, kernel_source, stiff_transient
 from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.explicit import step_source
-from pendulum_sim.core.guard import GuardStats
+from pendulum_sim.core.guard import FALLBACK, GuardStats, substep_count
+from pendulum_sim.core.implicit import MAX_FALLBACK_SUBSTEPS
 from pendulum_sim.core.jit import available, numba_twin
-from pendulum_sim.core.law import damping_expression
+from pendulum_sim.core.law import damping_derivative, damping_expression
 from pendulum_sim.core.methods import METHODS
+from pendulum_sim.core.model import _eigs
 from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import TABLEAUS
 
 pytestmark = pytest.mark.skipif(not available(), reason='numba is not installed (jit extra)')
 
 W2 = 9.8
-COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks')
+COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks', 'energy_rejections', 'projections')
 
 # (γ, n, h, φ0, φ'0, τ/I): smooth, fractional and Coulomb laws, stiff cells that take the
 # guard's substeps and the fallback, a spinning start, with and without input.
@@ -115,66 +119,142 @@ def test_jit_must_be_a_bool() -> None:
     assert str(info.value) == 'jit must be True or False, got 1'
 
 
-_TWINS: dict[Any, tuple[Any, ...]] = {}
-
-
-def _careful_steps(n: float) -> tuple[Any, Any, Any]:
+def _careful_steps(method: str, n: float) -> tuple[Any, Any, Any]:
     """Return the generated plain and branch steps and the laws (exponent an argument)."""
-    kern = compile_kernel(TABLEAUS['rk4'], n, careful_step)
+    kern = compile_kernel(TABLEAUS[method], n, careful_step)
     return kern.__globals__['plain'], kern.__globals__['branch'], kern.__globals__['laws']
 
 
-def _compiled(steps: tuple[Any, Any, Any]) -> tuple[Any, ...]:
-    """Return careful_step and ``steps`` compiled, once per text (exponents spelled alike)."""
-    key = tuple(fn.__code__ for fn in steps)
-    if key not in _TWINS:
-        _TWINS[key] = (numba_twin(careful_step), *(numba_twin(fn) for fn in steps))
-    return _TWINS[key]
+def _compiled(method: str, n: float) -> tuple[Any, Any, Any, Any]:
+    """Return the compiled (careful_step, plain, branch, laws) a compiled sweep's run calls.
+
+    The very objects of the sweep's kernel for this law (``jit.compile_kernel``: compiled
+    once per text), so the test checks what the sweep runs and compiles nothing again.
+    """
+    grp = Sweep(W2, 1.0, n, 0.5, 0.0, 1e-3, method=method, jit=True)._groups[0]
+    env = grp.kernel[1].py_func.__globals__
+    return env['careful_step'], env['plain'], env['branch'], env['laws']
 
 
-@pytest.mark.parametrize('n', [0.0, 0.01, 0.3, 0.5, 1.0, 1.5, 2.0, 2.5, 4.0, 5.0])
-def test_the_compiled_careful_step_is_the_engines_careful_path(n: float) -> None:
+def _stats(st: GuardStats) -> tuple[int, ...]:
+    return tuple(getattr(st, k) for k in CAREFUL_COUNTERS)
+
+
+@pytest.mark.parametrize(('method', 'n'), [
+    ('rk4', 0.0), ('rk4', 0.01), ('rk4', 0.3), ('rk4', 0.5), ('rk4', 1.0), ('rk4', 1.5),
+    ('rk4', 2.0), ('rk4', 2.5), ('rk4', 4.0), ('rk4', 5.0), ('euler', 2.0)])
+def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: float) -> None:
     # Where the compiled careful step takes a step it must be Engine.careful's step to the bit,
-    # with the same reversal and stick counts and nothing else counted; where the engine needs
-    # more (substeps, the fallback, a stiff transient, an energy redo) it must decline. The
-    # same function run as Python and compiled must agree as well. Coulomb friction at rest
-    # and the near-Coulomb creep must be among the steps it takes.
-    plain, branch, laws = _careful_steps(n)
-    compiled = _compiled((plain, branch, laws))
-    g = guard_for(TABLEAUS['rk4'])
+    # every counter equal (the guard's substeps, the fallback, reversals, Coulomb sticks, the
+    # energy redo and projection); it may decline only a stiff transient (the one kind of step
+    # it leaves to Engine.careful on these states). The same function run as Python and
+    # compiled must agree. Friction at rest (Coulomb, the near-Coulomb creep) is among them.
+    plain, branch, laws = _careful_steps(method, n)
+    compiled = _compiled(method, n)
+    consts = np.array(guard_for(TABLEAUS[method]).constants)
     rng = np.random.default_rng(int(10 * n))
-    took = declined = turned = held = stuck = 0
-    for _ in range(400):
-        gamma = float(rng.choice([0.1, 1.0, 30.0, 1e3]))
+    took = held = 0
+    seen = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
+    for _ in range(300):
+        gamma = float(rng.choice([0.001, 0.1, 1.0, 30.0, 1e3, 1e4]))
         w2 = float(rng.choice([0.0, 9.8, 40.0]))
-        h = float(rng.choice([1e-3, 2e-2]))
+        h = float(rng.choice([1e-3, 2e-2, 5e-2]))
         ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
         p = float(rng.uniform(-3.0, 3.0))
-        v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.7 else rng.uniform(-6.0, 6.0))
-        v = 0.0 if rng.uniform() < 0.2 else v
-        eng = Engine(w2, gamma, n, METHODS['rk4'])
+        v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.6 else rng.uniform(-8.0, 8.0))
+        v = 0.0 if rng.uniform() < 0.15 else v
+        eng = Engine(w2, gamma, n, METHODS[method])
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
-        args = (p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth,
-                eng.coulomb, g.disk, g.real, g.max_angle)
-        got = compiled[0](*compiled[1:], *args)
-        assert careful_step(plain, branch, laws, *args) == got
+        args = (p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach, eng.energy_check,
+                eng.nonsmooth, eng.coulomb, consts)
+        counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
+        got = compiled[0](*compiled[1:], *args, counts)
+        again = np.zeros_like(counts)
+        assert careful_step(plain, branch, laws, *args, again) == got
+        assert np.array_equal(again, counts)
         if got[0]:
-            assert (got[1], got[2]) == want[:2], (gamma, w2, h, ain, p, v)
-            assert (got[3], got[4]) == (st.reversals, st.sticks)
-            assert st.substeps == st.fallbacks == st.energy_rejections == 0
+            assert got[1:] == want[:2], (gamma, w2, h, ain, p, v)
+            assert tuple(counts.tolist()) == _stats(st), (gamma, w2, h, ain, p, v)
             took += 1
-            turned += got[3]
-            stuck += got[4]
+            seen += counts
             held += friction_step(branch, laws, p, v, h, ain, w2, gamma, n, eng.coulomb,
                                   True)[0]
         else:
-            declined += 1
-    # Coulomb friction (n = 0) has no slope: the guard never asks for substeps there.
-    assert took > 100 and (declined > 10 or n == 0.0)
-    assert turned > 30 if n != int(n) or n % 2 == 0 else turned == 0  # smooth: no split
+            assert not counts.any()
+            assert abs(v) > eng.v_acc and stiff_transient(
+                v, ain - eng.damping(v) - w2 * math.sin(p), gamma, n, eng.v_acc)
+    sub, fb, rev, sticks, rej, proj = seen.tolist()
+    assert took > 150
+    # The guard's substeps taken compiled (Coulomb friction has no slope: never substeps; at
+    # n = 0.01 the slope is within the disk or beyond the cap: one step or the fallback).
+    assert sub > 0 if n not in (0.0, 0.01) else sub == 0
+    if n in (0.01, 1.0, 5.0) or method == 'euler':
+        assert fb > 0  # and the fallback (for n = 2, 2.5 these states are stiff ones)
+    if n != int(n) or n % 2 == 0:
+        assert rev > 10  # reversals split compiled
     assert held > 20 if n < 1.0 else held == 0  # Coulomb at rest, the creep
-    assert stuck > 0 if n == 0.0 else stuck == 0
+    assert sticks > 0 if n == 0.0 else sticks == 0
+    if method == 'euler':
+        assert rej > 0 and proj > 0  # energy redos and projections taken compiled
+
+
+def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:
+    """Assert that the compiled careful step declines the step and leaves the counters."""
+    compiled = _compiled(method, eng.n)
+    consts = np.array(guard_for(TABLEAUS[method]).constants)
+    counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
+    got = compiled[0](*compiled[1:], p, v, h, 0.0, eng.w2, eng.gamma, eng.n, eng.v_acc,
+                      eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb, consts, counts)
+    assert got == (False, p, v) and not counts.any()
+
+
+def test_overflow_and_the_fallbacks_refusal_are_left_to_python() -> None:
+    # The plain step's power overflows float64: Python raises OverflowError and Engine.careful
+    # hands the step to the fallback (its except), where compiled code gives inf; which of
+    # the two happened decides Python's path, so the compiled step declines the step and
+    # Engine.careful takes it. Where the fallback refuses a step by its work bound, the
+    # compiled step declines as well and Engine.careful raises the refusal itself.
+    eng = Engine(9.8, 1e-300, 2.5, METHODS['rk4'])
+    p, v, h = 0.5, 1e150, 1e-151
+    assert abs(v) <= eng.v_acc  # not a stiff transient: the guard takes it
+    st = GuardStats()
+    eng.careful(p, v, h, 0.0, st)
+    assert st.fallbacks > 0  # the except path (and _settle's replacement) took it
+    _decline(eng, 'rk4', p, v, h)
+    eng = Engine(9.8, 1e6, 1.0, METHODS['rk4'])
+    p, v, h = 0.5, 1e7, 0.01
+    msg = (f'a step of 0.01 s from phi = 0.5 rad, dphi = 1e+07 rad/s needs more than '
+           f'MAX_FALLBACK_SUBSTEPS = {MAX_FALLBACK_SUBSTEPS} substeps of the fallback (each '
+           f'sweeps at most 0.5 rad); use a smaller h')
+    with pytest.raises(IntegratorError, match=re.escape(msg)):
+        eng.careful(p, v, h, 0.0, GuardStats())
+    _decline(eng, 'rk4', p, v, h)
+
+
+def test_the_guards_count_is_one_function_python_and_compiled() -> None:
+    # guard.substep_count (which StabilityGuard.substeps runs) compiled gives the Python count
+    # on states that take each of its branches: one substep, the real-axis count, the
+    # bisection on the stability polynomial (complex eigenvalues), the angle count, the cap.
+    twin = numba_twin(substep_count)
+    rng = np.random.default_rng(7)
+    branches = set()
+    for name in ('rk4', 'euler', 'midpoint'):
+        g = guard_for(TABLEAUS[name])
+        consts = np.array(g.constants)
+        for _ in range(400):
+            gamma = float(rng.choice([0.01, 1.0, 30.0, 1e3, 1e5]))
+            n = float(rng.choice([1.0, 1.5, 2.0, 3.0, 0.5]))
+            w2 = float(rng.choice([0.0, 9.8, 400.0, 1e4]))
+            h = float(rng.choice([1e-3, 1e-2, 5e-2]))
+            p, v = float(rng.uniform(-3.0, 3.0)), float(rng.uniform(-30.0, 30.0))
+            force, now = w2 + 1.0, abs(1.0 - w2 * math.sin(p))
+            want = g.substeps(h, w2, gamma, n, p, v, force, now)
+            assert twin(h, w2, gamma, n, p, v, force, now, consts) == want
+            lam = _eigs(damping_derivative(gamma, n, abs(v) + h * force), w2 * math.cos(p))
+            branches.add('fallback' if want == FALLBACK else 'one' if want == 1 else
+                         'complex' if lam[0].imag else 'real')
+    assert branches == {'fallback', 'one', 'complex', 'real'}
 
 
 # Cells whose steps the careful path takes: near-Coulomb creep and Coulomb sticking, a stiff
@@ -205,7 +285,38 @@ def test_careful_cases_take_the_steppers_steps_on_both_sweeps() -> None:
             for res in (a, b):
                 assert tuple(int(getattr(res, k)[i]) for k in COUNTERS) == want, (g, n)
                 assert (res.phi[i], res.dphi[i]) == (st.phi, st.dphi), (g, n)
-    assert seen.all()  # substeps, fallbacks, reversals and sticks all took part
+    assert seen[:4].all()  # substeps, fallbacks, reversals and sticks all took part
+
+
+# (method, γ, n, h, φ0, φ'0): cells whose refused steps need the guard's substeps, the fallback,
+# reversal splits and the energy redo with its projection, and no stiff transient.
+COMPILED_CAREFUL = [('rk4', 1e4, 1.0, 2e-2, 1.0, 3.0), ('rk4', 1e3, 2.0, 2e-2, 2.0, 0.0),
+                    ('euler', 0.001, 2.0, 0.05, 0.5, 5.0), ('euler', 0.001, 2.0, 0.05, 3.1, 0.0)]
+
+
+def test_the_compiled_sweep_takes_the_careful_steps_without_handing_back() -> None:
+    # On these cells every refused step is taken compiled (handed_back 0, where the numpy
+    # sweep hands each to Engine.careful) with the Stepper's floats and counters.
+    seen = np.zeros(len(COUNTERS), dtype=np.int64)
+    steps = 40
+    for method in ('rk4', 'euler'):
+        cells = [c[1:] for c in COMPILED_CAREFUL if c[0] == method]
+        for h in sorted({c[2] for c in cells}):
+            on = [c for c in cells if c[2] == h]
+            gam, nn, _, p0, v0 = (np.array(col) for col in zip(*on, strict=True))
+            a = sweep(W2, gam, nn, p0, v0, steps * h, h, method=method)
+            b = sweep(W2, gam, nn, p0, v0, steps * h, h, method=method, jit=True)
+            assert b.handed_back == 0 < a.handed_back
+            for i, (g, n, _, x0, dx0) in enumerate(on):
+                st = Stepper(PendulumParams.from_omega0_sq(W2, g, n), x0, dx0, h, method=method)
+                for _ in range(steps):
+                    st.step(0.0)
+                want = tuple(getattr(st.stats, k) for k in COUNTERS)
+                seen += want
+                for res in (a, b):
+                    assert tuple(int(getattr(res, k)[i]) for k in COUNTERS) == want, (g, n)
+                    assert (res.phi[i], res.dphi[i]) == (st.phi, st.dphi), (g, n)
+    assert seen[[0, 1, 2, 4, 5]].all()  # all but Coulomb's sticks took part
 
 
 def test_a_run_beyond_the_speed_bound_is_refused_alike() -> None:
@@ -271,4 +382,4 @@ def test_friction_steps_run_compiled_as_the_stepper_takes_them() -> None:
     assert b.sticks.sum() > 0 and b.reversals.sum() >= 3
     assert (b.phi[2], b.dphi[2]) == (1.0, 0.0)  # held at rest: |τ/I − ω0² sin φ| <= γ
     stiff = sweep(W2, 1e4, 1.0, 1.0, 3.0, 0.01, h, jit=True)
-    assert stiff.substeps[0] > 0 and stiff.handed_back > 0
+    assert stiff.substeps[0] > 0 and stiff.handed_back == 0  # the guard substeps compiled too

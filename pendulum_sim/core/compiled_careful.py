@@ -1,22 +1,37 @@
-"""The careful path's one-substep steps, written to compile: friction at rest, the split.
+"""The careful path written to compile: friction, guarded split steps, the fallback, the redo.
 
-Most steps a sweep's fast path refuses are refused because the velocity reverses inside them
-(n = 2, 4, … and non-integer n), because friction holds the pendulum near rest (Coulomb
-sticking and break-away, n = 0; the creep of a near-Coulomb law, 0 < n < 1) or because the
-guard's speed range is a bound, not the rule. For those,
-:meth:`Engine.careful <pendulum_sim.core.engine.Engine.careful>` takes the step from rest
-(``coulomb.friction_step``) or one plain step (the guard asks for one substep), split at the
-reversal (``split.split_step``). :func:`careful_step` takes the same operations in the same
-order: it calls the very functions the engine calls, written to compile (``friction_step``,
-``split_step`` with ``reversal.locate_on_branch`` and ``reversal.graded_landing``), with the
-same generated steps (``plain``, ``branch``: ``explicit.step_source_with_n``) and laws
-(``laws``: ``law.laws_source``), and mirrors the guard's one-substep decision
-(:func:`one_substep`, the stiffness speed of ``guard.stiffness_speed`` included for n < 1) and
-the micro step's decision texts, so the compiled sweep takes these steps without leaving
-compiled code (``decisions.kernel_source``), for every exponent n >= 0. Everything else (a stiff
-transient, guard substeps or the fallback, an energy redo, a non-finite result) it declines,
-and the sweep hands the step to ``Engine.careful`` itself; a parity test
-(``test_sweep_jit.py``) checks that both give the same floats and counters.
+:meth:`Engine.careful <pendulum_sim.core.engine.Engine.careful>` takes every step the fast path
+refuses. For a guarded explicit method, :func:`careful_step` takes the same operations in the
+same order, calling the very functions the engine calls, written to compile, so the compiled
+sweep takes these steps without leaving compiled code (``decisions.kernel_source``):
+
+- friction holding the pendulum (``coulomb.friction_step``): Coulomb sticking and break-away
+  at rest (n = 0), the creep of a near-Coulomb law (0 < n < 1);
+- the stability guard's count of substeps (``guard.substep_count``, the function
+  ``StabilityGuard.substeps`` itself runs: the real-axis count, the bisection on the method's
+  stability polynomial, the cap, the angle count) and ``Engine.guarded``'s loop of substeps,
+  re-judged after each one (:func:`guarded`);
+- each substep the plain step split at a velocity reversal (``split.micro_step``, the function
+  ``SplitSteps.micro`` runs, with ``split.split_step``, ``reversal.locate_on_branch`` and
+  ``reversal.graded_landing``), with the same generated steps (``plain``, ``branch``:
+  ``explicit.step_source_with_n``) and laws (``laws``: ``law.laws_source``);
+- the L-stable fallback beyond the guard's cap or where a branch run cannot finish a split step
+  (``implicit.fallback_run``: the SDIRK3 stages' Newton solves, the backward-Euler
+  replacement, the angle-limited substeps, the functions ``implicit.fallback`` runs; the stage
+  law is ``dirk.damping_formula``, every spelling of ``dirk.stage_law``);
+- the energy redo and projection (``energy_redo.redo``, the function ``Engine.redo_energy``
+  runs).
+
+It declines (returns ``done`` False; the sweep then hands the step to ``Engine.careful``, which
+takes it from the same state) where the step starts a stiff transient (``Engine.stiff``'s
+error-controlled DOP853 substeps are not compiled), where the fallback refuses the step by its
+work bound (so the user gets that IntegratorError from the one place that raises it), and where
+a result is not finite: Python raises OverflowError or ValueError (a power beyond float64, the
+sine of inf) where compiled code gives inf or NaN, and which of the two happened decides the
+Python path (``Engine.careful``'s ``except`` or ``Engine._settle``), so those rare steps are
+taken by Python. What the step did is added to the pendulum's counters (:data:`COUNTERS`) only
+where it was taken. Parity tests (``test_sweep_jit.py``) check that both give the same floats
+and counters.
 """
 from __future__ import annotations
 
@@ -24,121 +39,109 @@ import math
 from typing import Any
 
 from .coulomb import friction_step, stuck
-from .decisions import ENERGY_TOL
-from .law import slope_formula
-from .model import _eigs
-from .reversal import branch_run, graded_mesh
-from .split import split_step
+from .decisions import energy_rose, specific_energy
+from .dirk import damping_formula
+from .energy_redo import redo
+from .guard import FALLBACK, substep_count
+from .implicit import fallback_refused, fallback_run
+from .split import micro_step
 
-Result = tuple[bool, float, float, int, int]
-"""``careful_step``'s (done, φ₁, φ'₁, reversals, sticks)."""
-
-
-def terminal(gamma: float, n: float, force: float) -> float:
-    """Return ``guard.terminal_speed`` without its ``except`` (compiled, an overflow is inf)."""
-    if gamma <= 0.0 or n == 0.0:
-        return math.inf
-    return float((force / gamma) ** (1.0 / n))
+COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks', 'energy_rejections', 'projections')
+"""The counters of ``guard.GuardStats`` the compiled sweep keeps per pendulum, in this order."""
+SUBSTEPS, FALLBACKS, REVERSALS, STICKS, REJECTIONS, PROJECTIONS = range(len(COUNTERS))
 
 
-def one_substep(h: float, w2: float, gamma: float, n: float, p: float, v: float, force: float,
-                force_now: float, disk: float, real: float, max_angle: float) -> bool:
-    """Return True where ``StabilityGuard.substeps`` gives one substep, else False.
-
-    ``force`` is |a_in| + ω0², ``force_now`` |a_in − ω0² sin φ| (the creep's scale for n < 1,
-    ``guard.stiffness_speed``).
-    """
-    top = abs(v) + min(h * force, terminal(gamma, n, force))  # guard.max_speed
-    if n >= 1.0:
-        speed = top
-    else:
-        speed = max(abs(v), min(0.5 * h * force_now, terminal(gamma, n, force_now)))
-    d = slope_formula(gamma, n, speed)
-    if not math.isfinite(d):
-        return False
-    if not max(1, math.ceil(h * top / max_angle)) == 1:
-        return False
-    c = w2 * math.cos(p)
-    lam1, lam2 = _eigs(d, c)
-    big = -1.0  # the largest |λ| with Re λ < 0
-    real_only = True
-    for lam in (lam1, lam2):
-        if lam.real < 0.0:
-            big = max(big, abs(lam))
-            real_only = real_only and lam.imag == 0.0
-    if big < 0.0 or big * h <= disk:
-        return True
-    if real_only and math.isfinite(real):
-        return max(1, math.ceil(big * h / real)) == 1
-    return False  # StabilityGuard._search: declined
+def finite(p: float, v: float) -> bool:
+    """Return True where φ and φ' are both finite."""
+    return math.isfinite(p) and math.isfinite(v)
 
 
 def careful_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
                  w2: float, gamma: float, n: float, v_acc: float, reach: float, check: bool,
-                 nonsmooth: bool, coulomb: bool, disk: float, real: float,
-                 max_angle: float) -> Result:
-    """Take ``Engine.careful``'s step of h from (φ, φ') where it is one step without a redo.
+                 nonsmooth: bool, coulomb: bool, guard: Any,
+                 counts: Any) -> tuple[bool, float, float]:
+    """Take ``Engine.careful``'s step of h from (φ, φ') for a guarded explicit method.
 
-    For a guarded explicit method; ``reach`` is ``Problem.reach``. Returns
-    ``(done, φ₁, φ'₁, reversals, sticks)``; ``done`` False where the step needs more than this
-    (the caller then takes it with ``Engine.careful``).
+    ``reach`` is ``Problem.reach``, ``guard`` the guard's ``StabilityGuard.constants``,
+    ``counts`` the pendulum's counters (:data:`COUNTERS`; what the step did is added there).
+    Returns ``(done, φ₁, φ'₁)``; ``done`` False where ``Engine.careful`` must take the step
+    (see the module docstring), the counters then untouched.
     """
+    subs = fbs = turns = 0
     # Friction holds the pendulum (Engine.careful's first branch): Coulomb sticking or
     # break-away, the near-Coulomb creep (guarded: creep_state decides on n and γ).
     held, p1, v1, _ = friction_step(branch, laws, p, v, h, ain, w2, gamma, n, coulomb, True)
-    if held:
-        return settled(p, v, p1, v1, 0, check, ain, w2, coulomb)
-    p1, v1, _, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
-    if abs(v) > v_acc:  # decisions.STIFF_SRC: a stiff transient is declined
-        pw = abs(v) ** n
-        if not pw < math.inf or abs(a0) > 0.5 * gamma * pw:
-            return False, p, v, 0, 0
-    if not one_substep(h, w2, gamma, n, p, v, abs(ain) + w2, abs(ain - w2 * math.sin(p)), disk,
-                       real, max_angle):
-        return False, p, v, 0, 0
-    turns = 0
-    # SplitSteps.micro: decisions.REVERSAL_SRC, then the split or the graded branch run.
-    if nonsmooth and ((v1 * v < 0.0) or ((a0 * v < 0.0) and (abs(v) <= h * abs(a0)))
-                      or (abs(v) < reach * abs(a0))):
-        done = True
-        if v1 * v < 0.0 or (a0 * v < 0.0 and abs(v) <= h * abs(a0)):
-            done, p1, v1, _, turns, _, _, _, _ = split_step(plain, branch, laws, p, v, h, ain,
-                                                            w2, gamma, n, a0, reach, coulomb)
-        elif reach > 0.0 and a0 != 0.0:
-            side = 1.0 if (v > 0.0 or (v == 0.0 and a0 > 0.0)) else -1.0
-            x = abs(v) / abs(a0)
-            if a0 * v < 0.0:
-                lens = graded_mesh(max(x - h, 0.0), x, h, n, reach)
-                back = True
-            else:
-                lens = graded_mesh(x, x + h, h, n, reach)
-                back = False
-            p1, v1, _ = branch_run(branch, p, v, lens, back, ain, w2, gamma, side, n)
-            if not v1 * v >= 0.0:  # the branch reached φ' = 0 after all: split there
-                done, p1, v1, _, turns, _, _, _, _ = split_step(
-                    plain, branch, laws, p, v, h, ain, w2, gamma, n, a0, reach, coulomb)
+    if not held:
+        _, _, _, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
+        if abs(v) > v_acc:  # decisions.STIFF_SRC: a stiff transient is declined
+            pw = abs(v) ** n
+            if not pw < math.inf or abs(a0) > 0.5 * gamma * pw:
+                return False, p, v
+        done, p1, v1, subs, fbs, turns = guarded(plain, branch, laws, p, v, h, ain, w2, gamma,
+                                                 n, reach, nonsmooth, coulomb, guard)
         if not done:
-            return False, p, v, 0, 0
-    return settled(p, v, p1, v1, turns, check, ain, w2, coulomb)
-
-
-def settled(p: float, v: float, p1: float, v1: float, turns: int, check: bool, ain: float,
-            w2: float, coulomb: bool) -> Result:
-    """Return the step's result, or decline it where energy rose or it is not finite.
-
-    The end of ``Engine.careful``: the energy check (its redo is declined), a non-finite state
-    (its fallback is declined), a Coulomb stick counted (``coulomb.stuck``).
-    """
+            return False, p, v
+    if not finite(p1, v1):
+        return False, p, v
+    rejected = projected = False
     if check and ain == 0.0:
-        s = math.sin(0.5 * p)
-        e0 = 0.5 * v * v + 2.0 * w2 * s * s
-        s = math.sin(0.5 * p1)
-        e1 = 0.5 * v1 * v1 + 2.0 * w2 * s * s
-        if e1 > e0 + ENERGY_TOL * (e0 + w2):
-            return False, p, v, 0, 0
-    if not (math.isfinite(p1) and math.isfinite(v1)):
-        return False, p, v, 0, 0
-    return True, p1, v1, turns, 1 if stuck(coulomb, v, v1) else 0
+        e0 = specific_energy(v, math.sin(0.5 * p), w2)
+        e1 = specific_energy(v1, math.sin(0.5 * p1), w2)
+        if energy_rose(e0, e1, w2):
+            omega0 = math.sqrt(w2)
+            if fallback_refused(v, h, 0.0, w2, omega0):
+                return False, p, v
+            rejected = True
+            p1, v1, _, projected = redo(p, v, h, e0, w2, gamma, n, omega0, damping_formula)
+            if not finite(p1, v1):
+                return False, p, v
+    counts[SUBSTEPS] += subs
+    counts[FALLBACKS] += fbs
+    counts[REVERSALS] += turns
+    counts[STICKS] += 1 if stuck(coulomb, v, v1) else 0
+    counts[REJECTIONS] += 1 if rejected else 0
+    counts[PROJECTIONS] += 1 if projected else 0
+    return True, p1, v1
 
 
-__all__ = ['Result', 'branch_run', 'careful_step', 'one_substep', 'settled', 'terminal']
+def guarded(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
+            w2: float, gamma: float, n: float, reach: float, nonsmooth: bool, coulomb: bool,
+            guard: Any) -> tuple[bool, float, float, int, int, int]:
+    """Return ``Engine.guarded``'s step: (done, φ₁, φ'₁, substeps, fallbacks, reversals).
+
+    The fewest stable substeps (``guard.substep_count``), re-judged after each one, each a
+    ``split.micro_step`` (a split it cannot finish handed to the fallback, as
+    ``SplitSteps.micro`` does); beyond the guard's cap the fallback takes what is left.
+    ``done`` False where a substep is not finite or the fallback refuses.
+    """
+    force = abs(ain) + w2
+    omega0 = math.sqrt(w2)
+    left = h
+    taken = fbs = turns = 0
+    while left > 0.0:
+        m = substep_count(left, w2, gamma, n, p, v, force, abs(ain - w2 * math.sin(p)), guard)
+        if m == FALLBACK:
+            if fallback_refused(v, left, ain, w2, omega0):
+                return False, p, v, 0, 0, 0
+            p, v, _ = fallback_run(p, v, left, ain, w2, gamma, n, omega0, damping_formula)
+            return True, p, v, max(taken - 1, 0), fbs + 1, turns
+        hh = left / m
+        done, p1, v1, _, k, pm, vm, _, rest = micro_step(plain, branch, laws, p, v, hh, ain, w2,
+                                                         gamma, n, reach, nonsmooth, coulomb,
+                                                         True)
+        if not done:
+            if k < 0 or fallback_refused(vm, rest, ain, w2, omega0):  # split.NOT_FINITE
+                return False, p, v, 0, 0, 0
+            # The fallback takes the rest of the split step (SplitSteps.micro).
+            p1, v1, _ = fallback_run(pm, vm, rest, ain, w2, gamma, n, omega0, damping_formula)
+            fbs += 1
+        if not finite(p1, v1):
+            return False, p, v, 0, 0, 0
+        p, v = p1, v1
+        turns += k
+        taken += 1
+        left = 0.0 if m == 1 else left - hh
+    return True, p, v, taken - 1, fbs, turns
+
+
+__all__ = ['COUNTERS', 'careful_step', 'finite', 'guarded']

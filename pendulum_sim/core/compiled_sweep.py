@@ -3,13 +3,14 @@
 With ``jit=True`` a :class:`~pendulum_sim.core.sweep.Sweep` advances each group of pendulums
 (one exponent n) by its compiled run (``decisions.kernel_source``, compiled by
 ``jit.compile_kernel``): every pendulum takes fast steps, its state in registers, in parallel
-over the pendulums, until a step is refused or the piece of the run is done. The refused
-steps the compiled careful step takes (``compiled_careful.careful_step``: Coulomb friction at rest,
-the near-Coulomb creep, one guarded step split at a reversal) stay in the run; the others are
-handed back to the one careful path (``engine.Engine.careful``, through the sweep's callback;
-counted as ``handed_back``), and the run goes on from the next step. Each pendulum thus takes
-exactly the steps the numpy sweep and the ``Stepper`` take (parity tests: ``test_sweep_jit.py``),
-in another order across pendulums: they do not interact.
+over the pendulums, until a step is refused or the piece of the run is done. A refused step is
+taken by the compiled careful path (``compiled_careful.careful_step``: Coulomb friction at rest,
+the near-Coulomb creep, the guard's substeps, the reversal split, the fallback, the energy
+redo) where the group's ``use_careful`` is set; the steps it declines are handed back to the one
+careful path (``engine.Engine.careful``, through the sweep's callback; counted as
+``handed_back``), and the run goes on from the next step. Each pendulum thus takes exactly the
+steps the numpy sweep and the ``Stepper`` take (parity tests: ``test_sweep_jit.py``), in
+another order across pendulums: they do not interact.
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .compiled_careful import COUNTERS
 from .decisions import record_row
 
 PARALLEL_MIN = 512
@@ -30,22 +32,21 @@ in place in the group's state arrays ``p``, ``v``, ``e``."""
 
 def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, every: int,
               records: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]],
-              vmax: npt.NDArray[np.float64], careful: CarefulFn,
-              guard: tuple[float, float, float]
-              ) -> tuple[list[tuple[int, int]], dict[int, tuple[int, int]], int]:
+              vmax: npt.NDArray[np.float64], careful: CarefulFn, guard: npt.NDArray[np.float64]
+              ) -> tuple[list[tuple[int, int]], dict[int, npt.NDArray[np.int64]], int]:
     """Advance every group's pendulums by ``count`` steps of ``h`` (steps ``base`` + 1 …).
 
     Each group's ``kernel`` is its (parallel, serial) pair of ``jit.compile_kernel``;
     ``records[g]`` are the group's recording arrays (rows by :func:`record_row`; shape (0, m)
     when not recording), ``vmax`` the run's speed bound over the n-sorted pendulums, ``guard``
-    the guard's (disk, real, max_angle) for the compiled careful step (a group takes it where
-    its ``use_careful`` is set). Returns ``(step, position)`` of every pendulum whose |φ'|
-    went beyond its bound (it stops there; the caller refuses the run), the (reversals, sticks)
-    the compiled careful step counted per position, and ``handed_back``: the steps handed
-    back to ``careful`` (Python's ``Engine.careful``) in the piece.
+    the guard's ``StabilityGuard.constants`` for the compiled careful step (a group takes it
+    where its ``use_careful`` is set). Returns ``(step, position)`` of every pendulum whose
+    |φ'| went beyond its bound (it stops there; the caller refuses the run), the counters of
+    the compiled careful step per position (``compiled_careful.COUNTERS``), and how many
+    steps were handed back to ``careful``.
     """
     beyond: list[tuple[int, int]] = []
-    turns: dict[int, tuple[int, int]] = {}
+    counted: dict[int, npt.NDArray[np.int64]] = {}
     handed_back = 0
     for grp, (rp, rv) in zip(groups, records, strict=True):
         sl = grp.sl
@@ -54,13 +55,12 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
         k = np.zeros(size, dtype=np.int64)
         idx = np.arange(size, dtype=np.int64)
         rows = rp.shape[0]
-        rev = np.zeros(size, dtype=np.int64)
-        stick = np.zeros(size, dtype=np.int64)
+        counts = np.zeros((size, len(COUNTERS)), dtype=np.int64)
         while idx.size:
             run = grp.kernel[0] if idx.size >= PARALLEL_MIN else grp.kernel[1]
             run(grp.p, grp.v, grp.e, k, idx, h, count, grp.ain_col, grp.w2_col, grp.gamma_col,
                 grp.n, grp.lo, grp.hi, grp.reach, grp.v_acc, grp.check, grp.nonsmooth,
-                grp.coulomb, vm, base, every, total, rp, rv, rev, stick, grp.use_careful, *guard)
+                grp.coulomb, vm, base, every, total, rp, rv, counts, grp.use_careful, guard)
             fast = ~(np.abs(grp.v[idx]) <= vm[idx])
             for j in idx[fast].tolist():
                 beyond.append((base + int(k[j]), sl.start + j))
@@ -78,9 +78,9 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
                 else:
                     beyond.append((done, sl.start + j))
             idx = np.array(left, dtype=np.int64)
-        for j in np.flatnonzero(rev | stick).tolist():
-            turns[sl.start + j] = (int(rev[j]), int(stick[j]))
-    return beyond, turns, handed_back
+        for j in np.flatnonzero(counts.any(axis=1)).tolist():
+            counted[sl.start + j] = counts[j]
+    return beyond, counted, handed_back
 
 
 __all__ = ['CarefulFn', 'run_piece']

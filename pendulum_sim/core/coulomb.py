@@ -92,14 +92,28 @@ def _quadrature(laws: Any, n: float, a: float, b: float) -> float:
     return half * total
 
 
-def settle_shift(laws: Any, n: float, v: float, vc: float, force: float) -> float:
+def settle_shift(laws: Any, n: float, gamma: float, v: float, vc: float, force: float) -> float:
     """Return ∫ (φ' − v_c) dt as φ' settles from ``v`` onto the creep speed ``v_c`` (rad).
 
     With F fixed over the transient, dφ'/dt = F − γ φ'|φ'|^(n−1) and γ v_c^n = |F|, so with
     u = φ'/v_c the integral is (v_c² / F) ∫ from u₀ to 1 of (u − 1) / (1 − u|u|^(n−1)) du
     (the integrand tends to −1/n at u = 1); Gauss-Legendre quadrature on each side of u = 0,
-    where the law has its kink. ``laws`` is ``law.compile_laws(n)`` (or its compiled form).
+    where the law has its kink. Where v_c is negligible beside φ' (|φ'| > 1e100 |v_c|: then
+    v_c² underflows or the integral overflows in u; or v_c is below the smallest double, as for
+    the issue's n = 0.001), the same integral is taken in φ' itself, u = |φ'| from the speed it
+    settles at (|v_c|, or 0 where it passes through rest) to |φ'₀|:
+    sgn(φ') ∫ (u − sgn(φ') v_c) / (γ u^n − sgn(φ') F) du, whose integrand is finite there.
+    ``laws`` is ``law.compile_laws(n)`` (or its compiled form).
     """
+    if not abs(v) <= 1e100 * abs(vc):
+        s = 1.0 if v > 0.0 else -1.0
+        lo = abs(vc) if s * vc > 0.0 else 0.0
+        mid, half = 0.5 * (abs(v) + lo), 0.5 * (abs(v) - lo)
+        total = 0.0
+        for k in range(len(_NODES)):
+            u = mid + half * _NODES[k]
+            total += _WEIGHTS[k] * (u - s * vc) / (laws(u, gamma, 1.0, n)[0] - s * force)
+        return s * half * total
     u0 = v / vc
     if u0 < 0.0:
         integral = _quadrature(laws, n, u0, 0.0) + _quadrature(laws, n, 0.0, 1.0)
@@ -147,7 +161,7 @@ def creep_state(laws: Any, n: float, gamma: float, w2: float, p: float, v: float
     if v != vc:
         # The lag (or lead) the settling leaves behind, ∫ (φ' − v_c) dt over the transient,
         # and the damping work in it beyond the creep's: F · shift + ½ (φ'² − v_c²).
-        shift = settle_shift(laws, n, v, vc, force)
+        shift = settle_shift(laws, n, gamma, v, vc, force)
         p += shift
         w0 = force * shift + 0.5 * (v * v - vc * vc)
     if p + h * vc == p:

@@ -143,7 +143,7 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
 
 KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'n', 'LO', 'HI',
                'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base', 'every',
-               'total', 'RP', 'RV', 'REV', 'STICK', 'use_careful', 'disk', 'real', 'max_angle')
+               'total', 'RP', 'RV', 'COUNTS', 'use_careful', 'GUARD')
 """The arguments of a compiled sweep run (:func:`kernel_source`), arrays in capitals."""
 
 
@@ -167,21 +167,21 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     """Return the sweep's run of many steps for one exponent, over arrays, as source text.
 
     ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, n, LO, HI, REACH, V_ACC, CHECK,
-    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, REV, STICK, use_careful, disk, real,
-    max_angle)`` advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
+    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, COUNTS, use_careful, GUARD)``
+    advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
     ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
     step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
     fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
     stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``).
-    A refused step is taken, where ``use_careful``, by ``careful_step`` (the careful path's
-    one-substep steps, ``compiled_careful.py``: Coulomb friction at rest, the near-Coulomb
-    creep, the split at a reversal; its reversals counted in ``REV[i]``, its Coulomb sticks
-    in ``STICK[i]``, the guard's ``disk``, ``real`` and ``max_angle`` its constants).
-    The run stops at a step neither takes
-    (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'|
-    above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
-    step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``.
+    A refused step is taken, where ``use_careful``, by ``careful_step`` (the careful path,
+    ``compiled_careful.py``: Coulomb friction at rest, the near-Coulomb creep, the guard's
+    substeps, the reversal split, the fallback and the energy redo; what it did counted in the
+    row ``COUNTS[i]`` as ``compiled_careful.COUNTERS`` orders them, ``GUARD`` the guard's
+    ``StabilityGuard.constants``). The run stops at a step neither takes (``K[i]`` is then the
+    step ``Engine.careful`` must take) or after a step that leaves |φ'| above ``VMAX[i]`` (the
+    run's speed bound; the caller refuses to go on). The state after step ``base + k`` is
+    written to the row :func:`record_row` gives of ``RP`` and ``RV``.
     The texts are the ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`;
     the exponent is an argument, so one text serves every exponent whose law it spells alike.
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
@@ -217,11 +217,10 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '                else:', '                    e = e1',
              '            if not ok:',
              '                if not use_careful:', '                    break',
-             '                done, p1, v1, turns, stuck = careful_step(',
+             '                done, p1, v1 = careful_step(',
              '                    plain, branch, laws, p0, v0, h, ain, w2, gamma, n, v_acc,',
-             '                    reach, check, nonsmooth, coulomb, disk, real, max_angle)',
+             '                    reach, check, nonsmooth, coulomb, GUARD, COUNTS[i])',
              '                if not done:', '                    break',
-             '                REV[i] += turns', '                STICK[i] += stuck',
              '                if check:', '                    v = v1',
              '                    s = sin(0.5 * p1)', f'                    e = {ENERGY_SRC}',
              '            p0 = p1', '            v0 = v1', '            k += 1',

@@ -35,10 +35,12 @@ from .decisions import (
     specific_energy,
     stiff_transient,
 )
+from .dirk import stage_law
+from .energy_redo import redo
 from .errors import IntegratorError
 from .explicit import ErrStepFn
 from .guard import FALLBACK, GuardStats, StabilityGuard, safe_speed_range
-from .implicit import dirk_safe, fallback
+from .implicit import dirk_safe, fallback, fallback_refused
 from .law import DampingFn, damping_derivative
 from .methods import Advance, Method
 from .model import FloatArray
@@ -289,25 +291,18 @@ class Engine:
                     stats: GuardStats) -> tuple[float, float, float]:
         """Redo a step whose energy rose without input; project if the implicit one rose too.
 
-        The projection (Hairer, Lubich and Wanner, Geometric Numerical Integration, IV.4) keeps
-        φ₁ and rescales |φ'₁| onto the energy E₀ − W the step itself says was dissipated, which
-        is the energy balance the exact flow obeys.
+        ``energy_redo.redo``: the fallback's step, projected (Hairer, Lubich and Wanner,
+        Geometric Numerical Integration, IV.4) onto the energy E₀ − W the step itself says
+        was dissipated where it rose as well.
         """
-        w2 = self.w2
+        prob = self.problem
         stats.energy_rejections += 1
-        p1, v1, w = fallback(self.problem, p, v, h, 0.0)
-        e1 = specific_energy(v1, math.sin(0.5 * p1), w2)
-        if not energy_rose(e0, e1, w2):
-            return p1, v1, w
-        stats.projections += 1
-        u1 = 2.0 * w2 * math.sin(0.5 * p1) ** 2
-        target = max(e0 - max(w, 0.0), u1)
-        v1 = math.copysign(math.sqrt(2.0 * (target - u1)), v1)
-        if u1 > e0:
-            p1 = p  # even the angle would climb above the energy available: stay put
-            v1 = 0.0
-        return p1, v1, e0 - specific_energy(v1, math.sin(0.5 * p1), w2)
-
+        if fallback_refused(v, h, 0.0, prob.w2, prob.omega0):
+            fallback(prob, p, v, h, 0.0)  # raises the refusal
+        p1, v1, w, projected = redo(p, v, h, e0, prob.w2, prob.gamma, prob.n, prob.omega0,
+                                    stage_law(prob.n))
+        stats.projections += projected
+        return p1, v1, w
 
 
 __all__ = [

@@ -33,12 +33,17 @@ MAX_ANGLE = 0.5
 forces gravity at 100 rad/s, a frequency the Jacobian at one point does not show."""
 
 
-def terminal_speed(gamma: float, n: float, force: float) -> float:
-    """Return the speed at which damping balances an acceleration ``force``: (force/γ)^(1/n)."""
+def terminal_formula(gamma: float, n: float, force: float) -> float:
+    """Return (force/γ)^(1/n) without exception handling (compiled, an overflow is inf)."""
     if gamma <= 0.0 or n == 0.0:
         return math.inf
+    return float((force / gamma) ** (1.0 / n))
+
+
+def terminal_speed(gamma: float, n: float, force: float) -> float:
+    """Return the speed at which damping balances an acceleration ``force``: (force/γ)^(1/n)."""
     try:
-        return float((force / gamma) ** (1.0 / n))
+        return terminal_formula(gamma, n, force)
     except OverflowError:
         return math.inf
 
@@ -145,6 +150,11 @@ class StabilityGuard:
         self.disk = half_disk_radius(tableau) * safety
         self.real = real_axis_bound(tableau) * safety
         self.max_angle = MAX_ANGLE
+        # What substep_count reads: (disk, real, max_angle, safety, max_substeps, c_s, …, c_0),
+        # the bounds, the cap and R(z)'s coefficients, highest power first.
+        self.constants: tuple[float, ...] = (
+            self.disk, self.real, self.max_angle, safety, float(max_substeps),
+            *tableau.stability_poly[::-1].tolist())
 
     def fast_ok(self, h: float, d: float, omega0: float, speed: float) -> bool:
         """Return True when the cheap bound already proves the step stable and resolved."""
@@ -158,47 +168,86 @@ class StabilityGuard:
         how far the velocity, and with it the damping's stiffness, can move within the step.
         ``force_now`` is that acceleration at the start (|τ/I − ω0² sin φ|): for n < 1 it sets
         the creeping speed, where the bound would overstate it near the bottom.
+        (:func:`substep_count` with this guard's constants.)
         """
-        creep = force if force_now is None or n >= 1.0 else force_now
-        d = damping_derivative(gamma, n, stiffness_speed(gamma, n, dphi, h, creep))
-        if not math.isfinite(d):
-            return FALLBACK
-        m_angle = max(1, math.ceil(h * max_speed(gamma, n, dphi, h, force) / self.max_angle))
-        c = omega0_sq * math.cos(phi)
-        lams = [lam for lam in _eigs(d, c) if lam.real < 0.0]
-        if not lams:
-            m = 1
-        elif max(abs(lam) for lam in lams) * h <= self.disk:
-            m = 1
-        elif all(lam.imag == 0.0 for lam in lams) and math.isfinite(self.real):
-            m = max(1, math.ceil(max(abs(lam) for lam in lams) * h / self.real))
+        return substep_count(h, omega0_sq, gamma, n, phi, dphi, force,
+                             force if force_now is None else force_now, self.constants)
+
+
+
+def stability_ok(z: complex, consts: tuple[float, ...]) -> bool:
+    """Return |R(z)| <= 1 for the explicit method whose guard ``constants`` are ``consts``.
+
+    R is evaluated by Horner's rule from its highest coefficient, as ``numpy.polyval`` does.
+    """
+    r = 0j
+    for k in range(5, len(consts)):
+        r = r * z + consts[k]
+    return abs(r) <= 1.0
+
+
+def _search(h: float, lam1: complex, lam2: complex, two: bool,
+            consts: tuple[float, ...]) -> int:
+    """Return the fewest substeps m whose h/m puts h λ (λ = lam1 and, with ``two``, lam2) inside.
+
+    The safety margin is applied through the disk bound: the smallest m that is stable for
+    h / safety is used; beyond max_substeps the result is max_substeps + 1.
+    """
+    hs = h / consts[3]
+    cap = int(consts[4])
+    m = 1
+    while not (stability_ok(hs / m * lam1, consts)
+               and (not two or stability_ok(hs / m * lam2, consts))):
+        m *= 2
+        if m > cap:
+            return cap + 1
+    lo = m // 2
+    while m - lo > 1:
+        mid = (lo + m) // 2
+        hm = hs / mid
+        if stability_ok(hm * lam1, consts) and (not two or stability_ok(hm * lam2, consts)):
+            m = mid
         else:
-            m = self._search(h, lams)
-        if m > self.max_substeps:
-            return FALLBACK
-        # The angle limit alone never calls for the fallback: explicit substeps resolve it.
-        return max(m, m_angle)
+            lo = mid
+    return m
 
-    def _ok(self, h: float, lams: list[complex]) -> bool:
-        return all(abs(self.tableau.stability_function(h * lam)) <= 1.0 for lam in lams)
 
-    def _search(self, h: float, lams: list[complex]) -> int:
-        # The safety margin is applied through the disk bound: the smallest m that is stable
-        # for h / safety is used.
-        hs = h / self.safety
+def substep_count(h: float, omega0_sq: float, gamma: float, n: float, phi: float, dphi: float,
+                  force: float, force_now: float, consts: tuple[float, ...]) -> int:
+    """Return :meth:`StabilityGuard.substeps`: m ≥ 1 substeps, or FALLBACK.
+
+    Written to compile (numbers in, an int out, no exception raised for an overflow: the
+    compiled form reads ``terminal_formula`` and ``law.slope_formula``, which give inf), so
+    that ``Engine.guarded`` and the compiled sweep's careful step run this one decision.
+    ``consts`` is :attr:`StabilityGuard.constants`.
+    """
+    disk, real, max_angle, cap = consts[0], consts[1], consts[2], int(consts[4])
+    creep = force if n >= 1.0 else force_now
+    d = damping_derivative(gamma, n, stiffness_speed(gamma, n, dphi, h, creep))
+    if not math.isfinite(d):
+        return FALLBACK
+    m_angle = max(1, math.ceil(h * max_speed(gamma, n, dphi, h, force) / max_angle))
+    c = omega0_sq * math.cos(phi)
+    lam1, lam2 = _eigs(d, c)
+    # The eigenvalues with Re λ < 0, the first of them in lam1 (lam2 with ``two``).
+    two = lam1.real < 0.0 and lam2.real < 0.0
+    some = lam1.real < 0.0 or lam2.real < 0.0
+    if not lam1.real < 0.0:
+        lam1 = lam2
+    big = max(abs(lam1), abs(lam2)) if two else abs(lam1)
+    if not some:
         m = 1
-        while not self._ok(hs / m, lams):
-            m *= 2
-            if m > self.max_substeps:
-                return self.max_substeps + 1
-        lo = m // 2
-        while m - lo > 1:
-            mid = (lo + m) // 2
-            if self._ok(hs / mid, lams):
-                m = mid
-            else:
-                lo = mid
-        return m
+    elif big * h <= disk:
+        m = 1
+    elif lam1.imag == 0.0 and (not two or lam2.imag == 0.0) and math.isfinite(real):
+        x = big * h / real  # inf where d² overflowed in the eigenvalues: beyond the cap
+        m = max(1, math.ceil(x)) if x <= cap else cap + 1
+    else:
+        m = _search(h, lam1, lam2, two, consts)
+    if m > cap:
+        return FALLBACK
+    # The angle limit alone never calls for the fallback: explicit substeps resolve it.
+    return max(m, m_angle)
 
 
 def safe_speed_range(guard: StabilityGuard, omega0_sq: float, gamma: float, n: float, h: float,

@@ -3,15 +3,20 @@
 The implicit methods' own steps (``sdirk2``, ``sdirk3``) and the fallback every other family
 hands a step to where explicit steps cannot take it (the guard's cap, an overflow, a cover that
 cannot progress): :func:`fallback` covers a step in substeps that obey the angle limit.
+
+The fallback is written to compile: :func:`fallback_refused` (its work bound) and
+:func:`fallback_run` (its substeps, :func:`safe_step` each) take numbers and return numbers, so
+the compiled sweep's careful step runs these very functions; :func:`fallback` is them for a
+Problem, with the refusal raised.
 """
 from __future__ import annotations
 
 import math
 
-from .dirk import dirk_step
+from .dirk import Coefficients, StageLaw, coefficients, dirk_step, stage_law
 from .errors import IntegratorError
 from .guard import MAX_ANGLE
-from .problem import Problem
+from .problem import Problem, speed_gain
 from .tableaus import BACKWARD_EULER, SDIRK3, Tableau
 
 FALLBACK_TABLEAU = SDIRK3
@@ -23,21 +28,49 @@ step is refused (an IntegratorError naming h) instead of taken in unbounded time
 sweeps at most MAX_ANGLE, so the bound is h (|φ'| + h (|τ/I| + ω0²) + ω0) <=
 MAX_ANGLE · MAX_FALLBACK_SUBSTEPS."""
 
+FALLBACK_COEFFS = coefficients(FALLBACK_TABLEAU)
+BACKWARD_EULER_COEFFS = coefficients(BACKWARD_EULER)
 
-def dirk_safe(prob: Problem, tab: Tableau, p: float, v: float, h: float,
-              ain: float) -> tuple[float, float, float]:
+
+def safe_step(coeffs: Coefficients, p: float, v: float, h: float, ain: float, w2: float,
+              gamma: float, n: float, law: StageLaw) -> tuple[float, float, float]:
     """Take a DIRK step; replace it by backward Euler where it turned φ' round spuriously.
 
     Once φ' has passed 0 it can grow again by at most h (|τ/I| + ω0²) within the step, since
     damping only opposes the motion: a reversed velocity larger than that is the stages'
     doing, not the flow's. Backward Euler's single stage is monotone in φ'.
     """
-    args = (p, v, h, ain, prob.w2, prob.gamma, prob.n, prob.damping)
-    p1, v1, w, _ = dirk_step(tab, *args)
-    if v1 * v < 0.0 and abs(v1) > prob.speed_gain(h, ain):
-        pb, vb, wb, _ = dirk_step(BACKWARD_EULER, *args)
+    p1, v1, w, _ = dirk_step(coeffs, p, v, h, ain, w2, gamma, n, law)
+    if v1 * v < 0.0 and abs(v1) > speed_gain(h, ain, w2):
+        pb, vb, wb, _ = dirk_step(BACKWARD_EULER_COEFFS, p, v, h, ain, w2, gamma, n, law)
         return pb, vb, wb
     return p1, v1, w
+
+
+def dirk_safe(prob: Problem, tab: Tableau, p: float, v: float, h: float,
+              ain: float) -> tuple[float, float, float]:
+    """Take :func:`safe_step` of the DIRK tableau ``tab`` for the problem ``prob``."""
+    return safe_step(coefficients(tab), p, v, h, ain, prob.w2, prob.gamma, prob.n,
+                     stage_law(prob.n))
+
+
+def fallback_refused(v: float, h: float, ain: float, w2: float, omega0: float) -> bool:
+    """Return True where :func:`fallback` refuses the step (more than MAX_FALLBACK_SUBSTEPS)."""
+    return not h * (abs(v) + speed_gain(h, ain, w2) + omega0) <= (
+        MAX_ANGLE * MAX_FALLBACK_SUBSTEPS)  # also inf and NaN
+
+
+def fallback_run(p: float, v: float, h: float, ain: float, w2: float, gamma: float, n: float,
+                 omega0: float, law: StageLaw) -> tuple[float, float, float]:
+    """Cover h with the fallback's substeps (the work bound checked by the caller)."""
+    left, w = h, 0.0
+    while left > 0.0:
+        reach = left * (abs(v) + speed_gain(left, ain, w2) + omega0)
+        hh = left if reach <= MAX_ANGLE else left / math.ceil(reach / MAX_ANGLE)
+        p, v, wi = safe_step(FALLBACK_COEFFS, p, v, hh, ain, w2, gamma, n, law)
+        w += wi
+        left = 0.0 if hh == left else left - hh
+    return p, v, w
 
 
 def fallback(prob: Problem, p: float, v: float, h: float,
@@ -48,20 +81,15 @@ def fallback(prob: Problem, p: float, v: float, h: float,
     bounds the speed) and resolves ω0, re-judged after each one. A step that would need more
     than MAX_FALLBACK_SUBSTEPS substeps is refused (IntegratorError).
     """
-    if not h * (abs(v) + prob.speed_gain(h, ain) + prob.omega0) <= (
-            MAX_ANGLE * MAX_FALLBACK_SUBSTEPS):  # also inf and NaN
+    if fallback_refused(v, h, ain, prob.w2, prob.omega0):
         raise IntegratorError(
             f'a step of {h:g} s from phi = {p:g} rad, dphi = {v:g} rad/s needs more than '
             f'MAX_FALLBACK_SUBSTEPS = {MAX_FALLBACK_SUBSTEPS} substeps of the fallback '
             f'(each sweeps at most {MAX_ANGLE:g} rad); use a smaller h')
-    left, w = h, 0.0
-    while left > 0.0:
-        reach = left * (abs(v) + prob.speed_gain(left, ain) + prob.omega0)
-        hh = left if reach <= MAX_ANGLE else left / math.ceil(reach / MAX_ANGLE)
-        p, v, wi = dirk_safe(prob, FALLBACK_TABLEAU, p, v, hh, ain)
-        w += wi
-        left = 0.0 if hh == left else left - hh
-    return p, v, w
+    return fallback_run(p, v, h, ain, prob.w2, prob.gamma, prob.n, prob.omega0,
+                        stage_law(prob.n))
 
 
-__all__ = ['FALLBACK_TABLEAU', 'MAX_FALLBACK_SUBSTEPS', 'dirk_safe', 'fallback']
+__all__ = ['BACKWARD_EULER_COEFFS', 'FALLBACK_COEFFS', 'FALLBACK_TABLEAU',
+           'MAX_FALLBACK_SUBSTEPS', 'dirk_safe', 'fallback', 'fallback_refused', 'fallback_run',
+           'safe_step']

@@ -72,8 +72,13 @@ class Problem:
         set_(self, 'damping', lambda v: law(v, g, 1.0))
 
     def speed_gain(self, h: float, ain: float) -> float:
-        """Return the most |φ'| can grow in h: h (|τ/I| + ω0²), damping only opposes motion."""
-        return h * (abs(ain) + self.w2)
+        """Return the most |φ'| can grow in h (:func:`speed_gain`)."""
+        return speed_gain(h, ain, self.w2)
 
 
-__all__ = ['Problem']
+def speed_gain(h: float, ain: float, w2: float) -> float:
+    """Return the most |φ'| can grow in h: h (|τ/I| + ω0²), damping only opposes motion."""
+    return h * (abs(ain) + w2)
+
+
+__all__ = ['Problem', 'speed_gain']

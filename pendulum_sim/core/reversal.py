@@ -158,7 +158,7 @@ locate_on_branch = locate_form('locate_on_branch')
 """``locate_on_branch(branch, p, v, v1, a0, a1, h, ain, w2, gamma, sign, n, tol, iterations)``.
 
 The reversal location (:data:`LOCATE_SRC`) on a generated branch step from (``p``, ``v``), its
-arguments passed on; numba compiles it (``compiled_careful.split``).
+arguments passed on; numba compiles it (``split.split_step`` in the compiled careful step).
 """
 
 

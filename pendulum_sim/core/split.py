@@ -16,7 +16,7 @@ from typing import Any
 
 from .coulomb import creep_state, friction_step, rest_step
 from .decisions import reversal_suspect
-from .explicit import StepFn, compile_step, compile_step_with_n
+from .explicit import StepFn, compile_step_with_n
 from .guard import GuardStats
 from .law import compile_laws
 from .problem import Problem
@@ -94,6 +94,52 @@ def split_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
     return True, p2, v2, wm + w2_, 1, pm, vm, wm, rest
 
 
+NOT_FINITE = -1
+""":func:`micro_step`'s reversal count where it declined a plain step that is not finite."""
+
+
+def micro_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
+               w2: float, gamma: float, n: float, reach: float, nonsmooth: bool, coulomb: bool,
+               strict: bool) -> SplitResult:
+    """Take one plain step of h, split at a velocity reversal where the damping is not smooth.
+
+    Under Coulomb friction at rest, ``coulomb.rest_step``; otherwise the plain step, and where
+    a reversal is suspected (``decisions.reversal_suspect``) :func:`split_step` or, within the
+    window of a reversal it does not cross, graded substeps on the branch
+    (``reversal.graded_mesh``) by the distance |φ'|/|φ''| to the reversal ahead (decelerating)
+    or behind. Returns :func:`split_step`'s tuple. With ``strict`` a plain step that is not
+    finite (where Python may have raised inside it) is declined: ``done`` False and
+    ``reversals`` NOT_FINITE. Written to compile: :meth:`SplitSteps.micro` calls it in Python,
+    the compiled sweep's careful step (``compiled_careful.py``) compiled.
+    """
+    if coulomb and v == 0.0:
+        p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n)
+        return True, p1, v1, w, 0, p, v, 0.0, 0.0
+    p1, v1, w, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
+    if strict and not (math.isfinite(p1) and math.isfinite(v1) and math.isfinite(a0)):
+        return False, p, v, 0.0, NOT_FINITE, p, v, 0.0, 0.0
+    if nonsmooth and reversal_suspect(v, v1, a0, h, reach):
+        if v1 * v < 0.0 or (a0 * v < 0.0 and abs(v) <= h * abs(a0)):
+            return split_step(plain, branch, laws, p, v, h, ain, w2, gamma, n, a0, reach,
+                              coulomb)
+        if reach > 0.0 and a0 != 0.0:
+            side = 1.0 if (v > 0.0 or (v == 0.0 and a0 > 0.0)) else -1.0
+            x = abs(v) / abs(a0)
+            if a0 * v < 0.0:
+                lens = graded_mesh(max(x - h, 0.0), x, h, n, reach)
+                back = True
+            else:
+                lens = graded_mesh(x, x + h, h, n, reach)
+                back = False
+            pg, vg, wg = branch_run(branch, p, v, lens, back, ain, w2, gamma, side, n)
+            if vg * v >= 0.0:
+                return True, pg, vg, wg, 0, p, v, 0.0, 0.0
+            # The branch reached φ' = 0 within the step after all: split there.
+            return split_step(plain, branch, laws, p, v, h, ain, w2, gamma, n, a0, reach,
+                              coulomb)
+    return True, p1, v1, w, 0, p, v, 0.0, 0.0
+
+
 class SplitSteps:
     """The plain steps of an explicit ``tableau`` for one problem, split at reversals.
 
@@ -111,8 +157,6 @@ class SplitSteps:
         self.problem = prob
         self.w2, self.gamma, self.n = prob.w2, prob.gamma, prob.n
         self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
-        self.step_fn: StepFn = compile_step(tableau, prob.n)
-        self.branch_fn: StepFn = compile_step(tableau, prob.n, branch=True)
         # The same steps and the laws with the exponent an argument: what the functions
         # written to compile (split_step, coulomb.rest_step) take, in Python as compiled.
         self.plain_n: StepFn = compile_step_with_n(tableau, prob.n)
@@ -137,46 +181,31 @@ class SplitSteps:
 
     def micro(self, p: float, v: float, h: float, ain: float,
               stats: GuardStats) -> tuple[float, float, float]:
-        """Take one plain step, split at a velocity reversal where the damping is not smooth."""
-        if self.coulomb and v == 0.0:
-            return self.from_rest(p, h, ain)
-        p1, v1, w, a0 = self.step_fn(p, v, h, ain, self.w2, self.gamma, 1.0)
-        if self.nonsmooth and reversal_suspect(v, v1, a0, h, self.reach):
-            if v1 * v < 0.0 or (a0 * v < 0.0 and abs(v) <= h * abs(a0)):
-                return self.split(p, v, h, ain, a0, stats)
-            if self.reach > 0.0 and a0 != 0.0:
-                # Within the window of a reversal without crossing one: graded substeps, by
-                # the distance |φ'|/|φ''| to the reversal ahead (decelerating) or behind.
-                side = 1.0 if (v > 0.0 or (v == 0.0 and a0 > 0.0)) else -1.0
-                x = abs(v) / abs(a0)
-                if a0 * v < 0.0:
-                    lens = graded_mesh(max(x - h, 0.0), x, h, self.n, self.reach)[::-1]
-                else:
-                    lens = graded_mesh(x, x + h, h, self.n, self.reach)
-                pg, vg, wg = self._branch_run(p, v, lens, ain, side)
-                if vg * v >= 0.0:
-                    return pg, vg, wg
-                # The branch reached φ' = 0 within the step after all: split there.
-                return self.split(p, v, h, ain, a0, stats)
-        return p1, v1, w
+        """Take one plain step, split at a velocity reversal where the damping is not smooth.
 
-    def _branch_run(self, p: float, v: float, lengths: list[float], ain: float,
-                    sign: float) -> tuple[float, float, float]:
-        return branch_run(self.branch_n, p, v, lengths, False, ain, self.w2, self.gamma, sign,
-                          self.n)
-
-    def split(self, p: float, v: float, h: float, ain: float, a0: float,
-              stats: GuardStats) -> tuple[float, float, float]:
-        """Split a step that straddles φ' = 0 at the reversal (:func:`split_step`)."""
-        done, p2, v2, w, turns, pm, vm, wm, rest = split_step(
+        :func:`micro_step`; the fallback takes the rest of a split the branch cannot finish.
+        """
+        return self._finish(micro_step(
             self.plain_n, self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma, self.n,
-            a0, self.reach, self.coulomb)
+            self.reach, self.nonsmooth, self.coulomb, False), ain, stats)
+
+    def _finish(self, res: SplitResult, ain: float,
+                stats: GuardStats) -> tuple[float, float, float]:
+        """Count the reversals; hand what the branch could not finish to the fallback."""
+        done, p1, v1, w, turns, pm, vm, wm, rest = res
         stats.reversals += turns
         if done:
-            return p2, v2, w
+            return p1, v1, w
         stats.fallbacks += 1
         p2, v2, w2_ = self.last_resort(pm, vm, rest, ain)
         return p2, v2, wm + w2_
 
+    def split(self, p: float, v: float, h: float, ain: float, a0: float,
+              stats: GuardStats) -> tuple[float, float, float]:
+        """Split a step that straddles φ' = 0 at the reversal (:func:`split_step`)."""
+        return self._finish(split_step(
+            self.plain_n, self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma, self.n,
+            a0, self.reach, self.coulomb), ain, stats)
 
-__all__ = ['SplitResult', 'SplitSteps', 'split_step']
+
+__all__ = ['NOT_FINITE', 'SplitResult', 'SplitSteps', 'micro_step', 'split_step']

@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .codegen import define
-from .compiled_careful import careful_step
+from .compiled_careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
 from .decisions import (
     CROSS_SRC,
@@ -102,8 +102,9 @@ class SweepResult:
         Times of the recorded samples (0, r h, 2 r h, …, and ``t_end``), when recording.
     phi_record, dphi_record : ndarray, shape (K, N) or None
         The recorded states.
-    substeps, fallbacks, reversals, sticks : ndarray of int, shape (N,)
-        What the careful path did, counted as ``Stepper.stats`` counts it.
+    substeps, fallbacks, reversals, sticks, energy_rejections, projections : ndarray of int
+        What the careful path did per pendulum (shape (N,)), counted as ``Stepper.stats``
+        counts it.
     steps : int
         Steps of size ``h`` taken (a last shorter step, if ``t_end`` is not a multiple of h,
         is included).
@@ -112,8 +113,9 @@ class SweepResult:
     method : str
         Name of the explicit method.
     handed_back : int
-        With ``jit=True``: the steps the compiled runs handed back to Python's careful path
-        (``Engine.careful``), over all pendulums; 0 for the numpy sweep (all in Python).
+        Steps of the stretch taken by the careful path in Python (``Engine.careful``): every
+        step the fast path refused on the numpy sweep; on the compiled sweep only those the
+        compiled careful step declines (``compiled_careful.py``).
     """
 
     phi: FloatArray
@@ -126,11 +128,13 @@ class SweepResult:
     fallbacks: IntArray
     reversals: IntArray
     sticks: IntArray
+    energy_rejections: IntArray
+    projections: IntArray
     steps: int
     h: float
     t_end: float
     method: str
-    handed_back: int = 0
+    handed_back: int
 
     @property
     def capped(self) -> int:
@@ -286,7 +290,7 @@ class _Group:
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
         self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
-        self.use_careful = False  # the compiled run takes the split step (compiled_careful)
+        self.use_careful = False  # the compiled run takes the careful step (compiled_careful)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
         self.p = self.v = self.e = np.empty(0)
         self.w2: Any = 0.0
@@ -392,8 +396,11 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str,
 
 
 def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
-             stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool) -> None:
-    """Advance one group by a step of hh: the plain step, the decisions, the careful path."""
+             stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool) -> int:
+    """Advance one group by a step of hh: the plain step, the decisions, the careful path.
+
+    Returns how many steps the careful path took.
+    """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
     av = np.abs(vv)
@@ -427,7 +434,7 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
         ok &= ~rose
     else:
         e1 = grp.e
-    _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1)
+    return _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1)
 
 
 def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float, w2: float,
@@ -452,8 +459,11 @@ def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float,
 
 def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
-             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray) -> None:
-    """Redo every step the fast path refused (``~ok``) on the careful path; keep the states."""
+             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray) -> int:
+    """Redo every step the fast path refused (``~ok``) on the careful path; keep the states.
+
+    Returns how many steps that was.
+    """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     refused = np.flatnonzero(~ok)
     if refused.size:
@@ -473,6 +483,7 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
             sines = np.array([math.sin(0.5 * x) for x in ps])
             e1[refused] = specific_energy(v1[refused], sines, consts[1])
     grp.p, grp.v, grp.e = p1, v1, e1
+    return int(refused.size)
 
 
 def _torque(torque: Any, size: int, params: Any) -> FloatArray:
@@ -548,7 +559,7 @@ class Sweep:
                 # The compiled careful step serves the guarded laws (compiled_careful.py).
                 grp.use_careful = self.guard
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
-        self._handed_back = 0  # steps the compiled runs handed to Engine.careful (an advance)
+        self._handed_back = 0  # steps of the current advance taken by Engine.careful
         self._bounds = ain_bounds(self._tau)
         for grp in self._groups:
             grp.use_torque(self._tau, self.energy_check)
@@ -637,8 +648,8 @@ class Sweep:
                     done += count
                 for _ in range(0 if self.jit else count):
                     for grp in groups:
-                        _advance(grp, hh, self._engines, stats, meth, self.guard,
-                                 self.energy_check)
+                        self._handed_back += _advance(grp, hh, self._engines, stats, meth,
+                                                      self.guard, self.energy_check)
                         self._check_speed(grp, t_end if done + 1 == total else (done + 1) * h)
                     done += 1
                     if record_every is not None and (done % record_every == 0 or done == total):
@@ -679,16 +690,16 @@ class Sweep:
                 grp.e[j] = specific_energy(v1, math.sin(0.5 * p1), w2)
 
         g = guard_for(meth.tableau)
-        beyond, turns, handed = run_piece(self._groups, hh, count, base, total, every,
-                                          records, self._vmax, careful,
-                                          (g.disk, g.real, g.max_angle))
+        beyond, counted, handed = run_piece(self._groups, hh, count, base, total, every,
+                                            records, self._vmax, careful,
+                                            np.array(g.constants))
         self._handed_back += handed
-        for i, (k, stick) in turns.items():
+        for i, row in counted.items():
             st = stats.get(i)
             if st is None:
                 st = stats[i] = GuardStats()
-            st.reversals += k
-            st.sticks += stick
+            for name, k in zip(COUNTERS, row.tolist(), strict=True):
+                setattr(st, name, getattr(st, name) + k)
         if beyond:
             done, pos = min(beyond)
             grp = next(grp for grp in self._groups if grp.sl.start <= pos < grp.sl.stop)
@@ -713,7 +724,7 @@ class Sweep:
         """Return the stretch's result in the order the pendulums were given."""
         inv, size = self._inv, self.size
         counters = {k: np.zeros(size, dtype=np.int64)
-                    for k in ('substeps', 'fallbacks', 'reversals', 'sticks')}
+                    for k in COUNTERS}
         for i, st in stats.items():
             for k, arr in counters.items():
                 arr[i] = getattr(st, k)
@@ -726,8 +737,9 @@ class Sweep:
             dphi_record=np.array(rec_v)[:, inv] if rec else None,
             substeps=counters['substeps'][inv], fallbacks=counters['fallbacks'][inv],
             reversals=counters['reversals'][inv], sticks=counters['sticks'][inv],
+            energy_rejections=counters['energy_rejections'][inv],
+            projections=counters['projections'][inv], handed_back=self._handed_back,
             steps=total, h=self.h, t_end=t_end, method=self.method,
-            handed_back=self._handed_back,
         )
 
 
@@ -764,10 +776,11 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     jit : bool
         Run each group of one n compiled by numba (the ``jit`` extra) instead of with numpy:
         the same generated step and decisions (``decisions.kernel_source``) run step after
-        step per pendulum, in parallel over the pendulums, the careful path's one-substep
-        steps compiled too (``compiled_careful.py``: Coulomb sticking and break-away, the
-        near-Coulomb creep, the split at a reversal) and every other refused step taken by
-        ``Engine.careful`` (``compiled_sweep.py``; counted in ``SweepResult.handed_back``).
+        step per pendulum, in parallel over the pendulums, the careful path compiled too
+        (``compiled_careful.py``: Coulomb sticking and break-away, the near-Coulomb creep, the
+        guard's substeps, the reversal split, the fallback, the energy redo) and every refused
+        step it declines taken by ``Engine.careful`` (``compiled_sweep.py``; counted in
+        ``SweepResult.handed_back``).
 
     Returns
     -------
