@@ -17,12 +17,17 @@ import pytest
 
 from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen, jit
 from pendulum_sim.core.compiled_careful import careful_step
-from pendulum_sim.core.decisions import compile_kernel, kernel_source
+from pendulum_sim.core.decisions import (
+    compile_kernel,
+    kernel_source,
+    stiff_source,
+    stiff_transient,
+)
 from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.explicit import step_source
 from pendulum_sim.core.guard import GuardStats
 from pendulum_sim.core.jit import available, numba_twin
-from pendulum_sim.core.law import damping_expression
+from pendulum_sim.core.law import damping_expression, power_source
 from pendulum_sim.core.methods import METHODS
 from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import TABLEAUS
@@ -215,3 +220,23 @@ def test_distinct_exponents_share_their_generated_code() -> None:
     assert codegen._code.cache_info().misses - before <= 3
     assert len(jit._KERNELS) - kernels <= 1
     assert len({id(grp.kernel[0]) for grp in prepared._groups}) == 1
+
+
+def test_the_stiff_test_spells_the_power_by_the_laws_rule() -> None:
+    # The stiff-transient threshold ½ γ |φ'|^n is the law's power (law.power_source): whole n
+    # as multiplications, in the Stepper's fast step, the kernel and the careful path alike.
+    tab = TABLEAUS['rk4']
+    for n in (2.0, 3.0, 3.7):
+        power = power_source(n, 'n')
+        assert power in stiff_source(n)
+        assert power in kernel_source(tab, n).split('def kernel')[1]
+    assert '**' not in stiff_source(3.0)
+    # A speed where the product |v|·|v|·|v| is below the C library's pow in the last bit, and a
+    # net deceleration one float above half the product's γ|v|³: stiff by the law's rule.
+    rng = np.random.default_rng(3)
+    v = next(x for x in rng.uniform(1.0, 2.0, 100_000).tolist() if x * x * x < x ** 3.0)
+    gamma = 1.0
+    a0 = -float(np.nextafter(0.5 * gamma * (v * v * v), np.inf))
+    assert stiff_transient(v, a0, gamma, 3.0, 0.5)
+    assert stiff_transient(np.array([v]), np.array([a0]), gamma, 3.0, np.array([0.5]))[0]
+    assert not stiff_transient(v, np.nextafter(a0, 0.0), gamma, 3.0, 0.5)

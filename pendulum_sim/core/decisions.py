@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from .codegen import define
 from .explicit import step_source
-from .law import SCALAR_ENV, damping_expression
+from .law import SCALAR_ENV, VECTOR_ENV, damping_expression, power_source
 from .tableaus import Tableau
 
 ENERGY_TOL = 1e-12
@@ -29,13 +29,15 @@ this relative size (of E/I + ω0²) is a defect and the step is redone implicitl
 CROSS_SRC = '(v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))'
 NEAR_SRC = 'abs(v) < reach * abs(a0)'
 REVERSAL_SRC = f'{CROSS_SRC} | ({NEAR_SRC})'
-STIFF_SRC = '(abs(v) > v_acc) & (abs(a0) > 0.5 * gamma * abs(v) ** n)'
+STIFF_SRC = '(abs(v) > v_acc) & (abs(a0) > 0.5 * gamma * ({power}))'
 ENERGY_SRC = '0.5 * v * v + 2.0 * w2 * s * s'
 ROSE_SRC = 'e1 > e0 + ENERGY_TOL * (e0 + w2)'
 """The fast path's decisions as source text, written once: compiled into the functions below
 (which work on floats and numpy arrays: ``sweep`` and the careful path use them) and inlined,
 with ``and``/``or`` for ``&``/``|``, into the Stepper's generated fast step
-(:func:`compile_fast_step`)."""
+(:func:`compile_fast_step`) and the compiled sweep's run (:func:`kernel_source`).
+``STIFF_SRC`` holds the damping's |φ'|^n as ``{power}``: :func:`stiff_source` fills it in
+with the law's one power rule (``law.power_source``)."""
 
 
 def _expr(args: str, src: str) -> Any:
@@ -44,7 +46,6 @@ def _expr(args: str, src: str) -> Any:
 
 
 _REVERSAL = _expr('v, v1, a0, h, reach', REVERSAL_SRC)
-_STIFF = _expr('v, a0, gamma, n, v_acc', STIFF_SRC)
 _ENERGY = _expr('v, s, w2', ENERGY_SRC)
 _ROSE = _expr('e0, e1, w2', ROSE_SRC)
 
@@ -83,14 +84,30 @@ def accuracy_speed(gamma: float, n: float, omega0: float) -> float:
     return math.exp(min(log_v, 700.0))
 
 
+def stiff_source(n: float) -> str:
+    """Return the stiff-transient test for the exponent ``n`` as source (:data:`STIFF_SRC`).
+
+    |φ'|^n is the damping law's power (``law.power_source``): multiplications for a whole n,
+    ``sqrt`` for 0.5, ``abs(v) ** n`` for every other exponent (one text for all of those).
+    """
+    return STIFF_SRC.format(power=power_source(n, 'n'))
+
+
+@functools.lru_cache(maxsize=256)
+def _stiff(n: float, vector: bool) -> Any:
+    env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV)
+    return define(f'def f(v, a0, gamma, n, v_acc):\n    return {stiff_source(n)}\n', 'f', env,
+                  '<decision>')
+
+
 def stiff_transient(v: Any, a0: Any, gamma: Any, n: float, v_acc: Any) -> Any:
     """Return where a step starts in a damping-dominated transient too fast for a plain step.
 
     Above :func:`accuracy_speed` and with the net acceleration at least half the damping
     γ|φ'|^n (the damping is not balanced by gravity and input, as it is in a creep;
-    :data:`STIFF_SRC`).
+    :func:`stiff_source`). ``v`` a float or a numpy array, the others alike or floats.
     """
-    return _STIFF(v, a0, gamma, n, v_acc)
+    return _stiff(n, isinstance(v, np.ndarray))(v, a0, gamma, n, v_acc)
 
 
 def specific_energy(v: Any, sin_half: Any, w2: Any) -> Any:
@@ -127,7 +144,7 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
         test = _scalar(REVERSAL_SRC if reach > 0.0 else CROSS_SRC)
         lines += [f'    if {test}:', '        return None']
     if math.isfinite(v_acc):
-        lines += [f'    if abs(v) > v_acc and {_scalar(STIFF_SRC)}:', '        return None']
+        lines += [f'    if abs(v) > v_acc and {_scalar(stiff_source(n))}:', '        return None']
     if check_energy:
         lines += ['    if ain != 0.0:', '        return p1, v1, w, NAN',
                   '    if e0 != e0:', '        s = sin(0.5 * p0)',
@@ -180,9 +197,10 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
     stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``).
-    A refused step is taken, where ``use_careful``, by ``careful_step`` (the careful path's
-    split step, ``compiled_careful.py``; its reversals counted in ``REV[i]``, the guard's
-    ``disk``, ``real`` and ``max_angle`` its constants). The run stops at a step neither takes
+    A refused step is taken, where ``use_careful`` and it is not a stiff transient (decided
+    here, by :func:`stiff_source`), by ``careful_step`` (the careful path's split step,
+    ``compiled_careful.py``; its reversals counted in ``REV[i]``, the guard's ``disk``,
+    ``real`` and ``max_angle`` its constants). The run stops at a step neither takes
     (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'|
     above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
     step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``.
@@ -210,7 +228,7 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '            if ok and coulomb and v == 0.0:', '                ok = False',
              f'            if ok and nonsmooth and ({_scalar(REVERSAL_SRC)}):',
              '                ok = False',
-             f'            if ok and av > v_acc and {_scalar(STIFF_SRC)}:',
+             f'            if ok and av > v_acc and {_scalar(stiff_source(n))}:',
              '                ok = False',
              '            if ok and check:', '                e0 = e', '                v = v1',
              '                s = sin(0.5 * p1)', f'                e1 = {ENERGY_SRC}',
@@ -218,8 +236,11 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '                else:', '                    e = e1',
              '            if not ok:',
              '                if not use_careful:', '                    break',
+             '                v = v0',
+             f'                if av > v_acc and {_scalar(stiff_source(n))}:',
+             '                    break',
              '                done, p1, v1, turns = careful_step(',
-             '                    plain, branch, p0, v0, h, ain, w2, gamma, n, v_acc, reach,',
+             '                    plain, branch, p0, v0, h, ain, w2, gamma, n, INF, reach,',
              '                    check, nonsmooth, disk, real, max_angle)',
              '                if not done:', '                    break',
              '                REV[i] += turns',
@@ -280,5 +301,6 @@ __all__ = [
     'record_row',
     'reversal_suspect',
     'specific_energy',
+    'stiff_source',
     'stiff_transient',
 ]

@@ -18,9 +18,9 @@ sign, so these are the same floats as sgn(φ') times the product of |φ'| (``tes
 
 The steps (``explicit.py``, ``rosenbrock.py``, ``extrapolation.py``), the fast-path decisions,
 the reversal location, the creep, the guard, :class:`~pendulum_sim.core.model.PendulumParams`
-and ``model.dissipated_power`` evaluate what this module generates. Two formulas beside it are
-not the law itself: the stiff-transient threshold of ``decisions.py`` (half of γ |φ'|^n, one
-text compiled for a run-time n) and the creep speed (|F|/γ)^(1/n) of ``coulomb.py``, its inverse.
+and ``model.dissipated_power`` evaluate what this module generates, and the stiff-transient
+test of ``decisions.py`` compares with half of γ |φ'|^n spelled by :func:`power_source`. The
+creep speed (|F|/γ)^(1/n) of ``coulomb.py`` is not the law itself but its inverse.
 """
 from __future__ import annotations
 
