@@ -20,6 +20,8 @@ from pendulum_sim.core.compiled_careful import careful_step
 from pendulum_sim.core.decisions import (
     compile_kernel,
     kernel_source,
+    next_record,
+    record_row,
     stiff_source,
     stiff_transient,
 )
@@ -240,3 +242,14 @@ def test_the_stiff_test_spells_the_power_by_the_laws_rule() -> None:
     assert stiff_transient(v, a0, gamma, 3.0, 0.5)
     assert stiff_transient(np.array([v]), np.array([a0]), gamma, 3.0, np.array([0.5]))[0]
     assert not stiff_transient(v, np.nextafter(a0, 0.0), gamma, 3.0, 0.5)
+
+
+def test_the_run_keeps_the_next_recorded_step() -> None:
+    # next_record gives the first step after `done` that record_row records: the compiled run
+    # writes the rows record_row gives without a division per step.
+    for every, total in itertools.product(range(5), range(1, 13)):
+        rows = 1 + total // every + (1 if total % every else 0) if every else 0
+        for done in range(total + 1):
+            later = [d for d in range(done + 1, total + 1)
+                     if record_row(d, every, total, rows) >= 0]
+            assert next_record(done, every, total) == (later[0] if later else -1)

@@ -28,20 +28,19 @@ in place in the group's state arrays ``p``, ``v``, ``e``."""
 
 def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, every: int,
               records: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]],
-              vmax: npt.NDArray[np.float64], careful: CarefulFn,
-              guard: tuple[float, float, float]) -> tuple[list[tuple[int, int]], dict[int, int]]:
+              vmax: npt.NDArray[np.float64], turns: npt.NDArray[np.int64], careful: CarefulFn,
+              guard: tuple[float, float, float]) -> list[tuple[int, int]]:
     """Advance every group's pendulums by ``count`` steps of ``h`` (steps ``base`` + 1 …).
 
     Each group's ``kernel`` is its (parallel, serial) pair of ``jit.compile_kernel``;
     ``records[g]`` are the group's recording arrays (rows by :func:`record_row`; shape (0, m)
     when not recording), ``vmax`` the run's speed bound over the n-sorted pendulums, ``guard``
     the guard's (disk, real, max_angle) for the compiled careful step (a group takes it where
-    its ``use_careful`` is set). Returns ``(step, position)`` of every pendulum whose |φ'|
-    went beyond its bound (it stops there; the caller refuses the run), and the reversals the
-    compiled careful step split per position.
+    its ``use_careful`` is set). The reversals the compiled careful step splits are added to
+    ``turns`` (over the n-sorted pendulums). Returns ``(step, position)`` of every pendulum
+    whose |φ'| went beyond its bound (it stops there; the caller refuses the run).
     """
     beyond: list[tuple[int, int]] = []
-    turns: dict[int, int] = {}
     for grp, (rp, rv) in zip(groups, records, strict=True):
         sl = grp.sl
         size = sl.stop - sl.start
@@ -49,7 +48,7 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
         k = np.zeros(size, dtype=np.int64)
         idx = np.arange(size, dtype=np.int64)
         rows = rp.shape[0]
-        rev = np.zeros(size, dtype=np.int64)
+        rev = turns[sl]
         while idx.size:
             run = grp.kernel[0] if idx.size >= PARALLEL_MIN else grp.kernel[1]
             run(grp.p, grp.v, grp.e, k, idx, h, count, grp.ain_col, grp.w2_col, grp.gamma_col,
@@ -71,9 +70,7 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
                 else:
                     beyond.append((done, sl.start + j))
             idx = np.array(left, dtype=np.int64)
-        for j in np.flatnonzero(rev).tolist():
-            turns[sl.start + j] = int(rev[j])
-    return beyond, turns
+    return beyond
 
 
 __all__ = ['CarefulFn', 'run_piece']

@@ -179,6 +179,17 @@ def record_row(done: int, every: int, total: int, rows: int) -> int:
     return -1
 
 
+def next_record(done: int, every: int, total: int) -> int:
+    """Return the first step after ``done`` whose state :func:`record_row` records, or −1.
+
+    The compiled run keeps it beside its step counter, so that a step that records nothing
+    costs one comparison (no division).
+    """
+    if every <= 0 or done >= total:
+        return -1
+    return min((done // every + 1) * every, total)
+
+
 def _step_with_n(tableau: Tableau, n: float, branch: bool, name: str) -> list[str]:
     """Return the scalar step of ``explicit.step_source`` as ``name``, the exponent an argument."""
     lines = step_source(tableau, damping_expression(n, branch, scalar=True)).splitlines()
@@ -203,13 +214,15 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     ``real`` and ``max_angle`` its constants). The run stops at a step neither takes
     (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'|
     above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
-    step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``.
+    step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``
+    (the next such step kept by :func:`next_record`).
     The texts are the ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`;
     the exponent is an argument, so one text serves every exponent whose law it spells alike.
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
     with the exponent an argument, which ``careful_step`` takes.
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
+    stiff = _scalar(stiff_source(n))
     pad = '        '
     lines = [*_step_with_n(tableau, n, False, 'plain'), *_step_with_n(tableau, n, True, 'branch'),
              f'def kernel({", ".join(KERNEL_ARGS)}):',
@@ -222,13 +235,14 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '        nonsmooth = NONSMOOTH[i]', '        coulomb = COULOMB[i]',
              '        vmax = VMAX[i]',
              '        p0 = P[i]', '        v0 = V[i]', '        e = E[i]', '        k = K[i]',
+             '        nxt = next_record(base + k, every, total)',
              '        while k < count:', *(pad + line for line in body),
              '            v = v0', '            a0 = a_0', '            av = abs(v)',
              '            ok = lo <= av <= hi and -INF < p1 < INF and -INF < v1 < INF',
              '            if ok and coulomb and v == 0.0:', '                ok = False',
              f'            if ok and nonsmooth and ({_scalar(REVERSAL_SRC)}):',
              '                ok = False',
-             f'            if ok and av > v_acc and {_scalar(stiff_source(n))}:',
+             f'            if ok and av > v_acc and {stiff}:',
              '                ok = False',
              '            if ok and check:', '                e0 = e', '                v = v1',
              '                s = sin(0.5 * p1)', f'                e1 = {ENERGY_SRC}',
@@ -237,8 +251,7 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '            if not ok:',
              '                if not use_careful:', '                    break',
              '                v = v0',
-             f'                if av > v_acc and {_scalar(stiff_source(n))}:',
-             '                    break',
+             f'                if av > v_acc and {stiff}:', '                    break',
              '                done, p1, v1, turns = careful_step(',
              '                    plain, branch, p0, v0, h, ain, w2, gamma, n, INF, reach,',
              '                    check, nonsmooth, disk, real, max_angle)',
@@ -247,9 +260,10 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '                if check:', '                    v = v1',
              '                    s = sin(0.5 * p1)', f'                    e = {ENERGY_SRC}',
              '            p0 = p1', '            v0 = v1', '            k += 1',
-             '            r = record_row(base + k, every, total, rows)',
-             '            if r >= 0:', '                RP[r, i] = p0',
-             '                RV[r, i] = v0',
+             '            if base + k == nxt:',
+             '                r = record_row(nxt, every, total, rows)',
+             '                RP[r, i] = p0', '                RV[r, i] = v0',
+             '                nxt = next_record(nxt, every, total)',
              '            if not abs(v0) <= vmax:', '                break',
              '        P[i] = p0', '        V[i] = v0', '        E[i] = e', '        K[i] = k']
     return '\n'.join(lines) + '\n'
@@ -263,7 +277,7 @@ def compile_kernel(tableau: Tableau, n: float, careful_step: Any) -> Any:
     """
     env: dict[str, object] = dict(SCALAR_ENV, INF=math.inf, ENERGY_TOL=ENERGY_TOL,
                                   prange=range, record_row=record_row,
-                                  careful_step=careful_step)
+                                  next_record=next_record, careful_step=careful_step)
     return define(kernel_source(tableau, n), 'kernel', env, f'<kernel {tableau.name}>')
 
 
@@ -298,6 +312,7 @@ __all__ = [
     'compile_kernel',
     'energy_rose',
     'kernel_source',
+    'next_record',
     'record_row',
     'reversal_suspect',
     'specific_energy',

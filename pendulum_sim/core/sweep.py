@@ -368,15 +368,15 @@ def _flags(w2: float, gamma: float, n: float, guard: bool) -> tuple[float, ...]:
             prob.v_acc if guard else math.inf)
 
 
-def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str,
-            guard: bool) -> list[_Group]:
-    """Split the n-sorted pendulums into groups of one n (blocks of at most BLOCK)."""
+def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard: bool,
+            block: int = BLOCK) -> list[_Group]:
+    """Split the n-sorted pendulums into groups of one n (blocks of at most ``block``)."""
     tab = METHODS[method].tableau
     out = []
     vals, starts = np.unique(nn, return_index=True)
     ends = [*starts[1:].tolist(), nn.size]
-    pieces = [(val, a0, min(a0 + BLOCK, b)) for val, a, b in
-              zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, BLOCK)]
+    pieces = [(val, a0, min(a0 + block, b)) for val, a, b in
+              zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, block)]
     for val, a, b in pieces:
         sl = slice(a, b)
         flags = _on_unique(functools.partial(_flags, n=val, guard=guard), om2[sl], gam[sl])
@@ -535,7 +535,10 @@ class Sweep:
         # The state bound, held along the run where the guard is on (as in the Stepper).
         self._vmax = (_each(run_speed_limit, self._gam, self._nn, self._om2) if self.guard
                       else np.full(order.size, np.inf))
-        self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard)
+        # numpy takes a group in cache-sized blocks; a compiled run keeps each state in
+        # registers over its steps, so it takes each exponent's pendulums in one run.
+        self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard,
+                               order.size if self.jit else BLOCK)
         if self.jit:
             tab = METHODS[method].tableau
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
@@ -597,6 +600,7 @@ class Sweep:
         om2, gam, phi, v = self._om2, self._gam, self._phi, self._v
         energy = specific_energy(v, np.sin(0.5 * phi), om2)
         stats: dict[int, GuardStats] = {}
+        turns = np.zeros(self.size, dtype=np.int64)  # the compiled careful step's reversals
         meth = METHODS[self.method]
         groups = self._groups
         rec_t: list[float] = []
@@ -627,7 +631,8 @@ class Sweep:
                     grp.load(phi, v, energy, om2, gam)
                 loaded = True
                 if self.jit:
-                    self._run_compiled(hh, count, done, total, t_end, every, records, stats)
+                    self._run_compiled(hh, count, done, total, t_end, every, records, stats,
+                                       turns)
                     done += count
                 for _ in range(0 if self.jit else count):
                     for grp in groups:
@@ -645,7 +650,8 @@ class Sweep:
                             if d % every == 0 or d == total)]
             rec_p = list(np.concatenate([rp for rp, _ in records], axis=1))
             rec_v = list(np.concatenate([rv for _, rv in records], axis=1))
-        return self._result(stats, rec_t, rec_p, rec_v, record_every is not None, total, t_end)
+        return self._result(stats, turns, rec_t, rec_p, rec_v, record_every is not None, total,
+                            t_end)
 
     def _params(self, i: int) -> PendulumParams:
         """Return the parameters of pendulum ``i`` (in the order given)."""
@@ -655,11 +661,12 @@ class Sweep:
 
     def _run_compiled(self, hh: float, count: int, base: int, total: int, t_end: float,
                       every: int, records: list[tuple[FloatArray, FloatArray]],
-                      stats: dict[int, GuardStats]) -> None:
+                      stats: dict[int, GuardStats], turns: IntArray) -> None:
         """Advance the loaded groups by ``count`` steps of their compiled runs (``jit=True``).
 
         The steps the runs refuse are taken by :func:`_careful_one`, as the numpy path takes
-        them; a state beyond the run's speed bound is refused at the earliest step it occurs.
+        them (the reversals the compiled careful step splits are added to ``turns``); a state
+        beyond the run's speed bound is refused at the earliest step it occurs.
         """
         meth = METHODS[self.method]
 
@@ -673,13 +680,8 @@ class Sweep:
                 grp.e[j] = specific_energy(v1, math.sin(0.5 * p1), w2)
 
         g = guard_for(meth.tableau)
-        beyond, turns = run_piece(self._groups, hh, count, base, total, every, records,
-                                  self._vmax, careful, (g.disk, g.real, g.max_angle))
-        for i, k in turns.items():
-            st = stats.get(i)
-            if st is None:
-                st = stats[i] = GuardStats()
-            st.reversals += k
+        beyond = run_piece(self._groups, hh, count, base, total, every, records, self._vmax,
+                           turns, careful, (g.disk, g.real, g.max_angle))
         if beyond:
             done, pos = min(beyond)
             grp = next(grp for grp in self._groups if grp.sl.start <= pos < grp.sl.stop)
@@ -699,15 +701,21 @@ class Sweep:
         except IntegratorError as exc:
             raise IntegratorError(f'{exc} (index {int(self._order[j])})') from None
 
-    def _result(self, stats: dict[int, GuardStats], rec_t: list[float], rec_p: list[FloatArray],
-                rec_v: list[FloatArray], rec: bool, total: int, t_end: float) -> SweepResult:
-        """Return the stretch's result in the order the pendulums were given."""
+    def _result(self, stats: dict[int, GuardStats], turns: IntArray, rec_t: list[float],
+                rec_p: list[FloatArray], rec_v: list[FloatArray], rec: bool, total: int,
+                t_end: float) -> SweepResult:
+        """Return the stretch's result in the order the pendulums were given.
+
+        ``stats`` are the careful path's counters per n-sorted pendulum it acted on, ``turns``
+        the reversals the compiled careful step split (zeros on numpy).
+        """
         inv, size = self._inv, self.size
         counters = {k: np.zeros(size, dtype=np.int64)
-                    for k in ('substeps', 'fallbacks', 'reversals', 'sticks')}
+                    for k in ('substeps', 'fallbacks', 'sticks')}
+        counters['reversals'] = turns.copy()
         for i, st in stats.items():
             for k, arr in counters.items():
-                arr[i] = getattr(st, k)
+                arr[i] += getattr(st, k)
         phi_out, v_out = self._phi[inv], self._v[inv]
         return SweepResult(
             phi=phi_out, dphi=v_out,
