@@ -253,3 +253,27 @@ def test_the_run_keeps_the_next_recorded_step() -> None:
             later = [d for d in range(done + 1, total + 1)
                      if record_row(d, every, total, rows) >= 0]
             assert next_record(done, every, total) == (later[0] if later else -1)
+
+
+def test_exponents_sharing_a_kernel_run_together_each_its_own_steps() -> None:
+    # Distinct non-integer n (and n < 1, which the compiled careful step hands back) share one
+    # kernel and run in one call, side by side: every pendulum still takes the Stepper's steps,
+    # its recording rows included.
+    rng = np.random.default_rng(21)
+    n = np.concatenate([rng.uniform(1.05, 4.95, 12), rng.uniform(0.2, 0.95, 4)])
+    gamma = rng.choice([0.5, 5.0, 40.0], n.size)
+    p0, v0 = rng.uniform(-3.0, 3.0, n.size), rng.uniform(-2.0, 2.0, n.size)
+    h, steps = 1e-2, 30
+    res = sweep(W2, gamma, n, p0, v0, steps * h, h, record_every=7, jit=True)
+    assert res.dphi_record is not None and res.phi_record is not None
+    for i in range(n.size):
+        st = Stepper(PendulumParams.from_omega0_sq(W2, float(gamma[i]), float(n[i])),
+                     float(p0[i]), float(v0[i]), h)
+        for k in range(1, steps + 1):
+            st.step()
+            if k % 7 == 0 or k == steps:
+                row = k // 7 if k % 7 == 0 else -1
+                assert (res.phi_record[row, i], res.dphi_record[row, i]) == (st.phi, st.dphi)
+        assert tuple(int(getattr(res, c)[i]) for c in COUNTERS) == tuple(
+            getattr(st.stats, c) for c in COUNTERS)
+    assert res.reversals.sum() > 0  # the compiled careful step took part

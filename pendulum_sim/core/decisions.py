@@ -158,9 +158,9 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
     return define('\n'.join(lines) + '\n', 'fast', env, f'<fast {tableau.name}>')
 
 
-KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'n', 'LO', 'HI',
-               'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base', 'every',
-               'total', 'RP', 'RV', 'REV', 'use_careful', 'disk', 'real', 'max_angle')
+KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'NN', 'LO',
+               'HI', 'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base', 'every',
+               'total', 'RP', 'RV', 'REV', 'CAREFUL', 'disk', 'real', 'max_angle')
 """The arguments of a compiled sweep run (:func:`kernel_source`), arrays in capitals."""
 
 
@@ -233,7 +233,7 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '        lo = LO[i]', '        hi = HI[i]', '        reach = REACH[i]',
              '        v_acc = V_ACC[i]', '        check = CHECK[i]',
              '        nonsmooth = NONSMOOTH[i]', '        coulomb = COULOMB[i]',
-             '        vmax = VMAX[i]',
+             '        vmax = VMAX[i]', '        n = NN[i]', '        use_careful = CAREFUL[i]',
              '        p0 = P[i]', '        v0 = V[i]', '        e = E[i]', '        k = K[i]',
              '        nxt = next_record(base + k, every, total)',
              '        while k < count:', *(pad + line for line in body),

@@ -547,6 +547,7 @@ class Sweep:
                 # The compiled careful step serves guarded laws with n >= 1.
                 grp.use_careful = self.guard and grp.n >= 1.0
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
+        self._energy: FloatArray | None = None  # E/I of the states, n-sorted, where known
         self._bounds = ain_bounds(self._tau)
         for grp in self._groups:
             grp.use_torque(self._tau, self.energy_check)
@@ -598,7 +599,11 @@ class Sweep:
         steps = [(h, k_full)] + ([(last, 1)] if last > 0.0 else [])
         total = k_full + (1 if last > 0.0 else 0)
         om2, gam, phi, v = self._om2, self._gam, self._phi, self._v
-        energy = specific_energy(v, np.sin(0.5 * phi), om2)
+        # E/I of the current states: the last result's, or made here (after a refused run).
+        energy = self._energy
+        if energy is None:
+            energy = specific_energy(v, np.sin(0.5 * phi), om2)
+        self._energy = None  # the loop below writes into it
         stats: dict[int, GuardStats] = {}
         turns = np.zeros(self.size, dtype=np.int64)  # the compiled careful step's reversals
         meth = METHODS[self.method]
@@ -717,9 +722,10 @@ class Sweep:
             for k, arr in counters.items():
                 arr[i] += getattr(st, k)
         phi_out, v_out = self._phi[inv], self._v[inv]
+        energy = specific_energy(v_out, np.sin(0.5 * phi_out), self._om2[inv])
+        self._energy = energy[self._order]  # where the next advance starts
         return SweepResult(
-            phi=phi_out, dphi=v_out,
-            energy=specific_energy(v_out, np.sin(0.5 * phi_out), self._om2[inv]),
+            phi=phi_out, dphi=v_out, energy=energy,
             t_record=np.array(rec_t) if rec else None,
             phi_record=np.array(rec_p)[:, inv] if rec else None,
             dphi_record=np.array(rec_v)[:, inv] if rec else None,
