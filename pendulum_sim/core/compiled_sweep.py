@@ -97,16 +97,23 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
         g = int(owner[j])
         return grps[g], j - offs[g]
 
+    whole = True  # the first call runs every pendulum: its checks need no gathers
     while idx.size:
         run = kernel[0] if idx.size >= PARALLEL_MIN else kernel[1]
         run(P, V, E, k, idx, h, count, *cols, nn, *decide, vm, base, every, total, rp, rv,
             rev, use, *guard)
-        fast = ~(np.abs(V[idx]) <= vm[idx])
-        for j in idx[fast].tolist():
+        if whole:
+            fast = ~(np.abs(V) <= vm)
+            stopped, handed = np.flatnonzero(fast), np.flatnonzero(~fast & (k < count))
+            whole = False
+        else:
+            fast = ~(np.abs(V[idx]) <= vm[idx])
+            stopped, handed = idx[fast], idx[~fast & (k[idx] < count)]
+        for j in stopped.tolist():
             grp, jl = where(j)
             beyond.append((base + int(k[j]), grp.sl.start + jl))
         left = []
-        for j in idx[~fast & (k[idx] < count)].tolist():
+        for j in handed.tolist():
             grp, jl = where(j)
             careful(grp, jl, h)
             k[j] += 1

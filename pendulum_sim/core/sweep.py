@@ -714,23 +714,24 @@ class Sweep:
         ``stats`` are the careful path's counters per n-sorted pendulum it acted on, ``turns``
         the reversals the compiled careful step split (zeros on numpy).
         """
-        inv, size = self._inv, self.size
+        inv, size, order = self._inv, self.size, self._order
+        # The counters in the given order: the careful path's scattered, the run's gathered.
         counters = {k: np.zeros(size, dtype=np.int64)
                     for k in ('substeps', 'fallbacks', 'sticks')}
-        counters['reversals'] = turns.copy()
+        counters['reversals'] = turns[inv]
         for i, st in stats.items():
             for k, arr in counters.items():
-                arr[i] += getattr(st, k)
+                arr[order[i]] += getattr(st, k)
         phi_out, v_out = self._phi[inv], self._v[inv]
         energy = specific_energy(v_out, np.sin(0.5 * phi_out), self._om2[inv])
-        self._energy = energy[self._order]  # where the next advance starts
+        self._energy = energy[order]  # where the next advance starts
         return SweepResult(
             phi=phi_out, dphi=v_out, energy=energy,
             t_record=np.array(rec_t) if rec else None,
             phi_record=np.array(rec_p)[:, inv] if rec else None,
             dphi_record=np.array(rec_v)[:, inv] if rec else None,
-            substeps=counters['substeps'][inv], fallbacks=counters['fallbacks'][inv],
-            reversals=counters['reversals'][inv], sticks=counters['sticks'][inv],
+            substeps=counters['substeps'], fallbacks=counters['fallbacks'],
+            reversals=counters['reversals'], sticks=counters['sticks'],
             steps=total, h=self.h, t_end=t_end, method=self.method,
         )
 
