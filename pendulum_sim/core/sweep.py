@@ -324,11 +324,16 @@ class _Group:
         self.any_lo = bool(lo.any())
 
     def load(self, phi: FloatArray, v: FloatArray, energy: FloatArray, om2: FloatArray,
-             gam: FloatArray) -> None:
-        """Take the group's state and constants from the n-sorted arrays."""
+             gam: FloatArray, uniform: bool = True) -> None:
+        """Take the group's state and constants from the n-sorted arrays.
+
+        ``uniform`` also sets the constants as one float where they are uniform (the numpy
+        step's arguments; a compiled run reads the columns).
+        """
         sl = self.sl
         self.p, self.v, self.e = phi[sl].copy(), v[sl].copy(), energy[sl].copy()
-        self.w2, self.gamma = _uniform(om2[sl]), _uniform(gam[sl])
+        if uniform:
+            self.w2, self.gamma = _uniform(om2[sl]), _uniform(gam[sl])
         self.w2_col, self.gamma_col = om2[sl], gam[sl]
 
     def store(self, phi: FloatArray, v: FloatArray, energy: FloatArray) -> None:
@@ -633,7 +638,7 @@ class Sweep:
                 for grp in groups:
                     if self.guard:
                         grp.use_step(g, hh, om2, gam, self._bounds)
-                    grp.load(phi, v, energy, om2, gam)
+                    grp.load(phi, v, energy, om2, gam, uniform=not self.jit)
                 loaded = True
                 if self.jit:
                     self._run_compiled(hh, count, done, total, t_end, every, records, stats,
