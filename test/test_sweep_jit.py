@@ -10,6 +10,7 @@ the C library's pow).
 from __future__ import annotations
 
 import itertools
+import math
 from typing import Any
 
 import numpy as np
@@ -31,6 +32,7 @@ from pendulum_sim.core.guard import GuardStats
 from pendulum_sim.core.jit import available, numba_twin
 from pendulum_sim.core.law import damping_expression, power_source
 from pendulum_sim.core.methods import METHODS
+from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import TABLEAUS
 
@@ -277,3 +279,17 @@ def test_exponents_sharing_a_kernel_run_together_each_its_own_steps() -> None:
         assert tuple(int(getattr(res, c)[i]) for c in COUNTERS) == tuple(
             getattr(st.stats, c) for c in COUNTERS)
     assert res.reversals.sum() > 0  # the compiled careful step took part
+
+
+def test_a_kernel_text_leaves_out_the_tests_its_exponent_cannot_fail() -> None:
+    # Texts of one special exponent drop what its Problem never sets (Coulomb only at n = 0,
+    # no kink for odd whole n, no stiff transient for n <= 1); the shared text keeps them all.
+    tab = TABLEAUS['rk4']
+    body = {n: kernel_source(tab, n).split('def kernel')[1] for n in (0.0, 1.0, 2.0, 3.0, 3.7)}
+    assert 'coulomb and' in body[0.0] and 'coulomb and' not in body[2.0]
+    assert 'nonsmooth and (' not in body[3.0] and 'nonsmooth and (' in body[2.0]
+    assert 'if ok and av > v_acc' not in body[1.0] and 'if ok and av > v_acc' in body[2.0]
+    assert all(k in body[3.7] for k in ('coulomb and', 'nonsmooth and (', 'if ok and av > v_acc'))
+    for n in (1.0, 3.0, 5.0):
+        assert not Problem(W2, 1.0, n).nonsmooth and not Problem(W2, 1.0, n).coulomb
+    assert math.isinf(Problem(W2, 1.0, 1.0).v_acc) and math.isinf(Problem(W2, 1.0, 0.5).v_acc)
