@@ -201,15 +201,16 @@ def _step_with_n(tableau: Tableau, n: float, branch: bool, name: str) -> list[st
 def kernel_source(tableau: Tableau, n: float) -> str:
     """Return the sweep's run of many steps for one exponent, over arrays, as source text.
 
-    ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, n, LO, HI, REACH, V_ACC, CHECK,
-    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, REV, use_careful, disk, real,
+    ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, NN, LO, HI, REACH, V_ACC, CHECK,
+    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, REV, CAREFUL, disk, real,
     max_angle)`` advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
     ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
     step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
     fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
-    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``).
-    A refused step is taken, where ``use_careful`` and it is not a stiff transient (decided
+    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``); a
+    text that serves one special exponent leaves out the tests its pendulums cannot fail.
+    A refused step is taken, where ``CAREFUL[i]`` and it is not a stiff transient (decided
     here, by :func:`stiff_source`), by ``careful_step`` (the careful path's split step,
     ``compiled_careful.py``; its reversals counted in ``REV[i]``, the guard's ``disk``,
     ``real`` and ``max_angle`` its constants). The run stops at a step neither takes
@@ -218,7 +219,8 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``
     (the next such step kept by :func:`next_record`).
     The texts are the ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`;
-    the exponent is an argument, so one text serves every exponent whose law it spells alike.
+    the exponent is read per pendulum (``NN[i]``), so one text serves every exponent whose law
+    it spells alike, in one call.
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
     with the exponent an argument, which ``careful_step`` takes.
     """
