@@ -20,6 +20,7 @@ from pendulum_sim.core import PendulumParams
 from pendulum_sim.core.codegen import define
 from pendulum_sim.core.explicit import compile_step
 from pendulum_sim.core.jit import available as jit_available
+from pendulum_sim.core.jit import numba_twin
 from pendulum_sim.core.law import (
     SCALAR_ENV,
     SLOPE_SOURCE,
@@ -28,6 +29,7 @@ from pendulum_sim.core.law import (
     compile_power,
     damping_derivative,
     damping_expression,
+    power_formula,
     power_source,
     slope_formula,
 )
@@ -206,3 +208,15 @@ def test_the_slope_source_spells_each_special_exponent_by_the_rule() -> None:
     assert 'if n == 4.0:\n        return float(gamma * n * (a * a * a))' in SLOPE_SOURCE
     assert SLOPE_SOURCE.count('**') == 1
     assert SLOPE_SOURCE.endswith('    return float(gamma * n * (a ** (n - 1.0)))\n')
+
+
+@pytest.mark.parametrize('n', (*EXPONENTS, 4.0, 6.0, 7.0))
+@pytest.mark.parametrize('v', SPEEDS)
+def test_the_run_time_power_is_the_one_rule(n: float, v: float) -> None:
+    # power_formula(a, n) is |φ'|^n for an exponent known only at run time (code compiled once
+    # for all exponents): the float power_source spells for that n, a product for whole n.
+    a = abs(v)
+    want = _rule(power_source(n, 'n', 'a'), a=a, n=n)
+    assert _same(_value(lambda: power_formula(a, n), 1.0), want)
+    if jit_available() and v == 3.0:
+        assert _same(numba_twin(power_formula)(a, n), want)

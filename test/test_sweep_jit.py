@@ -21,15 +21,23 @@ from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen,
 from pendulum_sim.core.compiled_careful import COUNTERS as CAREFUL_COUNTERS
 from pendulum_sim.core.compiled_careful import careful_step
 from pendulum_sim.core.coulomb import creep_rate, friction_step
-from pendulum_sim.core.decisions import compile_kernel, kernel_source, stiff_transient
+from pendulum_sim.core.decisions import (
+    compile_kernel,
+    kernel_source,
+    next_record,
+    record_row,
+    stiff_source,
+    stiff_transient,
+)
 from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.explicit import step_source
 from pendulum_sim.core.guard import FALLBACK, GuardStats, substep_count
 from pendulum_sim.core.implicit import MAX_FALLBACK_SUBSTEPS
 from pendulum_sim.core.jit import available, numba_twin
-from pendulum_sim.core.law import damping_derivative, damping_expression
+from pendulum_sim.core.law import damping_derivative, damping_expression, power_source
 from pendulum_sim.core.methods import METHODS
 from pendulum_sim.core.model import _eigs
+from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import TABLEAUS
 
@@ -349,6 +357,75 @@ def test_distinct_exponents_share_their_generated_code() -> None:
     assert len({id(grp.kernel[0]) for grp in prepared._groups}) == 1
 
 
+def test_the_stiff_test_spells_the_power_by_the_laws_rule() -> None:
+    # The stiff-transient threshold ½ γ |φ'|^n is the law's power (law.power_source): whole n
+    # as multiplications, in the Stepper's fast step, the kernel and the careful path alike.
+    tab = TABLEAUS['rk4']
+    for n in (2.0, 3.0, 3.7):
+        power = power_source(n, 'n')
+        assert power in stiff_source(n)
+        assert power in kernel_source(tab, n).split('def kernel')[1]
+    assert '**' not in stiff_source(3.0)
+    # A speed where the product |v|·|v|·|v| is below the C library's pow in the last bit, and a
+    # net deceleration one float above half the product's γ|v|³: stiff by the law's rule.
+    rng = np.random.default_rng(3)
+    v = next(x for x in rng.uniform(1.0, 2.0, 100_000).tolist() if x * x * x < x ** 3.0)
+    gamma = 1.0
+    a0 = -float(np.nextafter(0.5 * gamma * (v * v * v), np.inf))
+    assert stiff_transient(v, a0, gamma, 3.0, 0.5)
+    assert stiff_transient(np.array([v]), np.array([a0]), gamma, 3.0, np.array([0.5]))[0]
+    assert not stiff_transient(v, np.nextafter(a0, 0.0), gamma, 3.0, 0.5)
+
+
+def test_the_run_keeps_the_next_recorded_step() -> None:
+    # next_record gives the first step after `done` that record_row records: the compiled run
+    # writes the rows record_row gives without a division per step.
+    for every, total in itertools.product(range(5), range(1, 13)):
+        rows = 1 + total // every + (1 if total % every else 0) if every else 0
+        for done in range(total + 1):
+            later = [d for d in range(done + 1, total + 1)
+                     if record_row(d, every, total, rows) >= 0]
+            assert next_record(done, every, total) == (later[0] if later else -1)
+
+
+def test_exponents_sharing_a_kernel_run_together_each_its_own_steps() -> None:
+    # Distinct non-integer n (and n < 1, which the compiled careful step hands back) share one
+    # kernel and run in one call, side by side: every pendulum still takes the Stepper's steps,
+    # its recording rows included.
+    rng = np.random.default_rng(21)
+    n = np.concatenate([rng.uniform(1.05, 4.95, 12), rng.uniform(0.2, 0.95, 4)])
+    gamma = rng.choice([0.5, 5.0, 40.0], n.size)
+    p0, v0 = rng.uniform(-3.0, 3.0, n.size), rng.uniform(-2.0, 2.0, n.size)
+    h, steps = 1e-2, 30
+    res = sweep(W2, gamma, n, p0, v0, steps * h, h, record_every=7, jit=True)
+    assert res.dphi_record is not None and res.phi_record is not None
+    for i in range(n.size):
+        st = Stepper(PendulumParams.from_omega0_sq(W2, float(gamma[i]), float(n[i])),
+                     float(p0[i]), float(v0[i]), h)
+        for k in range(1, steps + 1):
+            st.step()
+            if k % 7 == 0 or k == steps:
+                row = k // 7 if k % 7 == 0 else -1
+                assert (res.phi_record[row, i], res.dphi_record[row, i]) == (st.phi, st.dphi)
+        assert tuple(int(getattr(res, c)[i]) for c in COUNTERS) == tuple(
+            getattr(st.stats, c) for c in COUNTERS)
+    assert res.reversals.sum() > 0  # the compiled careful step took part
+
+
+def test_a_kernel_text_leaves_out_the_tests_its_exponent_cannot_fail() -> None:
+    # Texts of one special exponent drop what its Problem never sets (Coulomb only at n = 0,
+    # no kink for odd whole n, no stiff transient for n <= 1); the shared text keeps them all.
+    tab = TABLEAUS['rk4']
+    body = {n: kernel_source(tab, n).split('def kernel')[1] for n in (0.0, 1.0, 2.0, 3.0, 3.7)}
+    assert 'coulomb and' in body[0.0] and 'coulomb and' not in body[2.0]
+    assert 'nonsmooth and (' not in body[3.0] and 'nonsmooth and (' in body[2.0]
+    assert 'if ok and av > v_acc' not in body[1.0] and 'if ok and av > v_acc' in body[2.0]
+    assert all(k in body[3.7] for k in ('coulomb and', 'nonsmooth and (', 'if ok and av > v_acc'))
+    for n in (1.0, 3.0, 5.0):
+        assert not Problem(W2, 1.0, n).nonsmooth and not Problem(W2, 1.0, n).coulomb
+    assert math.isinf(Problem(W2, 1.0, 1.0).v_acc) and math.isinf(Problem(W2, 1.0, 0.5).v_acc)
+
+
 # (γ, n, φ0, φ'0, τ/I) at h = 1 ms: Coulomb friction sticking after a reversal, breaking away
 # under input, held at rest against an input; near-Coulomb laws creeping from rest (the issue's
 # n = 0.001 and 0.01 at γ = 100), swinging, reversing and creeping, with input.
@@ -361,7 +438,7 @@ def test_friction_steps_run_compiled_as_the_stepper_takes_them() -> None:
     # Coulomb sticking and break-away, the near-Coulomb creep and the n < 1 splits are taken
     # inside the compiled run (nothing handed back to Engine.careful), to the Stepper's bit,
     # counters included; the numpy sweep decides alike (its power differs from C's pow in the
-    # last bit for non-integer n). A stiff γ's guard substeps are still handed back.
+    # last bit for non-integer n). A stiff γ's guard substeps are taken compiled too.
     h, steps = 1e-3, 1000
     gam, nn, p0, v0, tau = (np.array(col) for col in zip(*FRICTION, strict=True))
     a = sweep(W2, gam, nn, p0, v0, steps * h, h, torque=tau)

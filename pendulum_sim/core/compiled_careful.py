@@ -44,6 +44,7 @@ from .dirk import damping_formula
 from .energy_redo import redo
 from .guard import FALLBACK, substep_count
 from .implicit import fallback_refused, fallback_run
+from .law import power_formula
 from .split import micro_step
 
 COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks', 'energy_rejections', 'projections')
@@ -73,8 +74,8 @@ def careful_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: floa
     held, p1, v1, _ = friction_step(branch, laws, p, v, h, ain, w2, gamma, n, coulomb, True)
     if not held:
         _, _, _, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
-        if abs(v) > v_acc:  # decisions.STIFF_SRC: a stiff transient is declined
-            pw = abs(v) ** n
+        if abs(v) > v_acc:  # decisions.stiff_source: a stiff transient is declined
+            pw = power_formula(abs(v), n)
             if not pw < math.inf or abs(a0) > 0.5 * gamma * pw:
                 return False, p, v
         done, p1, v1, subs, fbs, turns = guarded(plain, branch, laws, p, v, h, ain, w2, gamma,

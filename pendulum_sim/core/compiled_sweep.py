@@ -25,62 +25,123 @@ from .decisions import record_row
 
 PARALLEL_MIN = 512
 """Pendulums below which a run is taken by the serial kernel (threads cost more to wake)."""
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 CarefulFn = Callable[[Any, int, float], None]
 """``careful(group, j, h)``: take the step of h of the group's pendulum j on the careful path,
 in place in the group's state arrays ``p``, ``v``, ``e``."""
 
 
 def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, every: int,
-              records: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]],
-              vmax: npt.NDArray[np.float64], careful: CarefulFn, guard: npt.NDArray[np.float64]
-              ) -> tuple[list[tuple[int, int]], dict[int, npt.NDArray[np.int64]], int]:
+              records: list[tuple[FloatArray, FloatArray]], vmax: FloatArray, counts: IntArray,
+              careful: CarefulFn, guard: FloatArray) -> tuple[list[tuple[int, int]], int]:
     """Advance every group's pendulums by ``count`` steps of ``h`` (steps ``base`` + 1 …).
 
-    Each group's ``kernel`` is its (parallel, serial) pair of ``jit.compile_kernel``;
-    ``records[g]`` are the group's recording arrays (rows by :func:`record_row`; shape (0, m)
-    when not recording), ``vmax`` the run's speed bound over the n-sorted pendulums, ``guard``
-    the guard's ``StabilityGuard.constants`` for the compiled careful step (a group takes it
-    where its ``use_careful`` is set). Returns ``(step, position)`` of every pendulum whose
-    |φ'| went beyond its bound (it stops there; the caller refuses the run), the counters of
-    the compiled careful step per position (``compiled_careful.COUNTERS``), and how many
-    steps were handed back to ``careful``.
+    Each group's ``kernel`` is its (parallel, serial) pair of ``jit.compile_kernel``; the
+    groups whose laws share one source text (hence one kernel) run in one call, their columns
+    side by side (:func:`_run_together`). ``records[g]`` are the group's recording arrays (rows
+    by :func:`record_row`; shape (0, m) when not recording), ``vmax`` the run's speed bound
+    over the n-sorted pendulums, ``guard`` the guard's ``StabilityGuard.constants`` for the
+    compiled careful step (a group takes it where its ``use_careful`` is set). What the
+    compiled careful step did is added to ``counts`` (a row per n-sorted pendulum,
+    ``compiled_careful.COUNTERS``). Returns ``(step, position)`` of every pendulum whose |φ'|
+    went beyond its bound (it stops there; the caller refuses the run) and how many steps were
+    handed back to ``careful``.
     """
+    shared: dict[int, list[int]] = {}
+    for g, grp in enumerate(groups):
+        shared.setdefault(id(grp.kernel), []).append(g)
     beyond: list[tuple[int, int]] = []
-    counted: dict[int, npt.NDArray[np.int64]] = {}
+    handed = 0
+    for members in shared.values():
+        stopped, took = _run_together([groups[g] for g in members],
+                                      [records[g] for g in members], h, count, base, total,
+                                      every, vmax, counts, careful, guard)
+        beyond += stopped
+        handed += took
+    return beyond, handed
+
+
+def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h: float,
+                  count: int, base: int, total: int, every: int, vmax: FloatArray,
+                  counts: IntArray, careful: CarefulFn,
+                  guard: FloatArray) -> tuple[list[tuple[int, int]], int]:
+    """Run groups that share one kernel in its calls, over their columns put side by side.
+
+    The groups' state arrays ``p``, ``v``, ``e`` become views of the joint ones, so that the
+    kernel and the careful path (``careful(group, j, h)``) write the same floats.
+    """
+    one = len(grps) == 1
+    sizes = [grp.sl.stop - grp.sl.start for grp in grps]
+    offs = np.cumsum([0, *sizes]).tolist()
+
+    def joint(name: str) -> Any:
+        if one:
+            return getattr(grps[0], name)
+        return np.concatenate([getattr(grp, name) for grp in grps])
+
+    P, V, E = joint('p'), joint('v'), joint('e')
+    if not one:
+        for grp, a, b in zip(grps, offs[:-1], offs[1:], strict=True):
+            grp.p, grp.v, grp.e = P[a:b], V[a:b], E[a:b]
+    cols = [joint(name) for name in ('ain_col', 'w2_col', 'gamma_col')]
+    nn = np.concatenate([np.full(size, grp.n) for grp, size in zip(grps, sizes, strict=True)])
+    decide = [joint(name) for name in
+              ('lo', 'hi', 'reach', 'v_acc', 'check', 'nonsmooth', 'coulomb')]
+    vm = np.concatenate([vmax[grp.sl] for grp in grps])
+    use = np.concatenate([np.full(size, grp.use_careful)
+                          for grp, size in zip(grps, sizes, strict=True)])
+    rp = recs[0][0] if one else np.concatenate([r[0] for r in recs], axis=1)
+    rv = recs[0][1] if one else np.concatenate([r[1] for r in recs], axis=1)
+    rows = rp.shape[0]
+    owner = np.repeat(np.arange(len(grps)), sizes)
+    size = offs[-1]
+    cnt = np.zeros((size, len(COUNTERS)), dtype=np.int64)
     handed_back = 0
-    for grp, (rp, rv) in zip(groups, records, strict=True):
-        sl = grp.sl
-        size = sl.stop - sl.start
-        vm = vmax[sl]
-        k = np.zeros(size, dtype=np.int64)
-        idx = np.arange(size, dtype=np.int64)
-        rows = rp.shape[0]
-        counts = np.zeros((size, len(COUNTERS)), dtype=np.int64)
-        while idx.size:
-            run = grp.kernel[0] if idx.size >= PARALLEL_MIN else grp.kernel[1]
-            run(grp.p, grp.v, grp.e, k, idx, h, count, grp.ain_col, grp.w2_col, grp.gamma_col,
-                grp.n, grp.lo, grp.hi, grp.reach, grp.v_acc, grp.check, grp.nonsmooth,
-                grp.coulomb, vm, base, every, total, rp, rv, counts, grp.use_careful, guard)
-            fast = ~(np.abs(grp.v[idx]) <= vm[idx])
-            for j in idx[fast].tolist():
-                beyond.append((base + int(k[j]), sl.start + j))
-            left = []
-            for j in idx[~fast & (k[idx] < count)].tolist():
-                careful(grp, j, h)
-                handed_back += 1
-                k[j] += 1
-                done = base + int(k[j])
-                r = record_row(done, every, total, rows)
-                if r >= 0:
-                    rp[r, j], rv[r, j] = grp.p[j], grp.v[j]
-                if abs(grp.v[j]) <= vm[j]:
-                    left.append(j)
-                else:
-                    beyond.append((done, sl.start + j))
-            idx = np.array(left, dtype=np.int64)
-        for j in np.flatnonzero(counts.any(axis=1)).tolist():
-            counted[sl.start + j] = counts[j]
-    return beyond, counted, handed_back
+    k = np.zeros(size, dtype=np.int64)
+    idx = np.arange(size, dtype=np.int64)
+    kernel = grps[0].kernel
+    beyond: list[tuple[int, int]] = []
+
+    def where(j: int) -> tuple[Any, int]:
+        g = int(owner[j])
+        return grps[g], j - offs[g]
+
+    whole = True  # the first call runs every pendulum: its checks need no gathers
+    while idx.size:
+        run = kernel[0] if idx.size >= PARALLEL_MIN else kernel[1]
+        run(P, V, E, k, idx, h, count, *cols, nn, *decide, vm, base, every, total, rp, rv,
+            cnt, use, guard)
+        if whole:
+            fast = ~(np.abs(V) <= vm)
+            stopped, handed = np.flatnonzero(fast), np.flatnonzero(~fast & (k < count))
+            whole = False
+        else:
+            fast = ~(np.abs(V[idx]) <= vm[idx])
+            stopped, handed = idx[fast], idx[~fast & (k[idx] < count)]
+        for j in stopped.tolist():
+            grp, jl = where(j)
+            beyond.append((base + int(k[j]), grp.sl.start + jl))
+        left = []
+        for j in handed.tolist():
+            grp, jl = where(j)
+            careful(grp, jl, h)
+            handed_back += 1
+            k[j] += 1
+            done = base + int(k[j])
+            r = record_row(done, every, total, rows)
+            if r >= 0:
+                rp[r, j], rv[r, j] = P[j], V[j]
+            if abs(V[j]) <= vm[j]:
+                left.append(j)
+            else:
+                beyond.append((done, grp.sl.start + jl))
+        idx = np.array(left, dtype=np.int64)
+    for grp, (grp_rp, grp_rv), a, b in zip(grps, recs, offs[:-1], offs[1:], strict=True):
+        counts[grp.sl] += cnt[a:b]
+        if not one:
+            grp_rp[:], grp_rv[:] = rp[:, a:b], rv[:, a:b]
+    return beyond, handed_back
 
 
 __all__ = ['CarefulFn', 'run_piece']

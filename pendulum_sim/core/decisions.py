@@ -18,7 +18,8 @@ import numpy.typing as npt
 
 from .codegen import define
 from .explicit import step_source, step_source_with_n
-from .law import SCALAR_ENV, damping_expression, laws_source
+from .law import SCALAR_ENV, VECTOR_ENV, damping_expression, laws_source, power_source, whole
+from .model import smooth_law
 from .tableaus import Tableau
 
 ENERGY_TOL = 1e-12
@@ -29,13 +30,15 @@ this relative size (of E/I + ω0²) is a defect and the step is redone implicitl
 CROSS_SRC = '(v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))'
 NEAR_SRC = 'abs(v) < reach * abs(a0)'
 REVERSAL_SRC = f'{CROSS_SRC} | ({NEAR_SRC})'
-STIFF_SRC = '(abs(v) > v_acc) & (abs(a0) > 0.5 * gamma * abs(v) ** n)'
+STIFF_SRC = '(abs(v) > v_acc) & (abs(a0) > 0.5 * gamma * ({power}))'
 ENERGY_SRC = '0.5 * v * v + 2.0 * w2 * s * s'
 ROSE_SRC = 'e1 > e0 + ENERGY_TOL * (e0 + w2)'
 """The fast path's decisions as source text, written once: compiled into the functions below
 (which work on floats and numpy arrays: ``sweep`` and the careful path use them) and inlined,
 with ``and``/``or`` for ``&``/``|``, into the Stepper's generated fast step
-(:func:`compile_fast_step`)."""
+(:func:`compile_fast_step`) and the compiled sweep's run (:func:`kernel_source`).
+``STIFF_SRC`` holds the damping's |φ'|^n as ``{power}``: :func:`stiff_source` fills it in
+with the law's one power rule (``law.power_source``)."""
 
 
 def _expr(args: str, src: str) -> Any:
@@ -44,7 +47,6 @@ def _expr(args: str, src: str) -> Any:
 
 
 _REVERSAL = _expr('v, v1, a0, h, reach', REVERSAL_SRC)
-_STIFF = _expr('v, a0, gamma, n, v_acc', STIFF_SRC)
 _ENERGY = _expr('v, s, w2', ENERGY_SRC)
 _ROSE = _expr('e0, e1, w2', ROSE_SRC)
 
@@ -83,14 +85,30 @@ def accuracy_speed(gamma: float, n: float, omega0: float) -> float:
     return math.exp(min(log_v, 700.0))
 
 
+def stiff_source(n: float) -> str:
+    """Return the stiff-transient test for the exponent ``n`` as source (:data:`STIFF_SRC`).
+
+    |φ'|^n is the damping law's power (``law.power_source``): multiplications for a whole n,
+    ``sqrt`` for 0.5, ``abs(v) ** n`` for every other exponent (one text for all of those).
+    """
+    return STIFF_SRC.format(power=power_source(n, 'n'))
+
+
+@functools.lru_cache(maxsize=256)
+def _stiff(n: float, vector: bool) -> Any:
+    env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV)
+    return define(f'def f(v, a0, gamma, n, v_acc):\n    return {stiff_source(n)}\n', 'f', env,
+                  '<decision>')
+
+
 def stiff_transient(v: Any, a0: Any, gamma: Any, n: float, v_acc: Any) -> Any:
     """Return where a step starts in a damping-dominated transient too fast for a plain step.
 
     Above :func:`accuracy_speed` and with the net acceleration at least half the damping
     γ|φ'|^n (the damping is not balanced by gravity and input, as it is in a creep;
-    :data:`STIFF_SRC`).
+    :func:`stiff_source`). ``v`` a float or a numpy array, the others alike or floats.
     """
-    return _STIFF(v, a0, gamma, n, v_acc)
+    return _stiff(n, isinstance(v, np.ndarray))(v, a0, gamma, n, v_acc)
 
 
 def specific_energy(v: Any, sin_half: Any, w2: Any) -> Any:
@@ -127,7 +145,7 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
         test = _scalar(REVERSAL_SRC if reach > 0.0 else CROSS_SRC)
         lines += [f'    if {test}:', '        return None']
     if math.isfinite(v_acc):
-        lines += [f'    if abs(v) > v_acc and {_scalar(STIFF_SRC)}:', '        return None']
+        lines += [f'    if abs(v) > v_acc and {_scalar(stiff_source(n))}:', '        return None']
     if check_energy:
         lines += ['    if ain != 0.0:', '        return p1, v1, w, NAN',
                   '    if e0 != e0:', '        s = sin(0.5 * p0)',
@@ -141,9 +159,9 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
     return define('\n'.join(lines) + '\n', 'fast', env, f'<fast {tableau.name}>')
 
 
-KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'n', 'LO', 'HI',
-               'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base', 'every',
-               'total', 'RP', 'RV', 'COUNTS', 'use_careful', 'GUARD')
+KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'NN', 'LO',
+               'HI', 'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base', 'every',
+               'total', 'RP', 'RV', 'COUNTS', 'CAREFUL', 'GUARD')
 """The arguments of a compiled sweep run (:func:`kernel_source`), arrays in capitals."""
 
 
@@ -162,33 +180,61 @@ def record_row(done: int, every: int, total: int, rows: int) -> int:
     return -1
 
 
+def next_record(done: int, every: int, total: int) -> int:
+    """Return the first step after ``done`` whose state :func:`record_row` records, or −1.
+
+    The compiled run keeps it beside its step counter, so that a step that records nothing
+    costs one comparison (no division).
+    """
+    if every <= 0 or done >= total:
+        return -1
+    return min((done // every + 1) * every, total)
+
+
 @functools.lru_cache(maxsize=256)
 def kernel_source(tableau: Tableau, n: float) -> str:
     """Return the sweep's run of many steps for one exponent, over arrays, as source text.
 
-    ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, n, LO, HI, REACH, V_ACC, CHECK,
-    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, COUNTS, use_careful, GUARD)``
+    ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, NN, LO, HI, REACH, V_ACC, CHECK,
+    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, COUNTS, CAREFUL, GUARD)``
     advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
     ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
     step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
     fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
-    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``).
-    A refused step is taken, where ``use_careful``, by ``careful_step`` (the careful path,
+    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``); a
+    text that serves one special exponent leaves out the tests its pendulums cannot fail.
+    A refused step is taken, where ``CAREFUL[i]`` and it is not a stiff transient (decided
+    here, by :func:`stiff_source`), by ``careful_step`` (the careful path,
     ``compiled_careful.py``: Coulomb friction at rest, the near-Coulomb creep, the guard's
     substeps, the reversal split, the fallback and the energy redo; what it did counted in the
     row ``COUNTS[i]`` as ``compiled_careful.COUNTERS`` orders them, ``GUARD`` the guard's
-    ``StabilityGuard.constants``). The run stops at a step neither takes (``K[i]`` is then the
-    step ``Engine.careful`` must take) or after a step that leaves |φ'| above ``VMAX[i]`` (the
-    run's speed bound; the caller refuses to go on). The state after step ``base + k`` is
-    written to the row :func:`record_row` gives of ``RP`` and ``RV``.
+    ``StabilityGuard.constants``). The run stops at a step neither takes
+    (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'|
+    above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
+    step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``
+    (the next such step kept by :func:`next_record`).
     The texts are the ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`;
-    the exponent is an argument, so one text serves every exponent whose law it spells alike.
+    the exponent is read per pendulum (``NN[i]``), so one text serves every exponent whose law
+    it spells alike, in one call.
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
     with the exponent an argument (``explicit.step_source_with_n``), and ``laws``, the two laws
     themselves (``law.laws_source``), which ``careful_step`` takes.
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
+    stiff = _scalar(stiff_source(n))
+    # A text serves its exponent alone where the law spells it specially (law.power_source):
+    # a test that cannot refuse a step of that exponent is left out (Problem: Coulomb only at
+    # n = 0, no kink for odd whole n, no stiff transient for n <= 1).
+    special = n in (0.0, 0.5) or whole(n)
+    tests = []
+    if not special or n == 0.0:
+        tests += ['            if ok and coulomb and v == 0.0:', '                ok = False']
+    if not (special and smooth_law(n)):
+        tests += [f'            if ok and nonsmooth and ({_scalar(REVERSAL_SRC)}):',
+                  '                ok = False']
+    if not special or n > 1.0:
+        tests += [f'            if ok and av > v_acc and {stiff}:', '                ok = False']
     pad = '        '
     lines = [*step_source_with_n(tableau, n, False, 'plain').splitlines(),
              *step_source_with_n(tableau, n, True, 'branch').splitlines(),
@@ -201,32 +247,32 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '        lo = LO[i]', '        hi = HI[i]', '        reach = REACH[i]',
              '        v_acc = V_ACC[i]', '        check = CHECK[i]',
              '        nonsmooth = NONSMOOTH[i]', '        coulomb = COULOMB[i]',
-             '        vmax = VMAX[i]',
+             '        vmax = VMAX[i]', '        n = NN[i]', '        use_careful = CAREFUL[i]',
              '        p0 = P[i]', '        v0 = V[i]', '        e = E[i]', '        k = K[i]',
+             '        nxt = next_record(base + k, every, total)',
              '        while k < count:', *(pad + line for line in body),
              '            v = v0', '            a0 = a_0', '            av = abs(v)',
              '            ok = lo <= av <= hi and -INF < p1 < INF and -INF < v1 < INF',
-             '            if ok and coulomb and v == 0.0:', '                ok = False',
-             f'            if ok and nonsmooth and ({_scalar(REVERSAL_SRC)}):',
-             '                ok = False',
-             f'            if ok and av > v_acc and {_scalar(STIFF_SRC)}:',
-             '                ok = False',
+             *tests,
              '            if ok and check:', '                e0 = e', '                v = v1',
              '                s = sin(0.5 * p1)', f'                e1 = {ENERGY_SRC}',
              f'                if {ROSE_SRC}:', '                    ok = False',
              '                else:', '                    e = e1',
              '            if not ok:',
              '                if not use_careful:', '                    break',
+             '                v = v0',
+             f'                if av > v_acc and {stiff}:', '                    break',
              '                done, p1, v1 = careful_step(',
-             '                    plain, branch, laws, p0, v0, h, ain, w2, gamma, n, v_acc,',
+             '                    plain, branch, laws, p0, v0, h, ain, w2, gamma, n, INF,',
              '                    reach, check, nonsmooth, coulomb, GUARD, COUNTS[i])',
              '                if not done:', '                    break',
              '                if check:', '                    v = v1',
              '                    s = sin(0.5 * p1)', f'                    e = {ENERGY_SRC}',
              '            p0 = p1', '            v0 = v1', '            k += 1',
-             '            r = record_row(base + k, every, total, rows)',
-             '            if r >= 0:', '                RP[r, i] = p0',
-             '                RV[r, i] = v0',
+             '            if base + k == nxt:',
+             '                r = record_row(nxt, every, total, rows)',
+             '                RP[r, i] = p0', '                RV[r, i] = v0',
+             '                nxt = next_record(nxt, every, total)',
              '            if not abs(v0) <= vmax:', '                break',
              '        P[i] = p0', '        V[i] = v0', '        E[i] = e', '        K[i] = k']
     return '\n'.join(lines) + '\n'
@@ -240,7 +286,7 @@ def compile_kernel(tableau: Tableau, n: float, careful_step: Any) -> Any:
     """
     env: dict[str, object] = dict(SCALAR_ENV, INF=math.inf, ENERGY_TOL=ENERGY_TOL,
                                   prange=range, record_row=record_row,
-                                  careful_step=careful_step)
+                                  next_record=next_record, careful_step=careful_step)
     return define(kernel_source(tableau, n), 'kernel', env, f'<kernel {tableau.name}>')
 
 
@@ -275,8 +321,10 @@ __all__ = [
     'compile_kernel',
     'energy_rose',
     'kernel_source',
+    'next_record',
     'record_row',
     'reversal_suspect',
     'specific_energy',
+    'stiff_source',
     'stiff_transient',
 ]

@@ -18,9 +18,10 @@ sign, so these are the same floats as sgn(φ') times the product of |φ'| (``tes
 
 The steps (``explicit.py``, ``rosenbrock.py``, ``extrapolation.py``), the fast-path decisions,
 the reversal location, the creep, the guard, :class:`~pendulum_sim.core.model.PendulumParams`
-and ``model.dissipated_power`` evaluate what this module generates. Two formulas beside it are
-not the law itself: the stiff-transient threshold of ``decisions.py`` (half of γ |φ'|^n, one
-text compiled for a run-time n) and the creep speed (|F|/γ)^(1/n) of ``coulomb.py``, its inverse.
+and ``model.dissipated_power`` evaluate what this module generates, and the stiff-transient
+test of ``decisions.py`` compares with half of γ |φ'|^n spelled by :func:`power_source`
+(:func:`power_formula` is the same rule for an exponent known only at run time). The
+creep speed (|F|/γ)^(1/n) of ``coulomb.py`` is not the law itself but its inverse.
 """
 from __future__ import annotations
 
@@ -156,6 +157,25 @@ Free of exception handling so that numba can compile it for the compiled steps (
 in Python a power beyond float64 raises OverflowError, where compiled code gives inf."""
 
 
+def _power_source() -> str:
+    """Return the source of :func:`power_formula`: one branch per specially spelled exponent."""
+    lines = ['def power_formula(a, n):']
+    for e in (0.0, 0.5, *(float(k) for k in range(1, WHOLE_MAX + 1))):
+        lines += [f'    if n == {e!r}:', f'        return {power_source(e, "n", "a")}']
+    lines.append(f'    return {power_source(math.pi, "n", "a")}')  # any non-special n
+    return '\n'.join(lines) + '\n'
+
+
+POWER_SOURCE = _power_source()
+
+power_formula: Callable[[float, float], float] = define(
+    POWER_SOURCE, 'power_formula', {'sqrt': math.sqrt}, '<power>')
+"""Return a ** n for a speed ``a`` >= 0 and an exponent known only at run time, generated.
+
+The value :func:`power_source` spells for that exponent (one branch per special exponent), for
+code compiled once for every exponent (``compiled_careful.py``)."""
+
+
 def damping_derivative(gamma: float, n: float, dphi: float) -> float:
     """Return d = ∂(γ φ'|φ'|^(n−1))/∂φ' = γ n |φ'|^(n−1) (inf for n < 1 at rest, eq 18-19)."""
     try:
@@ -198,6 +218,7 @@ def compile_power(n: float) -> Any:
 
 
 __all__ = [
+    'POWER_SOURCE',
     'SCALAR_ENV',
     'SLOPE_SOURCE',
     'VECTOR_ENV',
@@ -210,6 +231,7 @@ __all__ = [
     'damping_expression',
     'laws_source',
     'power_expression',
+    'power_formula',
     'power_source',
     'slope_expression',
     'slope_formula',

@@ -332,11 +332,16 @@ class _Group:
         self.any_lo = bool(lo.any())
 
     def load(self, phi: FloatArray, v: FloatArray, energy: FloatArray, om2: FloatArray,
-             gam: FloatArray) -> None:
-        """Take the group's state and constants from the n-sorted arrays."""
+             gam: FloatArray, uniform: bool = True) -> None:
+        """Take the group's state and constants from the n-sorted arrays.
+
+        ``uniform`` also sets the constants as one float where they are uniform (the numpy
+        step's arguments; a compiled run reads the columns).
+        """
         sl = self.sl
         self.p, self.v, self.e = phi[sl].copy(), v[sl].copy(), energy[sl].copy()
-        self.w2, self.gamma = _uniform(om2[sl]), _uniform(gam[sl])
+        if uniform:
+            self.w2, self.gamma = _uniform(om2[sl]), _uniform(gam[sl])
         self.w2_col, self.gamma_col = om2[sl], gam[sl]
 
     def store(self, phi: FloatArray, v: FloatArray, energy: FloatArray) -> None:
@@ -376,15 +381,15 @@ def _flags(w2: float, gamma: float, n: float, guard: bool) -> tuple[float, ...]:
             prob.v_acc if guard else math.inf)
 
 
-def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str,
-            guard: bool) -> list[_Group]:
-    """Split the n-sorted pendulums into groups of one n (blocks of at most BLOCK)."""
+def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard: bool,
+            block: int = BLOCK) -> list[_Group]:
+    """Split the n-sorted pendulums into groups of one n (blocks of at most ``block``)."""
     tab = METHODS[method].tableau
     out = []
     vals, starts = np.unique(nn, return_index=True)
     ends = [*starts[1:].tolist(), nn.size]
-    pieces = [(val, a0, min(a0 + BLOCK, b)) for val, a, b in
-              zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, BLOCK)]
+    pieces = [(val, a0, min(a0 + block, b)) for val, a, b in
+              zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, block)]
     for val, a, b in pieces:
         sl = slice(a, b)
         flags = _on_unique(functools.partial(_flags, n=val, guard=guard), om2[sl], gam[sl])
@@ -550,7 +555,10 @@ class Sweep:
         # The state bound, held along the run where the guard is on (as in the Stepper).
         self._vmax = (_each(run_speed_limit, self._gam, self._nn, self._om2) if self.guard
                       else np.full(order.size, np.inf))
-        self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard)
+        # numpy takes a group in cache-sized blocks; a compiled run keeps each state in
+        # registers over its steps, so it takes each exponent's pendulums in one run.
+        self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard,
+                               order.size if self.jit else BLOCK)
         if self.jit:
             tab = METHODS[method].tableau
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
@@ -560,6 +568,7 @@ class Sweep:
                 grp.use_careful = self.guard
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
         self._handed_back = 0  # steps of the current advance taken by Engine.careful
+        self._energy: FloatArray | None = None  # E/I of the states, n-sorted, where known
         self._bounds = ain_bounds(self._tau)
         for grp in self._groups:
             grp.use_torque(self._tau, self.energy_check)
@@ -611,9 +620,15 @@ class Sweep:
         steps = [(h, k_full)] + ([(last, 1)] if last > 0.0 else [])
         total = k_full + (1 if last > 0.0 else 0)
         om2, gam, phi, v = self._om2, self._gam, self._phi, self._v
-        energy = specific_energy(v, np.sin(0.5 * phi), om2)
+        # E/I of the current states: the last result's, or made here (after a refused run).
+        energy = self._energy
+        if energy is None:
+            energy = specific_energy(v, np.sin(0.5 * phi), om2)
+        self._energy = None  # the loop below writes into it
         stats: dict[int, GuardStats] = {}
         self._handed_back = 0
+        # What the compiled careful step did, per n-sorted pendulum (compiled_careful.COUNTERS).
+        counts = np.zeros((self.size, len(COUNTERS)), dtype=np.int64)
         meth = METHODS[self.method]
         groups = self._groups
         rec_t: list[float] = []
@@ -641,10 +656,11 @@ class Sweep:
                 for grp in groups:
                     if self.guard:
                         grp.use_step(g, hh, om2, gam, self._bounds)
-                    grp.load(phi, v, energy, om2, gam)
+                    grp.load(phi, v, energy, om2, gam, uniform=not self.jit)
                 loaded = True
                 if self.jit:
-                    self._run_compiled(hh, count, done, total, t_end, every, records, stats)
+                    self._run_compiled(hh, count, done, total, t_end, every, records, stats,
+                                       counts)
                     done += count
                 for _ in range(0 if self.jit else count):
                     for grp in groups:
@@ -662,7 +678,8 @@ class Sweep:
                             if d % every == 0 or d == total)]
             rec_p = list(np.concatenate([rp for rp, _ in records], axis=1))
             rec_v = list(np.concatenate([rv for _, rv in records], axis=1))
-        return self._result(stats, rec_t, rec_p, rec_v, record_every is not None, total, t_end)
+        return self._result(stats, counts, rec_t, rec_p, rec_v, record_every is not None, total,
+                            t_end)
 
     def _params(self, i: int) -> PendulumParams:
         """Return the parameters of pendulum ``i`` (in the order given)."""
@@ -672,11 +689,13 @@ class Sweep:
 
     def _run_compiled(self, hh: float, count: int, base: int, total: int, t_end: float,
                       every: int, records: list[tuple[FloatArray, FloatArray]],
-                      stats: dict[int, GuardStats]) -> None:
+                      stats: dict[int, GuardStats], counts: IntArray) -> None:
         """Advance the loaded groups by ``count`` steps of their compiled runs (``jit=True``).
 
         The steps the runs refuse are taken by :func:`_careful_one`, as the numpy path takes
-        them; a state beyond the run's speed bound is refused at the earliest step it occurs.
+        them (what the compiled careful step did is added to ``counts``, a row per n-sorted
+        pendulum, ``compiled_careful.COUNTERS``); a state
+        beyond the run's speed bound is refused at the earliest step it occurs.
         """
         meth = METHODS[self.method]
 
@@ -690,16 +709,9 @@ class Sweep:
                 grp.e[j] = specific_energy(v1, math.sin(0.5 * p1), w2)
 
         g = guard_for(meth.tableau)
-        beyond, counted, handed = run_piece(self._groups, hh, count, base, total, every,
-                                            records, self._vmax, careful,
-                                            np.array(g.constants))
+        beyond, handed = run_piece(self._groups, hh, count, base, total, every, records,
+                                   self._vmax, counts, careful, np.array(g.constants))
         self._handed_back += handed
-        for i, row in counted.items():
-            st = stats.get(i)
-            if st is None:
-                st = stats[i] = GuardStats()
-            for name, k in zip(COUNTERS, row.tolist(), strict=True):
-                setattr(st, name, getattr(st, name) + k)
         if beyond:
             done, pos = min(beyond)
             grp = next(grp for grp in self._groups if grp.sl.start <= pos < grp.sl.stop)
@@ -719,26 +731,31 @@ class Sweep:
         except IntegratorError as exc:
             raise IntegratorError(f'{exc} (index {int(self._order[j])})') from None
 
-    def _result(self, stats: dict[int, GuardStats], rec_t: list[float], rec_p: list[FloatArray],
-                rec_v: list[FloatArray], rec: bool, total: int, t_end: float) -> SweepResult:
-        """Return the stretch's result in the order the pendulums were given."""
-        inv, size = self._inv, self.size
-        counters = {k: np.zeros(size, dtype=np.int64)
-                    for k in COUNTERS}
+    def _result(self, stats: dict[int, GuardStats], counts: IntArray, rec_t: list[float],
+                rec_p: list[FloatArray], rec_v: list[FloatArray], rec: bool, total: int,
+                t_end: float) -> SweepResult:
+        """Return the stretch's result in the order the pendulums were given.
+
+        ``stats`` are the careful path's counters per n-sorted pendulum it acted on (in
+        Python), ``counts`` what the compiled careful step did (zeros on numpy).
+        """
+        inv, order = self._inv, self._order
+        counters = {k: counts[inv, c] for c, k in enumerate(COUNTERS)}  # in the given order
         for i, st in stats.items():
             for k, arr in counters.items():
-                arr[i] = getattr(st, k)
+                arr[order[i]] += getattr(st, k)
         phi_out, v_out = self._phi[inv], self._v[inv]
+        energy = specific_energy(v_out, np.sin(0.5 * phi_out), self._om2[inv])
+        self._energy = energy[order]  # where the next advance starts
         return SweepResult(
-            phi=phi_out, dphi=v_out,
-            energy=specific_energy(v_out, np.sin(0.5 * phi_out), self._om2[inv]),
+            phi=phi_out, dphi=v_out, energy=energy,
             t_record=np.array(rec_t) if rec else None,
             phi_record=np.array(rec_p)[:, inv] if rec else None,
             dphi_record=np.array(rec_v)[:, inv] if rec else None,
-            substeps=counters['substeps'][inv], fallbacks=counters['fallbacks'][inv],
-            reversals=counters['reversals'][inv], sticks=counters['sticks'][inv],
-            energy_rejections=counters['energy_rejections'][inv],
-            projections=counters['projections'][inv], handed_back=self._handed_back,
+            substeps=counters['substeps'], fallbacks=counters['fallbacks'],
+            reversals=counters['reversals'], sticks=counters['sticks'],
+            energy_rejections=counters['energy_rejections'],
+            projections=counters['projections'], handed_back=self._handed_back,
             steps=total, h=self.h, t_end=t_end, method=self.method,
         )
 
