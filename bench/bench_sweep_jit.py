@@ -8,10 +8,11 @@ a fair bare compiled RK4 kernel (:func:`bare_rk4`: the pendulums sorted by n, on
 exponent with the law as ``explicit.damping_expression`` spells it, integer n as
 multiplications, the state in registers over the steps, in parallel over the pendulums as the
 compiled sweep runs; no guard, no decisions) over the same pendulums in the same run, the
-three in turn for ``--repeats`` rounds. Prints ns per pendulum-step (the best of each) and the
-ratios. Then (``--distinct``, issue 20) a sweep of 2000 pendulums with as many distinct
-non-integer n from 0.2 to 5: its set-up, how many source texts that compiled, and its time a
-step, numpy and compiled. Asserts nothing.
+three in turn for ``--repeats`` rounds. Prints ns per pendulum-step (the best of each), the
+ratios, and the compiled sweep's ratio to the bare kernel round by round (median and range).
+Then (``--distinct``, issue 20) a sweep of 2000 pendulums with as many distinct non-integer n
+from 0.2 to 5: its set-up, how many source texts that compiled, and its time a step, numpy and
+compiled. Asserts nothing.
 """
 from __future__ import annotations
 
@@ -150,11 +151,16 @@ def main() -> int:
 
     bare(1)                                                 # compiles
     runs['bare compiled RK4'] = functools.partial(bare, steps)
-    # In turn, round after round, the best of each: on a shared machine the load moves.
+    # In turn, round after round, the best of each: on a shared machine the load moves. The
+    # ratio of the compiled sweep to the bare kernel is also taken round by round (the two
+    # measured a moment apart), its median and range printed: it moves less than either.
     times = dict.fromkeys(runs, math.inf)
+    rounds: list[float] = []
     for _ in range(args.repeats):
-        for name, run in runs.items():
-            times[name] = min(times[name], best(run, 1))
+        this = {name: best(run, 1) for name, run in runs.items()}
+        for name, sec in this.items():
+            times[name] = min(times[name], sec)
+        rounds.append(this['sweep, compiled'] / this['bare compiled RK4'])
     figures = {}
     for name, sec in times.items():
         figures[name] = sec / (size * steps) * 1e9
@@ -164,6 +170,8 @@ def main() -> int:
     figures['bare'] = figures['bare compiled RK4']
     print(f'compiled sweep / bare kernel = {figures["compiled"] / figures["bare"]:.2f}; '
           f'numpy / compiled sweep = {figures["numpy"] / figures["compiled"]:.2f}')
+    print(f'compiled sweep / bare kernel round by round: median {np.median(rounds):.2f} '
+          f'(from {min(rounds):.2f} to {max(rounds):.2f}, {len(rounds)} rounds)')
     if args.distinct:
         distinct(args.distinct, 10)
     return 0
