@@ -34,8 +34,9 @@ STIFF_SRC = '(abs(v) > v_acc) & (abs(a0) > 0.5 * gamma * ({power}))'
 ENERGY_SRC = '0.5 * v * v + 2.0 * w2 * s * s'
 ROSE_SRC = 'e1 > e0 + ENERGY_TOL * (e0 + w2)'
 """The fast path's decisions as source text, written once: compiled into the functions below
-(which work on floats and numpy arrays: ``sweep`` and the careful path use them) and inlined,
-with ``and``/``or`` for ``&``/``|``, into the Stepper's generated fast step
+(which work on floats and numpy arrays: ``sweep`` and the careful path use them) and inlined
+as they stand (``&`` and ``|`` take Python's and numba's bools as numpy's, every operand in
+parentheses) into the Stepper's generated fast step
 (:func:`compile_fast_step`) and the compiled sweep's run (:func:`kernel_source`).
 ``STIFF_SRC`` holds the damping's |φ'|^n as ``{power}``: :func:`stiff_source` fills it in
 with the law's one power rule (``law.power_source``)."""
@@ -121,10 +122,6 @@ def energy_rose(e0: Any, e1: Any, w2: Any) -> Any:
     return _ROSE(e0, e1, w2)
 
 
-def _scalar(src: str) -> str:
-    return src.replace(' | ', ' or ').replace(' & ', ' and ')
-
-
 @functools.lru_cache(maxsize=256)
 def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float, v_acc: float,
                       check_energy: bool, w2: float, gamma: float) -> Any:
@@ -142,10 +139,10 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
              '    if not (-INF < p1 < INF and -INF < v1 < INF):', '        return None',
              '    v = v0', '    a0 = a_0']
     if nonsmooth:
-        test = _scalar(REVERSAL_SRC if reach > 0.0 else CROSS_SRC)
+        test = REVERSAL_SRC if reach > 0.0 else CROSS_SRC
         lines += [f'    if {test}:', '        return None']
     if math.isfinite(v_acc):
-        lines += [f'    if abs(v) > v_acc and {_scalar(stiff_source(n))}:', '        return None']
+        lines += [f'    if abs(v) > v_acc and {stiff_source(n)}:', '        return None']
     if check_energy:
         lines += ['    if ain != 0.0:', '        return p1, v1, w, NAN',
                   '    if e0 != e0:', '        s = sin(0.5 * p0)',
@@ -214,7 +211,7 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
     step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``
     (the next such step kept by :func:`next_record`).
-    The texts are the ``*_SRC`` above, with ``and``/``or``, as in :func:`compile_fast_step`;
+    The texts are the ``*_SRC`` above, as in :func:`compile_fast_step`;
     the exponent is read per pendulum (``NN[i]``), so one text serves every exponent whose law
     it spells alike, in one call.
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
@@ -222,7 +219,7 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     themselves (``law.laws_source``), which ``careful_step`` takes.
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
-    stiff = _scalar(stiff_source(n))
+    stiff = stiff_source(n)
     # A text serves its exponent alone where the law spells it specially (law.power_source):
     # a test that cannot refuse a step of that exponent is left out (Problem: Coulomb only at
     # n = 0, no kink for odd whole n, no stiff transient for n <= 1).
@@ -231,7 +228,7 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     if not special or n == 0.0:
         tests += ['            if ok and coulomb and v == 0.0:', '                ok = False']
     if not (special and smooth_law(n)):
-        tests += [f'            if ok and nonsmooth and ({_scalar(REVERSAL_SRC)}):',
+        tests += [f'            if ok and nonsmooth and ({REVERSAL_SRC}):',
                   '                ok = False']
     if not special or n > 1.0:
         tests += [f'            if ok and av > v_acc and {stiff}:', '                ok = False']

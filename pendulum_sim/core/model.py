@@ -149,8 +149,12 @@ class PendulumParams:
 
     @classmethod
     def from_omega0_sq(cls, omega0_sq: float, gamma: float, n: float) -> PendulumParams:
-        """Build parameters with m = I = 1 kg (m²) and l = 1 m, g = ω0², for dimensionless use."""
-        return cls(m=1.0, l=1.0, inertia=1.0, g=omega0_sq, gamma=gamma, n=n)
+        """Build parameters with m = I = 1 kg (m²) and l = 1 m, g = ω0², for dimensionless use.
+
+        ω0² is checked under its own name (``omega0_sq``), before it becomes g.
+        """
+        w2 = _check_nonneg('omega0_sq', omega0_sq, ' s^-2')
+        return cls(m=1.0, l=1.0, inertia=1.0, g=w2, gamma=gamma, n=n)
 
     @property
     def omega0_sq(self) -> float:

@@ -36,15 +36,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .codegen import define
 from .compiled_careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
 from .decisions import (
-    CROSS_SRC,
-    REVERSAL_SRC,
     ain_bounds,
     compile_kernel,
     energy_rose,
+    reversal_suspect,
     specific_energy,
     stiff_transient,
 )
@@ -219,8 +217,7 @@ def _one(arrs: dict[str, FloatArray], i: int, check: Any, only: str | None = Non
     try:
         return check()
     except ModelError as exc:
-        msg = str(exc).replace('g must be >= 0 m/s^2', 'omega0_sq must be >= 0 s^-2')
-        msg = msg.replace('g must be finite', 'omega0_sq must be finite')
+        msg = str(exc)
         name = msg.split(' ', 1)[0]
         arr = arrs.get(only or name)
         at = f' at index {i}' if arr is not None and arr.ndim == 1 else ''
@@ -228,22 +225,6 @@ def _one(arrs: dict[str, FloatArray], i: int, check: Any, only: str | None = Non
 
 
 # --------------------------------------------------------------------------- the sweep
-
-
-def _decision(args: str, src: str) -> Any:
-    """Compile one of the engine's decision texts for arrays, ``abs(v)`` read from ``av``.
-
-    The text is the engine's own (``engine.CROSS_SRC``, ``REVERSAL_SRC``); only the speed
-    |φ'|, which the sweep has already formed for the guard's range, is passed in instead of
-    being formed again.
-    """
-    env: dict[str, object] = {}
-    body = src.replace('abs(v)', 'av')
-    return define(f'def f({args}):\n    return {body}\n', 'f', env, '<sweep decision>')
-
-
-_CROSS = _decision('v, av, v1, a0, h', CROSS_SRC)
-_NEAR_OR_CROSS = _decision('v, av, v1, a0, h, reach', REVERSAL_SRC)
 
 
 def _uniform(x: FloatArray) -> Any:
@@ -417,8 +398,7 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     if grp.any_coulomb:
         ok &= ~(grp.coulomb & (vv == 0.0))
     if grp.any_nonsmooth:
-        sus = (_NEAR_OR_CROSS(vv, av, v1, a0, hh, grp.reach) if grp.graded
-               else _CROSS(vv, av, v1, a0, hh))
+        sus = reversal_suspect(vv, v1, a0, hh, grp.reach if grp.graded else 0.0)
         if not grp.all_nonsmooth:
             sus &= grp.nonsmooth
         ok &= ~sus
