@@ -168,7 +168,10 @@ def test_stop_goes_on_after_pause_false() -> None:
 
 @pytest.mark.parametrize('stamped', [True, False], ids=['stamped', 'unstamped'])
 def test_a_late_answer_is_dropped_and_never_shifts_the_answers_after_it(stamped: bool) -> None:
-    params = {'sync_timeout': 0.2, 'diagnostics': True, 'joint_commands_input': stamped,
+    # A timeout of 1 s: the one deferred answer waits it out, while no answer the probe sends
+    # at once can miss it on a loaded machine (at 0.2 s a stall while the test waits for the
+    # diagnostics timed out a second state).
+    params = {'sync_timeout': 1.0, 'diagnostics': True, 'joint_commands_input': stamped,
               'effort_input': not stamped}
     with NodeProcess('controller_test', params) as node, Probe() as probe:
         diags = probe.subscribe(DiagnosticArray, '/diagnostics')
