@@ -201,12 +201,12 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
     stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``); a
     text that serves one special exponent leaves out the tests its pendulums cannot fail.
-    A refused step is taken, where ``CAREFUL[i]`` and it is not a stiff transient (decided
-    here, by :func:`stiff_source`), by ``careful_step`` (the careful path,
+    A refused step is taken, where ``CAREFUL[i]``, by ``careful_step`` (the careful path,
     ``compiled_careful.py``: Coulomb friction at rest, the near-Coulomb creep, the guard's
-    substeps, the reversal split, the fallback and the energy redo; what it did counted in the
-    row ``COUNTS[i]`` as ``compiled_careful.COUNTERS`` orders them, ``GUARD`` the guard's
-    ``StabilityGuard.constants``). The run stops at a step neither takes
+    substeps, the reversal split, the fallback and the energy redo; it declines a stiff
+    transient, its |φ'|^n by ``law.power_formula``, the rule :func:`stiff_source` spells; what
+    it did counted in the row ``COUNTS[i]`` as ``compiled_careful.COUNTERS`` orders them,
+    ``GUARD`` the guard's ``StabilityGuard.constants``). The run stops at a step neither takes
     (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'|
     above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
     step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``
@@ -257,10 +257,8 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '                else:', '                    e = e1',
              '            if not ok:',
              '                if not use_careful:', '                    break',
-             '                v = v0',
-             f'                if av > v_acc and {stiff}:', '                    break',
              '                done, p1, v1 = careful_step(',
-             '                    plain, branch, laws, p0, v0, h, ain, w2, gamma, n, INF,',
+             '                    plain, branch, laws, p0, v0, h, ain, w2, gamma, n, v_acc,',
              '                    reach, check, nonsmooth, coulomb, GUARD, COUNTS[i])',
              '                if not done:', '                    break',
              '                if check:', '                    v = v1',
