@@ -448,23 +448,28 @@ class McapRecorder:
 
         The message is serialized at once, so the caller may reuse it right away.
         """
-        if self._error is not None:
-            self._drain()
-            return
-        channel = self._channels.get(topic)
-        if channel is None or self._state != 'open':
-            self._refuse(topic)
-        self._record(self._message(channel.id, serialize_message(msg), stamp_ns), stamp_ns)
+        channel = self._channel_to_write(topic)
+        if channel is not None:
+            self._record(self._message(channel.id, serialize_message(msg), stamp_ns), stamp_ns)
 
     def write_serialized(self, topic: str, data: bytes, stamp_ns: int) -> None:
         """Record one already serialized (CDR) message; cheap, never blocks."""
+        channel = self._channel_to_write(topic)
+        if channel is not None:
+            self._record(self._message(channel.id, data, stamp_ns), stamp_ns)
+
+    def _channel_to_write(self, topic: str) -> _Channel | None:
+        """Return the open channel of ``topic``; None once the writer failed (then drained).
+
+        A topic not added, or a recorder not open, is refused (:meth:`_refuse`).
+        """
         if self._error is not None:
             self._drain()
-            return
+            return None
         channel = self._channels.get(topic)
         if channel is None or self._state != 'open':
             self._refuse(topic)
-        self._record(self._message(channel.id, data, stamp_ns), stamp_ns)
+        return channel
 
     def _record(self, frame: bytes, stamp_ns: int) -> None:
         if not self._send(frame):
