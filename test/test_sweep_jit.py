@@ -22,6 +22,7 @@ from pendulum_sim.core.compiled_careful import COUNTERS as CAREFUL_COUNTERS
 from pendulum_sim.core.compiled_careful import careful_step
 from pendulum_sim.core.coulomb import creep_rate, friction_step
 from pendulum_sim.core.decisions import (
+    accuracy_speed,
     compile_kernel,
     kernel_source,
     next_record,
@@ -36,7 +37,7 @@ from pendulum_sim.core.implicit import MAX_FALLBACK_SUBSTEPS
 from pendulum_sim.core.jit import available, numba_twin
 from pendulum_sim.core.law import damping_derivative, damping_expression, power_source
 from pendulum_sim.core.methods import METHODS
-from pendulum_sim.core.model import _eigs
+from pendulum_sim.core.model import _eigs, run_speed_limit
 from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import TABLEAUS
@@ -127,50 +128,74 @@ def test_jit_must_be_a_bool() -> None:
     assert str(info.value) == 'jit must be True or False, got 1'
 
 
-def _careful_steps(method: str, n: float) -> tuple[Any, Any, Any]:
-    """Return the generated plain and branch steps and the laws (exponent an argument)."""
+STEP_FUNCTIONS = ('plain', 'branch', 'laws', 'pair_plain', 'pair_branch')
+"""The generated functions careful_step takes first (exponent an argument), in its order."""
+
+
+def _careful_steps(method: str, n: float) -> tuple[Any, ...]:
+    """Return the generated functions of :data:`STEP_FUNCTIONS` as Python."""
     kern = compile_kernel(TABLEAUS[method], n, careful_step)
-    return kern.__globals__['plain'], kern.__globals__['branch'], kern.__globals__['laws']
+    return tuple(kern.__globals__[name] for name in STEP_FUNCTIONS)
 
 
-def _compiled(method: str, n: float) -> tuple[Any, Any, Any, Any]:
-    """Return the compiled (careful_step, plain, branch, laws) a compiled sweep's run calls.
+def _compiled(method: str, n: float) -> tuple[Any, ...]:
+    """Return the compiled careful_step and :data:`STEP_FUNCTIONS` a compiled sweep's run calls.
 
     The very objects of the sweep's kernel for this law (``jit.compile_kernel``: compiled
     once per text), so the test checks what the sweep runs and compiles nothing again.
     """
     grp = Sweep(W2, 1.0, n, 0.5, 0.0, 1e-3, method=method, jit=True)._groups[0]
     env = grp.kernel[1].py_func.__globals__
-    return env['careful_step'], env['plain'], env['branch'], env['laws']
+    return (env['careful_step'], *(env[name] for name in STEP_FUNCTIONS))
 
 
 def _stats(st: GuardStats) -> tuple[int, ...]:
     return tuple(getattr(st, k) for k in CAREFUL_COUNTERS)
 
 
+def _random_state(rng: np.random.Generator) -> tuple[float, ...]:
+    """Return (γ, ω0², h, a_in, φ, φ'): slow and fast states, at rest, weak to stiff γ."""
+    gamma = float(rng.choice([0.001, 0.1, 1.0, 30.0, 1e3, 1e4]))
+    w2 = float(rng.choice([0.0, 9.8, 40.0]))
+    h = float(rng.choice([1e-3, 2e-2, 5e-2]))
+    ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
+    p = float(rng.uniform(-3.0, 3.0))
+    v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.6 else rng.uniform(-8.0, 8.0))
+    return gamma, w2, h, ain, p, 0.0 if rng.uniform() < 0.15 else v
+
+
+def _stiff_state(rng: np.random.Generator, n: float) -> tuple[float, ...]:
+    """Return a state in a damping-dominated transient: |φ'| 1.5-30 times the accuracy speed."""
+    gamma = float(rng.choice([0.5, 2.0, 10.0, 50.0]))
+    w2 = float(rng.choice([0.0, 9.8, 40.0]))
+    h = float(rng.choice([1e-3, 2e-2, 5e-2]))
+    ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
+    p = float(rng.uniform(-3.0, 3.0))
+    speed = min(accuracy_speed(gamma, n, math.sqrt(w2)) * float(rng.uniform(1.5, 30.0)),
+                0.5 * run_speed_limit(gamma, n, w2))
+    return gamma, w2, h, ain, p, speed if rng.uniform() < 0.5 else -speed
+
+
 @pytest.mark.parametrize(('method', 'n'), [
     ('rk4', 0.0), ('rk4', 0.01), ('rk4', 0.3), ('rk4', 0.5), ('rk4', 1.0), ('rk4', 1.5),
     ('rk4', 2.0), ('rk4', 2.5), ('rk4', 4.0), ('rk4', 5.0), ('euler', 2.0)])
 def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: float) -> None:
-    # Where the compiled careful step takes a step it must be Engine.careful's step to the bit,
-    # every counter equal (the guard's substeps, the fallback, reversals, Coulomb sticks, the
-    # energy redo and projection); it may decline only a stiff transient (the one kind of step
-    # it leaves to Engine.careful on these states). The same function run as Python and
-    # compiled must agree. Friction at rest (Coulomb, the near-Coulomb creep) is among them.
-    plain, branch, laws = _careful_steps(method, n)
+    # The compiled careful step takes every one of these steps (it declines only the
+    # fallback's refusal and results that are not finite; test below), each Engine.careful's
+    # step to the bit, every counter equal (the guard's substeps, the fallback, reversals,
+    # Coulomb sticks, the energy redo and projection). For n > 1 the states include stiff
+    # transients (|φ'| well above decisions.accuracy_speed), which Engine.stiff covers with
+    # error-controlled DOP853 substeps (stiff.stiff_cover, compiled here). The same function
+    # run as Python and compiled must agree. Friction at rest (Coulomb, the near-Coulomb
+    # creep) is among them.
+    python = _careful_steps(method, n)
     compiled = _compiled(method, n)
     consts = np.array(guard_for(TABLEAUS[method]).constants)
     rng = np.random.default_rng(int(10 * n))
-    took = held = 0
+    held = stiff = stiff_turns = 0
     seen = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-    for _ in range(300):
-        gamma = float(rng.choice([0.001, 0.1, 1.0, 30.0, 1e3, 1e4]))
-        w2 = float(rng.choice([0.0, 9.8, 40.0]))
-        h = float(rng.choice([1e-3, 2e-2, 5e-2]))
-        ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
-        p = float(rng.uniform(-3.0, 3.0))
-        v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.6 else rng.uniform(-8.0, 8.0))
-        v = 0.0 if rng.uniform() < 0.15 else v
+    for k in range(300 + (200 if n > 1.0 else 0)):
+        gamma, w2, h, ain, p, v = _random_state(rng) if k < 300 else _stiff_state(rng, n)
         eng = Engine(w2, gamma, n, METHODS[method])
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
@@ -179,32 +204,36 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
         got = compiled[0](*compiled[1:], *args, counts)
         again = np.zeros_like(counts)
-        assert careful_step(plain, branch, laws, *args, again) == got
+        assert careful_step(*python, *args, again) == got
         assert np.array_equal(again, counts)
-        if got[0]:
-            assert got[1:] == want[:2], (gamma, w2, h, ain, p, v)
-            assert tuple(counts.tolist()) == _stats(st), (gamma, w2, h, ain, p, v)
-            took += 1
-            seen += counts
-            held += friction_step(branch, laws, p, v, h, ain, w2, gamma, n, eng.coulomb,
-                                  True)[0]
+        assert got[0], (gamma, w2, h, ain, p, v)  # taken compiled
+        assert got[1:] == want[:2], (gamma, w2, h, ain, p, v)
+        assert tuple(counts.tolist()) == _stats(st), (gamma, w2, h, ain, p, v)
+        seen += counts
+        held += friction_step(python[1], python[2], p, v, h, ain, w2, gamma, n, eng.coulomb,
+                              True)[0]
+        if abs(v) > eng.v_acc and stiff_transient(
+                v, ain - eng.damping(v) - w2 * math.sin(p), gamma, n, eng.v_acc):
+            stiff += 1
+            stiff_turns += counts[CAREFUL_COUNTERS.index('reversals')] > 0
         else:
-            assert not counts.any()
-            assert abs(v) > eng.v_acc and stiff_transient(
-                v, ain - eng.damping(v) - w2 * math.sin(p), gamma, n, eng.v_acc)
+            assert k < 300  # every state of _stiff_state is a stiff transient
     sub, fb, rev, sticks, rej, proj = seen.tolist()
-    assert took > 150
     # The guard's substeps taken compiled (Coulomb friction has no slope: never substeps; at
     # n = 0.01 the slope is within the disk or beyond the cap: one step or the fallback).
     assert sub > 0 if n not in (0.0, 0.01) else sub == 0
     if n in (0.01, 1.0, 5.0) or method == 'euler':
-        assert fb > 0  # and the fallback (for n = 2, 2.5 these states are stiff ones)
+        assert fb > 0  # and the fallback
     if n != int(n) or n % 2 == 0:
         assert rev > 10  # reversals split compiled
     assert held > 20 if n < 1.0 else held == 0  # Coulomb at rest, the creep
     assert sticks > 0 if n == 0.0 else sticks == 0
     if method == 'euler':
         assert rej > 0 and proj > 0  # energy redos and projections taken compiled
+    # Stiff transients taken compiled (none for n <= 1), cut at reversals for non-smooth laws.
+    assert stiff > 200 if n > 1.0 else stiff == 0
+    if n > 1.0 and (n != int(n) or n % 2 == 0):
+        assert stiff_turns > 5
 
 
 def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:

@@ -26,16 +26,12 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .decisions import STIFF_MAX_TRIALS, STIFF_TOL
+from .decisions import STIFF_MAX_TRIALS, STIFF_PAIR, STIFF_TOL
 from .error_control import accepted, error_norm, min_step, step_factor
 from .explicit import compile_step_with_n
 from .law import damping_derivative
 from .model import run_speed_limit
 from .reversal import CUT_ITERATIONS, CUT_TOL, locate_on_branch
-from .tableaus import DOP853
-
-STIFF_PAIR = DOP853
-"""The embedded pair of the stiff transient's substeps."""
 
 STIFF_Q = 1.0 / (STIFF_PAIR.error_order + 1)
 """The exponent q of the step-size factor ``0.9 err^(−q)`` for :data:`STIFF_PAIR`."""
@@ -141,5 +137,5 @@ def stiff_cover(pair_plain: Any, pair_branch: Any, p: float, v: float, h: float,
     return TAKEN, p, v, w_total, subs, turns
 
 
-__all__ = ['NOT_FINITE', 'OVERFLOW', 'STIFF_PAIR', 'STIFF_Q', 'TAKEN', 'TO_GUARD',
+__all__ = ['NOT_FINITE', 'OVERFLOW', 'STIFF_Q', 'TAKEN', 'TO_GUARD',
            'StiffResult', 'stiff_cover', 'stiff_pair', 'trial']
