@@ -1,4 +1,4 @@
-"""The careful path written to compile: friction, guarded split steps, the fallback, the redo.
+"""The careful path written to compile: friction, stiff transients, guarded split steps, redo.
 
 :meth:`Engine.careful <pendulum_sim.core.engine.Engine.careful>` takes every step the fast path
 refuses. For a guarded explicit method, :func:`careful_step` takes the same operations in the
@@ -33,7 +33,9 @@ user gets that IntegratorError from the one place that raises it) and where a re
 Python raises OverflowError or ValueError (a power beyond float64, the sine of inf) where compiled
 code gives inf or NaN, and which of the two happened decides the Python path (``Engine.careful``'s
 ``except`` or ``Engine._settle``), so those rare steps are taken by Python (inside a trial substep
-of the stiff cover both reject the trial: the same decision). What the step did is added to the
+of the stiff cover both reject the trial: the same decision; the stiff test's damping power, the
+damping slope at the start of a stiff cover or the location of a reversal in it beyond float64
+are declined). What the step did is added to the
 pendulum's counters (:data:`COUNTERS`) only where it was taken. Parity tests
 (``test_sweep_jit.py``) check that both give the same floats and counters.
 """
