@@ -1,14 +1,16 @@
 """Benchmark the sweep's careful path: numpy (Engine.careful in Python) and compiled.
 
-Run: ``.venv/bin/python bench/bench_sweep_careful.py`` (``--size``, ``--steps``). Needs numba
-(the ``jit`` extra). Three populations of N pendulums (2000 by default) whose steps the fast
-path refuses, each the careful path's own work: a stiff viscous γ = 10⁴ (n = 1, h = 20 ms:
-every step the L-stable fallback), a quadratic γ = 10³ from rest (n = 2, h = 20 ms: the
-guard's substeps and reversal splits) and Euler with a small γ (n = 2, γ = 10⁻³, h = 50 ms:
-energy redos and projections). For each: the first compiled call (it compiles), then ns per
-pendulum-step of a prepared ``Sweep`` advanced ``--steps`` steps with numpy and compiled (the
-best of ``--repeats``), their ratio, the steps handed back to ``Engine.careful`` and what the
-careful path counted. Asserts nothing.
+Run: ``.venv/bin/python bench/bench_sweep_careful.py`` (``--size``, ``--steps``). Needs numba (the
+``jit`` extra). Four populations of N pendulums (2000 by default) whose steps the fast path
+refuses, each the careful path's own work: a stiff viscous γ = 10⁴ (n = 1, h = 20 ms: every step
+the L-stable fallback), a quadratic γ = 10³ from rest (n = 2, h = 20 ms: the guard's substeps and
+reversal splits), Euler with a small γ (n = 2, γ = 10⁻³, h = 50 ms: energy redos and projections)
+and damping-dominated transients (n = 2.5, γ = 10, h = 20 ms, from 20-40 rad/s: the
+error-controlled DOP853 substeps of ``stiff.stiff_cover`` until the transient has decayed, then the
+fast path). For each: the first compiled call (it compiles), then ns per pendulum-step of a
+prepared ``Sweep`` advanced ``--steps`` steps with numpy and compiled (the best of ``--repeats``),
+their ratio, the steps handed back to ``Engine.careful`` and what the careful path counted. Asserts
+nothing.
 """
 from __future__ import annotations
 
@@ -30,6 +32,8 @@ POPULATIONS = [
     ('substeps: n = 2, gamma = 1e3, rk4', 'rk4', 1e3, 2.0, 2e-2, (1.5, 2.5), (0.0, 0.0)),
     ('energy redo: n = 2, gamma = 1e-3, euler', 'euler', 1e-3, 2.0, 5e-2, (0.3, 3.0),
      (0.0, 5.0)),
+    ('stiff transient: n = 2.5, gamma = 10, rk4', 'rk4', 10.0, 2.5, 2e-2, (0.5, 1.5),
+     (20.0, 40.0)),
 ]
 
 

@@ -22,6 +22,8 @@ from pendulum_sim.core.compiled_careful import COUNTERS as CAREFUL_COUNTERS
 from pendulum_sim.core.compiled_careful import careful_step
 from pendulum_sim.core.coulomb import creep_rate, friction_step
 from pendulum_sim.core.decisions import (
+    STIFF_MAX_TRIALS,
+    accuracy_speed,
     compile_kernel,
     kernel_source,
     next_record,
@@ -36,8 +38,9 @@ from pendulum_sim.core.implicit import MAX_FALLBACK_SUBSTEPS
 from pendulum_sim.core.jit import available, numba_twin
 from pendulum_sim.core.law import damping_derivative, damping_expression, power_source
 from pendulum_sim.core.methods import METHODS
-from pendulum_sim.core.model import _eigs
+from pendulum_sim.core.model import _eigs, run_speed_limit
 from pendulum_sim.core.problem import Problem
+from pendulum_sim.core.stiff import TO_GUARD, stiff_cover, stiff_pair
 from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import TABLEAUS
 
@@ -127,50 +130,74 @@ def test_jit_must_be_a_bool() -> None:
     assert str(info.value) == 'jit must be True or False, got 1'
 
 
-def _careful_steps(method: str, n: float) -> tuple[Any, Any, Any]:
-    """Return the generated plain and branch steps and the laws (exponent an argument)."""
-    kern = compile_kernel(TABLEAUS[method], n, careful_step)
-    return kern.__globals__['plain'], kern.__globals__['branch'], kern.__globals__['laws']
+STEP_FUNCTIONS = ('plain', 'branch', 'laws', 'pair_plain', 'pair_branch')
+"""The generated functions careful_step takes first (exponent an argument), in its order."""
 
 
-def _compiled(method: str, n: float) -> tuple[Any, Any, Any, Any]:
-    """Return the compiled (careful_step, plain, branch, laws) a compiled sweep's run calls.
+def _careful_steps(method: str, n: float) -> tuple[Any, Any, Any, Any, Any]:
+    """Return the generated functions of :data:`STEP_FUNCTIONS` as Python."""
+    env = compile_kernel(TABLEAUS[method], n, careful_step).__globals__
+    return env['plain'], env['branch'], env['laws'], env['pair_plain'], env['pair_branch']
+
+
+def _compiled(method: str, n: float) -> tuple[Any, ...]:
+    """Return the compiled careful_step and :data:`STEP_FUNCTIONS` a compiled sweep's run calls.
 
     The very objects of the sweep's kernel for this law (``jit.compile_kernel``: compiled
     once per text), so the test checks what the sweep runs and compiles nothing again.
     """
     grp = Sweep(W2, 1.0, n, 0.5, 0.0, 1e-3, method=method, jit=True)._groups[0]
     env = grp.kernel[1].py_func.__globals__
-    return env['careful_step'], env['plain'], env['branch'], env['laws']
+    return (env['careful_step'], *(env[name] for name in STEP_FUNCTIONS))
 
 
 def _stats(st: GuardStats) -> tuple[int, ...]:
     return tuple(getattr(st, k) for k in CAREFUL_COUNTERS)
 
 
+def _random_state(rng: np.random.Generator) -> tuple[float, ...]:
+    """Return (γ, ω0², h, a_in, φ, φ'): slow and fast states, at rest, weak to stiff γ."""
+    gamma = float(rng.choice([0.001, 0.1, 1.0, 30.0, 1e3, 1e4]))
+    w2 = float(rng.choice([0.0, 9.8, 40.0]))
+    h = float(rng.choice([1e-3, 2e-2, 5e-2]))
+    ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
+    p = float(rng.uniform(-3.0, 3.0))
+    v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.6 else rng.uniform(-8.0, 8.0))
+    return gamma, w2, h, ain, p, 0.0 if rng.uniform() < 0.15 else v
+
+
+def _stiff_state(rng: np.random.Generator, n: float) -> tuple[float, ...]:
+    """Return a state in a damping-dominated transient: |φ'| 1.5-30 times the accuracy speed."""
+    gamma = float(rng.choice([0.5, 2.0, 10.0, 50.0]))
+    w2 = float(rng.choice([0.0, 9.8, 40.0]))
+    h = float(rng.choice([1e-3, 2e-2, 5e-2]))
+    ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
+    p = float(rng.uniform(-3.0, 3.0))
+    speed = min(accuracy_speed(gamma, n, math.sqrt(w2)) * float(rng.uniform(1.5, 30.0)),
+                0.5 * run_speed_limit(gamma, n, w2))
+    return gamma, w2, h, ain, p, speed if rng.uniform() < 0.5 else -speed
+
+
 @pytest.mark.parametrize(('method', 'n'), [
     ('rk4', 0.0), ('rk4', 0.01), ('rk4', 0.3), ('rk4', 0.5), ('rk4', 1.0), ('rk4', 1.5),
     ('rk4', 2.0), ('rk4', 2.5), ('rk4', 4.0), ('rk4', 5.0), ('euler', 2.0)])
 def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: float) -> None:
-    # Where the compiled careful step takes a step it must be Engine.careful's step to the bit,
-    # every counter equal (the guard's substeps, the fallback, reversals, Coulomb sticks, the
-    # energy redo and projection); it may decline only a stiff transient (the one kind of step
-    # it leaves to Engine.careful on these states). The same function run as Python and
-    # compiled must agree. Friction at rest (Coulomb, the near-Coulomb creep) is among them.
-    plain, branch, laws = _careful_steps(method, n)
+    # The compiled careful step takes every one of these steps (it declines only the
+    # fallback's refusal and results that are not finite; test below), each Engine.careful's
+    # step to the bit, every counter equal (the guard's substeps, the fallback, reversals,
+    # Coulomb sticks, the energy redo and projection). For n > 1 the states include stiff
+    # transients (|φ'| well above decisions.accuracy_speed), which Engine.stiff covers with
+    # error-controlled DOP853 substeps (stiff.stiff_cover, compiled here). The same function
+    # run as Python and compiled must agree. Friction at rest (Coulomb, the near-Coulomb
+    # creep) is among them.
+    plain, branch, laws, pair_plain, pair_branch = _careful_steps(method, n)
     compiled = _compiled(method, n)
     consts = np.array(guard_for(TABLEAUS[method]).constants)
     rng = np.random.default_rng(int(10 * n))
-    took = held = 0
+    held = stiff = stiff_turns = 0
     seen = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-    for _ in range(300):
-        gamma = float(rng.choice([0.001, 0.1, 1.0, 30.0, 1e3, 1e4]))
-        w2 = float(rng.choice([0.0, 9.8, 40.0]))
-        h = float(rng.choice([1e-3, 2e-2, 5e-2]))
-        ain = float(rng.choice([0.0, 0.0, 1.7, -3.0]))
-        p = float(rng.uniform(-3.0, 3.0))
-        v = float(rng.uniform(-0.05, 0.05) if rng.uniform() < 0.6 else rng.uniform(-8.0, 8.0))
-        v = 0.0 if rng.uniform() < 0.15 else v
+    for k in range(300 + (200 if n > 1.0 else 0)):
+        gamma, w2, h, ain, p, v = _random_state(rng) if k < 300 else _stiff_state(rng, n)
         eng = Engine(w2, gamma, n, METHODS[method])
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
@@ -179,32 +206,35 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
         got = compiled[0](*compiled[1:], *args, counts)
         again = np.zeros_like(counts)
-        assert careful_step(plain, branch, laws, *args, again) == got
+        assert careful_step(plain, branch, laws, pair_plain, pair_branch, *args, again) == got
         assert np.array_equal(again, counts)
-        if got[0]:
-            assert got[1:] == want[:2], (gamma, w2, h, ain, p, v)
-            assert tuple(counts.tolist()) == _stats(st), (gamma, w2, h, ain, p, v)
-            took += 1
-            seen += counts
-            held += friction_step(branch, laws, p, v, h, ain, w2, gamma, n, eng.coulomb,
-                                  True)[0]
+        assert got[0], (gamma, w2, h, ain, p, v)  # taken compiled
+        assert got[1:] == want[:2], (gamma, w2, h, ain, p, v)
+        assert tuple(counts.tolist()) == _stats(st), (gamma, w2, h, ain, p, v)
+        seen += counts
+        held += friction_step(branch, laws, p, v, h, ain, w2, gamma, n, eng.coulomb, True)[0]
+        if abs(v) > eng.v_acc and stiff_transient(
+                v, ain - eng.damping(v) - w2 * math.sin(p), gamma, n, eng.v_acc):
+            stiff += 1
+            stiff_turns += counts[CAREFUL_COUNTERS.index('reversals')] > 0
         else:
-            assert not counts.any()
-            assert abs(v) > eng.v_acc and stiff_transient(
-                v, ain - eng.damping(v) - w2 * math.sin(p), gamma, n, eng.v_acc)
+            assert k < 300  # every state of _stiff_state is a stiff transient
     sub, fb, rev, sticks, rej, proj = seen.tolist()
-    assert took > 150
     # The guard's substeps taken compiled (Coulomb friction has no slope: never substeps; at
     # n = 0.01 the slope is within the disk or beyond the cap: one step or the fallback).
     assert sub > 0 if n not in (0.0, 0.01) else sub == 0
     if n in (0.01, 1.0, 5.0) or method == 'euler':
-        assert fb > 0  # and the fallback (for n = 2, 2.5 these states are stiff ones)
+        assert fb > 0  # and the fallback
     if n != int(n) or n % 2 == 0:
         assert rev > 10  # reversals split compiled
     assert held > 20 if n < 1.0 else held == 0  # Coulomb at rest, the creep
     assert sticks > 0 if n == 0.0 else sticks == 0
     if method == 'euler':
         assert rej > 0 and proj > 0  # energy redos and projections taken compiled
+    # Stiff transients taken compiled (none for n <= 1), cut at reversals for non-smooth laws.
+    assert stiff > 200 if n > 1.0 else stiff == 0
+    if n > 1.0 and (n != int(n) or n % 2 == 0):
+        assert stiff_turns > 5
 
 
 def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:
@@ -325,6 +355,70 @@ def test_the_compiled_sweep_takes_the_careful_steps_without_handing_back() -> No
                     assert tuple(int(getattr(res, k)[i]) for k in COUNTERS) == want, (g, n)
                     assert (res.phi[i], res.dphi[i]) == (st.phi, st.dphi), (g, n)
     assert seen[[0, 1, 2, 4, 5]].all()  # all but Coulomb's sticks took part
+
+
+# (γ, n, φ0, φ'0, τ/I) at h = 2e-2: each starts in a damping-dominated transient (|φ'| far
+# above decisions.accuracy_speed), smooth (n = 5) and non-smooth (n = 2, 2.5) laws.
+STIFF_CELLS = [(10.0, 2.0, 1.0, 30.0, 0.0), (50.0, 2.0, 2.0, -20.0, 1.7),
+               (2.0, 2.5, 0.5, 40.0, 0.0), (50.0, 2.5, -1.0, 15.0, -3.0),
+               (2.0, 5.0, 0.5, 8.0, 0.0), (0.5, 5.0, 3.0, -10.0, 0.0)]
+
+
+def test_the_compiled_sweep_takes_stiff_transients_without_handing_back() -> None:
+    # Engine.stiff's error-controlled substeps run compiled (stiff.stiff_cover): the numpy
+    # sweep hands each stiff step to Engine.careful, the compiled sweep none. The compiled
+    # sweep ends on the Stepper's floats and counters; the numpy one on its counters, its
+    # floats to round-off for non-integer n (numpy's power is not the C library's pow).
+    h, steps = 2e-2, 40
+    gam, nn, p0, v0, tau = (np.array(col) for col in zip(*STIFF_CELLS, strict=True))
+    for g, n, _, dx0, _ in STIFF_CELLS:
+        assert abs(dx0) > 1.5 * Problem(W2, g, n).v_acc
+    a = sweep(W2, gam, nn, p0, v0, steps * h, h, torque=tau)
+    b = sweep(W2, gam, nn, p0, v0, steps * h, h, torque=tau, jit=True)
+    assert b.handed_back == 0 < a.handed_back
+    turns = 0
+    for i, (g, n, x0, dx0, ain) in enumerate(STIFF_CELLS):
+        st = Stepper(PendulumParams.from_omega0_sq(W2, g, n), x0, dx0, h)
+        for _ in range(steps):
+            st.step(ain)
+        want = tuple(getattr(st.stats, k) for k in COUNTERS)
+        assert want[0] > 0  # the transient's substeps
+        turns += want[2]
+        for res in (a, b):
+            assert tuple(int(getattr(res, k)[i]) for k in COUNTERS) == want, (g, n)
+        assert (b.phi[i], b.dphi[i]) == (st.phi, st.dphi), (g, n)
+        assert math.isclose(a.phi[i], st.phi, rel_tol=1e-12, abs_tol=1e-15), (g, n)
+        assert math.isclose(a.dphi[i], st.dphi, rel_tol=1e-12, abs_tol=1e-15), (g, n)
+    assert turns > 0  # reversals cut on the way
+
+
+# (γ, ω0², h, a_in, φ, φ') for n = 1.5: a stiff transient whose error-controlled substeps
+# chatter at rest and spend STIFF_MAX_TRIALS trials without covering the step.
+UNCOVERED = [(1e5, 1e4, 0.2, 1.7, -0.18886198245603225, 34.53516442633296),
+             (1e5, 1e4, 0.2, 0.0, -2.808724818925504, 0.006014820267336139),
+             (1e5, 1e4, 0.2, -3.0, 0.4608082759477723, 0.05588963700501084)]
+
+
+def test_a_stiff_step_the_substeps_cannot_cover_goes_to_the_guard_compiled() -> None:
+    # stiff_cover returns TO_GUARD; Engine.stiff then has the guard take the step from its
+    # start, the cover's trials still counted. The compiled careful step does the same, to the
+    # bit and counter.
+    n = 1.5
+    compiled = _compiled('rk4', n)
+    consts = np.array(guard_for(TABLEAUS['rk4']).constants)
+    for gamma, w2, h, ain, p, v in UNCOVERED:
+        eng = Engine(w2, gamma, n, METHODS['rk4'])
+        code, *_, subs, _ = stiff_cover(*stiff_pair(n), p, v, h, ain, w2, gamma, n,
+                                        eng.nonsmooth, False)
+        assert code == TO_GUARD and subs == STIFF_MAX_TRIALS  # every trial after the first
+        st = GuardStats()
+        want = eng.careful(p, v, h, ain, st)
+        counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
+        got = compiled[0](*compiled[1:], p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach,
+                          eng.energy_check, eng.nonsmooth, eng.coulomb, consts, counts)
+        assert got == (True, *want[:2])
+        assert tuple(counts.tolist()) == _stats(st)
+        assert st.substeps >= STIFF_MAX_TRIALS and st.reversals > 0
 
 
 def test_a_run_beyond_the_speed_bound_is_refused_alike() -> None:

@@ -1,4 +1,4 @@
-"""The careful path written to compile: friction, guarded split steps, the fallback, the redo.
+"""The careful path written to compile: friction, stiff transients, guarded split steps, redo.
 
 :meth:`Engine.careful <pendulum_sim.core.engine.Engine.careful>` takes every step the fast path
 refuses. For a guarded explicit method, :func:`careful_step` takes the same operations in the
@@ -19,19 +19,25 @@ sweep takes these steps without leaving compiled code (``decisions.kernel_source
   (``implicit.fallback_run``: the SDIRK3 stages' Newton solves, the backward-Euler
   replacement, the angle-limited substeps, the functions ``implicit.fallback`` runs; the stage
   law is ``dirk.damping_formula``, every spelling of ``dirk.stage_law``);
+- the stiff transient's error-controlled DOP853 substeps (``stiff.stiff_cover``, the function
+  ``Engine.stiff`` runs: the step-size control and acceptance of ``error_control.py``, the cut
+  at a reversal by ``reversal.locate_on_branch``, the guard taking the step where the substeps
+  cannot cover it), with the pair's generated steps (``pair_plain``, ``pair_branch``:
+  ``stiff.stiff_pair``, ``explicit.step_source_with_n``);
 - the energy redo and projection (``energy_redo.redo``, the function ``Engine.redo_energy``
   runs).
 
 It declines (returns ``done`` False; the sweep then hands the step to ``Engine.careful``, which
-takes it from the same state) where the step starts a stiff transient (``Engine.stiff``'s
-error-controlled DOP853 substeps are not compiled), where the fallback refuses the step by its
-work bound (so the user gets that IntegratorError from the one place that raises it), and where
-a result is not finite: Python raises OverflowError or ValueError (a power beyond float64, the
-sine of inf) where compiled code gives inf or NaN, and which of the two happened decides the
-Python path (``Engine.careful``'s ``except`` or ``Engine._settle``), so those rare steps are
-taken by Python. What the step did is added to the pendulum's counters (:data:`COUNTERS`) only
-where it was taken. Parity tests (``test_sweep_jit.py``) check that both give the same floats
-and counters.
+takes it from the same state) only where the fallback refuses the step by its work bound (so the
+user gets that IntegratorError from the one place that raises it) and where a result is not finite:
+Python raises OverflowError or ValueError (a power beyond float64, the sine of inf) where compiled
+code gives inf or NaN, and which of the two happened decides the Python path (``Engine.careful``'s
+``except`` or ``Engine._settle``), so those rare steps are taken by Python (inside a trial substep
+of the stiff cover both reject the trial: the same decision; the stiff test's damping power, the
+damping slope at the start of a stiff cover or the location of a reversal in it beyond float64
+are declined). What the step did is added to the
+pendulum's counters (:data:`COUNTERS`) only where it was taken. Parity tests
+(``test_sweep_jit.py``) check that both give the same floats and counters.
 """
 from __future__ import annotations
 
@@ -46,6 +52,7 @@ from .guard import FALLBACK, substep_count
 from .implicit import fallback_refused, fallback_run
 from .law import power_formula
 from .split import micro_step
+from .stiff import NOT_FINITE, OVERFLOW, TO_GUARD, stiff_cover
 
 COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks', 'energy_rejections', 'projections')
 """The counters of ``guard.GuardStats`` the compiled sweep keeps per pendulum, in this order."""
@@ -57,12 +64,15 @@ def finite(p: float, v: float) -> bool:
     return math.isfinite(p) and math.isfinite(v)
 
 
-def careful_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
-                 w2: float, gamma: float, n: float, v_acc: float, reach: float, check: bool,
-                 nonsmooth: bool, coulomb: bool, guard: Any,
-                 counts: Any) -> tuple[bool, float, float]:
+def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branch: Any,
+                 p: float, v: float, h: float, ain: float, w2: float, gamma: float, n: float,
+                 v_acc: float, reach: float, check: bool, nonsmooth: bool, coulomb: bool,
+                 guard: Any, counts: Any) -> tuple[bool, float, float]:
     """Take ``Engine.careful``'s step of h from (φ, φ') for a guarded explicit method.
 
+    The generated functions come first, all with the exponent an argument: the method's plain
+    and branch steps (``plain``, ``branch``), the two laws (``laws``), the stiff transient's
+    pair with error estimate (``pair_plain``, ``pair_branch``: ``stiff.stiff_pair``).
     ``reach`` is ``Problem.reach``, ``guard`` the guard's ``StabilityGuard.constants``,
     ``counts`` the pendulum's counters (:data:`COUNTERS`; what the step did is added there).
     Returns ``(done, φ₁, φ'₁)``; ``done`` False where ``Engine.careful`` must take the step
@@ -74,14 +84,26 @@ def careful_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: floa
     held, p1, v1, _ = friction_step(branch, laws, p, v, h, ain, w2, gamma, n, coulomb, True)
     if not held:
         _, _, _, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
-        if abs(v) > v_acc:  # decisions.stiff_source: a stiff transient is declined
+        stiff = False
+        if abs(v) > v_acc:  # decisions.stiff_source, |φ'|^n by the law's power rule
             pw = power_formula(abs(v), n)
-            if not pw < math.inf or abs(a0) > 0.5 * gamma * pw:
+            if not pw < math.inf:  # Python's damping law raises OverflowError here
                 return False, p, v
-        done, p1, v1, subs, fbs, turns = guarded(plain, branch, laws, p, v, h, ain, w2, gamma,
-                                                 n, reach, nonsmooth, coulomb, guard)
-        if not done:
-            return False, p, v
+            stiff = abs(a0) > 0.5 * gamma * pw
+        code = TO_GUARD
+        if stiff:  # Engine.stiff: the error-controlled substeps
+            code, p1, v1, _, subs, turns = stiff_cover(pair_plain, pair_branch, p, v, h, ain,
+                                                       w2, gamma, n, nonsmooth, True)
+            if code == OVERFLOW or code == NOT_FINITE:
+                return False, p, v
+        if code == TO_GUARD:  # Engine.guarded (after a stiff cover that failed: from the start)
+            done, p1, v1, gsubs, fbs, gturns = guarded(plain, branch, laws, p, v, h, ain, w2,
+                                                       gamma, n, reach, nonsmooth, coulomb,
+                                                       guard)
+            if not done:
+                return False, p, v
+            subs += gsubs
+            turns += gturns
     if not finite(p1, v1):
         return False, p, v
     rejected = projected = False

@@ -20,7 +20,7 @@ from .codegen import define
 from .explicit import step_source, step_source_with_n
 from .law import SCALAR_ENV, VECTOR_ENV, damping_expression, laws_source, power_source, whole
 from .model import smooth_law
-from .tableaus import Tableau
+from .tableaus import DOP853, Tableau
 
 ENERGY_TOL = 1e-12
 """An explicit step may raise the energy by round-off and by the conservative part of its
@@ -74,6 +74,10 @@ the transient's error falls with h at the method's order while it costs few subs
 
 STIFF_MAX_TRIALS = 2000
 """Trial substeps per step before the error-controlled path hands the step to the guard."""
+
+STIFF_PAIR = DOP853
+"""The embedded pair of the error-controlled substeps (``stiff.stiff_cover``): at tolerances
+STIFF_TOL (h ω_r)⁴ the order-8 pair needs about a third of the trials of the order-5 one."""
 
 
 def accuracy_speed(gamma: float, n: float, omega0: float) -> float:
@@ -203,20 +207,21 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     text that serves one special exponent leaves out the tests its pendulums cannot fail.
     A refused step is taken, where ``CAREFUL[i]``, by ``careful_step`` (the careful path,
     ``compiled_careful.py``: Coulomb friction at rest, the near-Coulomb creep, the guard's
-    substeps, the reversal split, the fallback and the energy redo; it declines a stiff
-    transient, its |φ'|^n by ``law.power_formula``, the rule :func:`stiff_source` spells; what
-    it did counted in the row ``COUNTS[i]`` as ``compiled_careful.COUNTERS`` orders them,
-    ``GUARD`` the guard's ``StabilityGuard.constants``). The run stops at a step neither takes
-    (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'|
-    above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after
-    step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``
+    substeps, the reversal split, the fallback, the stiff transient's error-controlled substeps
+    (its test's |φ'|^n by ``law.power_formula``, the rule :func:`stiff_source` spells) and the
+    energy redo; what it did counted in the row ``COUNTS[i]`` as ``compiled_careful.COUNTERS``
+    orders them, ``GUARD`` the guard's ``StabilityGuard.constants``). The run stops at a step
+    neither takes (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that
+    leaves |φ'| above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state
+    after step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``
     (the next such step kept by :func:`next_record`).
     The texts are the ``*_SRC`` above, as in :func:`compile_fast_step`;
     the exponent is read per pendulum (``NN[i]``), so one text serves every exponent whose law
     it spells alike, in one call.
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
-    with the exponent an argument (``explicit.step_source_with_n``), and ``laws``, the two laws
-    themselves (``law.laws_source``), which ``careful_step`` takes.
+    with the exponent an argument (``explicit.step_source_with_n``), ``laws``, the two laws
+    themselves (``law.laws_source``), and ``pair_plain`` and ``pair_branch``, the steps of
+    STIFF_PAIR with error estimate (``stiff.stiff_pair``), which ``careful_step`` takes.
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
     stiff = stiff_source(n)
@@ -236,6 +241,8 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     lines = [*step_source_with_n(tableau, n, False, 'plain').splitlines(),
              *step_source_with_n(tableau, n, True, 'branch').splitlines(),
              *laws_source(n).splitlines(),
+             *step_source_with_n(STIFF_PAIR, n, False, 'pair_plain', True).splitlines(),
+             *step_source_with_n(STIFF_PAIR, n, True, 'pair_branch', True).splitlines(),
              f'def kernel({", ".join(KERNEL_ARGS)}):',
              '    rows = RP.shape[0]',
              '    for j in prange(IDX.shape[0]):',
@@ -258,8 +265,9 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '            if not ok:',
              '                if not use_careful:', '                    break',
              '                done, p1, v1 = careful_step(',
-             '                    plain, branch, laws, p0, v0, h, ain, w2, gamma, n, v_acc,',
-             '                    reach, check, nonsmooth, coulomb, GUARD, COUNTS[i])',
+             '                    plain, branch, laws, pair_plain, pair_branch, p0, v0, h, ain,',
+             '                    w2, gamma, n, v_acc, reach, check, nonsmooth, coulomb, GUARD,',
+             '                    COUNTS[i])',
              '                if not done:', '                    break',
              '                if check:', '                    v = v1',
              '                    s = sin(0.5 * p1)', f'                    e = {ENERGY_SRC}',
@@ -307,6 +315,7 @@ __all__ = [
     'ROSE_SRC',
     'STIFF_K',
     'STIFF_MAX_TRIALS',
+    'STIFF_PAIR',
     'STIFF_SRC',
     'STIFF_TOL',
     'accuracy_speed',

@@ -2,10 +2,12 @@
 
 The pair's two solutions differ by ``E`` (``tableaus.py``); a trial substep is accepted when
 the scaled error norm is at most 1 and the next trial is ``0.9 err^(−1/(p̂+1))`` times the last,
-within [0.2, 10] (Hairer, Nørsett and Wanner, *Solving ODEs I*, II.4). Where the damping is not
-smooth at φ' = 0 (n even, non-integer, or 0) an accepted substep that crosses a reversal is cut
-at it: the reversal is located on the branch continuation of the start (Hermite guess, Newton on
-the substep's own φ'), so no substep straddles the kink and the pair's estimate stays valid.
+within [0.2, 10] (Hairer, Nørsett and Wanner, *Solving ODEs I*, II.4; the norm, the acceptance
+and the factor are ``error_control.py``'s, which the stiff transient's cover shares). Where the
+damping is not smooth at φ' = 0 (n even, non-integer, or 0) an accepted substep that crosses a
+reversal is cut at it: the reversal is located on the branch continuation of the start
+(Hermite guess, Newton on the substep's own φ'), so no substep straddles the kink and the
+pair's estimate stays valid.
 The pair is an explicit one (``explicit.py``), a Rosenbrock one (``rosenbrock.py``) or an
 extrapolated linearly implicit Euler step (``extrapolation.py``): all have the same signature
 and results, and this one cover serves them. The first trial comes from the scale of the
@@ -20,6 +22,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import numpy.typing as npt
 
+from .error_control import accepted, error_norm, min_step, step_factor
 from .errors import IntegratorError
 from .explicit import ErrStepFn, compile_step
 from .extrapolation import compile_extrapolation
@@ -59,20 +62,12 @@ def pair_steps(tab: Tableau | Extrapolation, n: float,
     return steps
 
 
-MAX_GROWTH = 10.0
-"""The largest factor by which a substep may grow after an accepted one (Hairer's facmax)."""
-
 MAX_TRIALS = 20_000
 """Trial substeps an adaptive method may spend on one step of h (in :func:`dense_run`: per
 output interval covered) before the step goes to the fallback. Far above what a tolerance
 needs where the solution's time scale can be resolved (Hairer's DOP853 allows 100 000 per
 call); reached where the cover cannot progress: a strong n < 1 law chattering at rest (10⁶
 trials a step of 1 ms at n = 0.3, γ = 1e6, measured), a γ beyond any time step."""
-
-
-def min_step(h: float) -> float:
-    """Return the smallest substep the cover tries on a step of h (below: it cannot progress)."""
-    return 1e-14 * max(1.0, h)
 
 
 def initial_step(prob: Problem, p: float, v: float, h: float, ain: float, rtol: float,
@@ -162,7 +157,6 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
     plain, branch = steps
     w2, g, n = prob.w2, prob.gamma, prob.n
     coulomb, nonsmooth = prob.coulomb, prob.nonsmooth
-    sqrt = math.sqrt
     q = 1.0 / (tab.error_order + 1)
     # Beyond the speed a run may reach (``model.run_speed_limit``) a trial is rejected like one
     # that overflows: a loose tolerance scales its error by that speed and would accept it.
@@ -192,13 +186,10 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
         fn = branch if (nonsmooth and v != 0.0) else plain
         try:
             p1, v1, w, a0, ep, ev = fn(p, v, step_h, ain, w2, g, sign)
-            ap, ap1, av, av1 = abs(p), abs(p1), abs(v), abs(v1)
-            ep /= atol + rtol * (ap if ap > ap1 else ap1)
-            ev /= atol + rtol * (av if av > av1 else av1)
-            err = sqrt(0.5 * (ep * ep + ev * ev)) if av1 <= vmax else math.inf
+            err = error_norm(p, v, p1, v1, ep, ev, rtol, atol, vmax)
         except (OverflowError, ValueError):
             err = math.inf  # a trial step that overflows is rejected like any other
-        if err <= 1.0:  # (False for inf and NaN)
+        if accepted(err):
             if nonsmooth and v1 * v < 0.0:
                 # Cut at the reversal: the branch continuation's φ'(θ step_h) = 0.
                 def accel(pp: float, vv: float, sg: float = sign) -> float:
@@ -229,11 +220,10 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
             w_total += w
             if trace is not None:
                 trace += (done, p, v, w_total)
-            factor = MAX_GROWTH if err == 0.0 else min(MAX_GROWTH, 0.9 * err ** -q)
+            factor = step_factor(err, q)
             hh = step_h * factor if not last else max(hh, step_h * factor)
         else:
-            factor = 0.2 if not math.isfinite(err) else max(0.2, 0.9 * err ** -q)
-            hh = step_h * factor
+            hh = step_h * step_factor(err, q)
             if hh < min_step(h):
                 raise StepTooSmall(f'adaptive step fell below {hh:.3g} s',
                                    (done, p, v, w_total))

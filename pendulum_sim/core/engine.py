@@ -9,7 +9,7 @@ of two ways:
 - **the careful path** (:meth:`Engine.careful`) for every step the fast path does not accept:
   the stability guard's substeps or the L-stable fallback (``guard.py``, ``implicit.py``), the
   reversal split with graded substeps and Coulomb sticking (``split.py``), error-controlled
-  substeps through stiff transients (``embedded.py``), the energy redo and projection.
+  substeps through stiff transients (``stiff.py``), the energy redo and projection.
 
 Both drivers call the same :meth:`Engine.careful` on the same state, so they take the same
 decisions and agree to round-off (a parity test checks it). For the other families the engine
@@ -25,8 +25,6 @@ from . import embedded
 from .coulomb import stuck
 from .decisions import (
     ENERGY_TOL,
-    STIFF_MAX_TRIALS,
-    STIFF_TOL,
     accuracy_speed,
     ain_bound,
     compile_fast_step,
@@ -41,12 +39,13 @@ from .errors import IntegratorError
 from .explicit import ErrStepFn
 from .guard import FALLBACK, GuardStats, StabilityGuard, safe_speed_range
 from .implicit import dirk_safe, fallback, fallback_refused
-from .law import DampingFn, damping_derivative
+from .law import DampingFn
 from .methods import Advance, Method
 from .model import FloatArray
 from .problem import Problem
 from .split import SplitSteps
-from .tableaus import DOP853, RK4, Tableau
+from .stiff import OVERFLOW, TO_GUARD, stiff_cover, stiff_pair
+from .tableaus import RK4, Tableau
 
 
 @functools.lru_cache(maxsize=64)
@@ -92,7 +91,6 @@ class Engine:
         # May creep (``coulomb.py``); plain unguarded steps are taken as asked.
         self.near_coulomb = 0.0 < n < 1.0 and gamma > 0.0 and not (fast and not guard)
         self.v_acc = prob.v_acc if guard and fast else math.inf
-        self.w_ref = max(self.omega0, 1.0)
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
         # only for a Coulomb break-away, never for the implicit method's own steps).
         self.plain_tableau = tab if isinstance(tab, Tableau) and _explicit(tab) else RK4
@@ -104,7 +102,7 @@ class Engine:
         self.damping: DampingFn = prob.damping
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
         self.rtol, self.atol = rtol, atol
-        self._stiff_steps: Any = None  # the dop853 pair of :meth:`stiff`, on first use
+        self._stiff_steps: Any = None  # the pair of :meth:`stiff` (stiff_pair), on first use
         self._pair: tuple[ErrStepFn, ErrStepFn] | None = None  # the adaptive method's
 
     def fresh_advance(self) -> Advance:
@@ -218,25 +216,25 @@ class Engine:
               stats: GuardStats) -> tuple[float, float, float]:
         """Cover a step in a damping-dominated transient with error-controlled substeps.
 
-        The Dormand-Prince 8(5,3) pair (``dop853``, ``embedded.py``) at the local tolerance
-        STIFF_TOL (h ω_r)⁴: its substeps grow with the transient's own time scale (a handful
-        per decade of it), so the transient is resolved, not merely kept stable, and its error
-        falls at order ≥ 4 as h falls; at such tolerances the order-8 pair needs about a third
-        of the trials of the order-5 one (13 against 34 µs a call measured on an n = 5 kick).
-        Beyond STIFF_MAX_TRIALS trials the guard takes the step.
+        ``stiff.stiff_cover``: the Dormand-Prince 8(5,3) pair (``dop853``) at the local
+        tolerance STIFF_TOL (h ω_r)⁴: its substeps grow with the transient's own time scale (a
+        handful per decade of it), so the transient is resolved, not merely kept stable, and
+        its error falls at order ≥ 4 as h falls; at such tolerances the order-8 pair needs about
+        a third of the trials of the order-5 one (13 against 34 µs a call measured on an n = 5
+        kick). Beyond STIFF_MAX_TRIALS trials (or below the smallest substep) the guard takes
+        the step; a damping slope beyond float64 raises OverflowError (the fallback takes it).
         """
         if self._stiff_steps is None:
-            self._stiff_steps = embedded.pair_steps(DOP853, self.n)
-        tol = STIFF_TOL * (h * self.w_ref) ** 4
-        d = damping_derivative(self.gamma, self.n, v)
-        if not d < math.inf:  # the slope overflows: the guard's fallback takes the step
+            self._stiff_steps = stiff_pair(self.n)
+        pair_plain, pair_branch = self._stiff_steps
+        code, p1, v1, w, subs, turns = stiff_cover(pair_plain, pair_branch, p, v, h, ain,
+                                                   self.w2, self.gamma, self.n, self.nonsmooth,
+                                                   False)
+        stats.substeps += subs
+        stats.reversals += turns
+        if code == OVERFLOW:  # the guard's fallback takes the step (Engine.careful)
             raise OverflowError('damping slope beyond float64')
-        first = min(h, 1.0 / d) if d > 0.0 else h
-        try:
-            p1, v1, w, _ = embedded.cover(self.problem, DOP853, self._stiff_steps,
-                                          self.plain.from_rest, p, v, h, ain, tol, tol, first,
-                                          stats, STIFF_MAX_TRIALS)
-        except embedded.CoverFailed:
+        if code == TO_GUARD:
             return self.guarded(p, v, h, ain, stats)
         return p1, v1, w
 

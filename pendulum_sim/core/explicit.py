@@ -122,19 +122,23 @@ def compile_step(tableau: Tableau, n: float, branch: bool = False, vector: bool 
     return define(src, 'step', env, f'<{tableau.name} step>')
 
 
-def step_source_with_n(tableau: Tableau, n: float, branch: bool, name: str) -> str:
+def step_source_with_n(tableau: Tableau, n: float, branch: bool, name: str,
+                       with_error: bool = False) -> str:
     """Return the scalar step of :func:`step_source` as ``name``, the exponent an argument.
 
     ``name(p0, v0, h, ain, w2, gamma, s, n)``: the same text with ``n`` a parameter, so one
     compiled function serves every exponent the law spells alike (the compiled sweep's
-    ``plain`` and ``branch``, and the careful path's shared functions in Python).
+    ``plain`` and ``branch``, with ``with_error`` its ``pair_plain`` and ``pair_branch``, and
+    the careful path's shared functions in Python).
     """
-    lines = step_source(tableau, damping_expression(n, branch, scalar=True)).splitlines()
+    lines = step_source(tableau, damping_expression(n, branch, scalar=True),
+                        with_error).splitlines()
     return '\n'.join([f'def {name}(p0, v0, h, ain, w2, gamma, s, n):', *lines[1:]]) + '\n'
 
 
 @functools.lru_cache(maxsize=512)
-def compile_step_with_n(tableau: Tableau, n: float, branch: bool = False) -> Any:
+def compile_step_with_n(tableau: Tableau, n: float, branch: bool = False,
+                        with_error: bool = False) -> Any:
     """Return :func:`step_source_with_n`'s step for ``n`` (scalar, ``math``)."""
-    src = step_source_with_n(tableau, n, branch, 'step')
+    src = step_source_with_n(tableau, n, branch, 'step', with_error)
     return define(src, 'step', dict(SCALAR_ENV), f'<{tableau.name} step n>')

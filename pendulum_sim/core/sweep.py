@@ -771,12 +771,13 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     max_steps : int
         Refuse runs of more steps than this.
     jit : bool
-        Run each group of one n compiled by numba (the ``jit`` extra) instead of with numpy:
-        the same generated step and decisions (``decisions.kernel_source``) run step after
-        step per pendulum, in parallel over the pendulums, the careful path compiled too
+        Run each group of one n compiled by numba (the ``jit`` extra) instead of with numpy: the
+        same generated step and decisions (``decisions.kernel_source``) run step after step per
+        pendulum, in parallel over the pendulums, the careful path compiled too
         (``compiled_careful.py``: Coulomb sticking and break-away, the near-Coulomb creep, the
-        guard's substeps, the reversal split, the fallback, the energy redo) and every refused
-        step it declines taken by ``Engine.careful`` (``compiled_sweep.py``; counted in
+        guard's substeps, the reversal split, the fallback, the stiff transient's substeps, the
+        energy redo) and every refused step it declines (the fallback's refusal by its work bound,
+        a result that is not finite) taken by ``Engine.careful`` (``compiled_sweep.py``; counted in
         ``SweepResult.handed_back``).
 
     Returns
