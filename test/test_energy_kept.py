@@ -129,7 +129,7 @@ def run_kernel(pre_test: bool, n: float, h: float, steps: int) -> list[bytes]:
     decisions.kernel_source.cache_clear()
     try:
         if not pre_test:
-            decisions.kept_stage = lambda tableau: None  # type: ignore[assignment]
+            decisions.kept_stage = lambda tableau: None
         kernel = decisions.compile_kernel(tab, n, careful_step)
     finally:
         decisions.kept_stage = stage
