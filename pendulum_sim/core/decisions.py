@@ -3,7 +3,8 @@
 A plain explicit step of h is accepted on the fast path when ``|φ'|`` lies in the guard's safe
 speed range (``guard.py``), no velocity reversal is suspected (:func:`reversal_suspect`), the
 step is not in a damping-dominated transient (:func:`stiff_transient`), energy did not rise
-without input (:func:`energy_rose`) and the result is finite. The texts below are compiled into
+without input (:func:`energy_rose`; the compiled sweep tries the sound pre-test
+:func:`energy_kept` first) and the result is finite. The texts below are compiled into
 functions that work on floats and numpy arrays (the sweep and the careful path call them) and
 inlined into the Stepper's generated fast step (:func:`compile_fast_step`).
 """
@@ -271,7 +272,10 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
     fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
-    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``); a
+    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``;
+    where the method has a stage for it, :func:`kept_stage`, the sound pre-test
+    :data:`ENERGY_KEPT_SRC` first, the energy test only where it cannot decide, and E/I made
+    from the state where it is read after steps the pre-test accepted: the same floats); a
     text that serves one special exponent leaves out the tests its pendulums cannot fail.
     A refused step is taken, where ``CAREFUL[i]``, by ``careful_step`` (the careful path,
     ``compiled_careful.py``: Coulomb friction at rest, the near-Coulomb creep, the guard's
@@ -387,6 +391,7 @@ def ain_bounds(ain: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
 
 __all__ = [
     'CROSS_SRC',
+    'ENERGY_KEPT_SRC',
     'ENERGY_SRC',
     'ENERGY_TOL',
     'KERNEL_ARGS',
@@ -402,7 +407,10 @@ __all__ = [
     'ain_bounds',
     'compile_fast_step',
     'compile_kernel',
+    'energy_kept',
+    'energy_kept_source',
     'energy_rose',
+    'kept_stage',
     'kernel_source',
     'next_record',
     'record_row',
