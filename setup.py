@@ -41,6 +41,8 @@ setup(
             'colcon-core>=0.17', 'colcon-ros>=0.5', 'colcon-python-setup-py>=0.2',
             # The test bench's peers and campaigns: python-control checks step_metrics.
             'control>=0.10', 'dask[distributed]>=2024.1', 'pyarrow>=14',
+            # Property tests of the fast path's sound pre-tests.
+            'hypothesis>=6.100',
         ],
         'campaign': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'matplotlib>=3.7'],
     },

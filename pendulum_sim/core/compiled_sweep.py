@@ -97,7 +97,8 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
     rows = rp.shape[0]
     owner = np.repeat(np.arange(len(grps)), sizes)
     size = offs[-1]
-    cnt = np.zeros((size, len(COUNTERS)), dtype=np.int64)
+    # The kernel adds to its rows of the counters: a lone group's own rows, else a joint array.
+    cnt = counts[grps[0].sl] if one else np.zeros((size, len(COUNTERS)), dtype=np.int64)
     handed_back = 0
     k = np.zeros(size, dtype=np.int64)
     idx = np.arange(size, dtype=np.int64)
@@ -139,8 +140,8 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
                 beyond.append((done, grp.sl.start + jl))
         idx = np.array(left, dtype=np.int64)
     for grp, (grp_rp, grp_rv), a, b in zip(grps, recs, offs[:-1], offs[1:], strict=True):
-        counts[grp.sl] += cnt[a:b]
         if not one:
+            counts[grp.sl] += cnt[a:b]
             grp_rp[:], grp_rv[:] = rp[:, a:b], rv[:, a:b]
     return beyond, handed_back
 

@@ -3,7 +3,8 @@
 A plain explicit step of h is accepted on the fast path when ``|φ'|`` lies in the guard's safe
 speed range (``guard.py``), no velocity reversal is suspected (:func:`reversal_suspect`), the
 step is not in a damping-dominated transient (:func:`stiff_transient`), energy did not rise
-without input (:func:`energy_rose`) and the result is finite. The texts below are compiled into
+without input (:func:`energy_rose`; the compiled sweep tries the sound pre-test
+:func:`energy_kept` first) and the result is finite. The texts below are compiled into
 functions that work on floats and numpy arrays (the sweep and the careful path call them) and
 inlined into the Stepper's generated fast step (:func:`compile_fast_step`).
 """
@@ -40,6 +41,21 @@ parentheses) into the Stepper's generated fast step
 (:func:`compile_fast_step`) and the compiled sweep's run (:func:`kernel_source`).
 ``STIFF_SRC`` holds the damping's |φ'|^n as ``{power}``: :func:`stiff_source` fills it in
 with the law's one power rule (``law.power_source``)."""
+
+ENERGY_KEPT_SRC = """\
+k_dl = 0.5 * (p1 - p0)
+k_ad = abs(k_dl)
+k_dk = 0.5 * (v1 - v0) * (v1 + v0)
+k_gap = abs(p0 - {q} + k_dl) + 1e-15 * (abs(p0 - {q}) + k_ad)
+k_est = k_dk + 2.0 * w2 * sin({q}) * (k_dl - k_dl * k_dl * k_dl / 6.0)
+k_bound = (2.002 * w2 * k_ad * (k_gap + 2e-15 + k_ad * k_ad * k_ad * k_ad / 119.0)
+           + 2e-15 * abs(k_dk) + 1e-300)
+kept = (w2 >= 0.0) & (k_est + k_bound <= 0.4 * ENERGY_TOL * (0.5 * v0 * v0 + w2))
+"""
+"""A sound pre-test of :data:`ROSE_SRC` that takes no sine of its own: ``kept`` True proves
+that the energy test of the step (φ₀, φ'₀) → (φ₁, φ'₁) says "not rose" (the proof:
+:func:`energy_kept`). ``{q}`` is a point whose sine the step has already taken (a stage near
+φ₀ + h φ'₀ / 2: :func:`kept_stage`), so compiled code takes that sine once."""
 
 
 def _expr(args: str, src: str) -> Any:
@@ -126,6 +142,63 @@ def energy_rose(e0: Any, e1: Any, w2: Any) -> Any:
     return _ROSE(e0, e1, w2)
 
 
+def energy_kept_source(q: str) -> str:
+    """Return the pre-test :data:`ENERGY_KEPT_SRC` with the sine's point named ``q``."""
+    return ENERGY_KEPT_SRC.format(q=q)
+
+
+_KEPT = define('def f(p0, v0, p1, v1, q, w2):\n'
+               + ''.join(f'    {line}\n' for line in energy_kept_source('q').splitlines())
+               + '    return kept\n', 'f', dict(SCALAR_ENV, ENERGY_TOL=ENERGY_TOL),
+               '<decision>')
+
+
+def energy_kept(p0: float, v0: float, p1: float, v1: float, q: float, w2: float) -> bool:
+    """Return True where the step (φ₀, φ'₀) → (φ₁, φ'₁) surely passes the energy test.
+
+    True proves that :func:`energy_rose` of ``e0`` and ``e1``, E/I of the two states by
+    :func:`specific_energy` (with the C library's sine), is False; False proves nothing (the
+    energy test then decides). It takes the sine of ``q`` alone, any point (the compiled sweep
+    passes a stage of the step near φ₀ + h φ'₀ / 2, whose sine the step took), and is
+    :data:`ENERGY_KEPT_SRC`; it holds for ω0² = ``w2`` >= 0 only (False otherwise).
+
+    Notes
+    -----
+    With δ = (φ₁ − φ₀)/2 and m = φ₀ + δ, exactly cos φ₀ − cos φ₁ = 2 sin m sin δ (the
+    sum-to-product identity), so the change of E/I = ½ φ'² + ω0² (1 − cos φ) (eq 23 over I) is
+
+        ΔE = ½ (φ'₁ − φ'₀)(φ'₁ + φ'₀) + 2 ω0² sin m sin δ.
+
+    The test estimates it as ``k_est`` = ½ (φ'₁ − φ'₀)(φ'₁ + φ'₀) + 2 ω0² sin q (δ − δ³/6)
+    and bounds the difference by ``k_bound``: |sin m − sin q| <= |m − q|, |sin δ − (δ − δ³/6)|
+    <= |δ|⁵/120 (alternating Taylor series), |sin δ| <= |δ|; the rounding of every operation
+    (relative 2⁻⁵³ each, eight or so along each term, a sine within one unit in the last place,
+    all below 2e-15 relative; the factor 2.002 and 1/119 for 1/120 cover the rounding of the
+    bound itself) and underflow (below 1e-300 in all). So ΔE <= k_est + k_bound. With
+    T = ENERGY_TOL (E₀ + ω0²) and ½ φ'₀² <= E₀, accepting means ΔE <= 0.41 T. The floats
+    ``e0`` and ``e1`` are E₀ and E₁ within a relative δ_E of about 1e-15 (sums of non-negative
+    terms), and the threshold e0 + ENERGY_TOL (e0 + ω0²) is within 3 δ_E of its exact value;
+    ``e1`` > threshold would need E₁ − E₀ > T (1 − 4 δ_E) − 2 δ_E E₀, which is above 0.41 T
+    for any δ_E <= 2.5e-13 (then 2 δ_E E₀ <= 0.5 T): the margin also holds for an ``e0``
+    carried from another sine (numpy's, at the start of a run).
+    """
+    return bool(_KEPT(p0, v0, p1, v1, q, w2))
+
+
+def kept_stage(tableau: Tableau) -> int | None:
+    """Return the stage whose point the pre-test :func:`energy_kept` takes, or None.
+
+    A stage at c = ½ whose sine the step takes, the one nearest the midpoint m = φ₀ + δ to
+    second order (Σⱼ aᵢⱼ cⱼ nearest ¼: the classic RK4's third stage, |m − q| = O(h³));
+    None for a method without one (Euler): its sweep takes the energy test as it stands.
+    """
+    A, C = tableau.A, tableau.C
+    cands = [i for i in range(1, tableau.stages) if C[i] == 0.5]
+    if not cands:
+        return None
+    return min(cands, key=lambda i: (abs(float(A[i] @ C) - 0.25), i))
+
+
 @functools.lru_cache(maxsize=256)
 def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float, v_acc: float,
                       check_energy: bool, w2: float, gamma: float) -> Any:
@@ -203,7 +276,10 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
     fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
-    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``); a
+    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``;
+    where the method has a stage for it, :func:`kept_stage`, the sound pre-test
+    :data:`ENERGY_KEPT_SRC` first, the energy test only where it cannot decide, and E/I made
+    from the state where it is read after steps the pre-test accepted: the same floats); a
     text that serves one special exponent leaves out the tests its pendulums cannot fail.
     A refused step is taken, where ``CAREFUL[i]``, by ``careful_step`` (the careful path,
     ``compiled_careful.py``: Coulomb friction at rest, the near-Coulomb creep, the guard's
@@ -238,6 +314,24 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     if not special or n > 1.0:
         tests += [f'            if ok and av > v_acc and {stiff}:', '                ok = False']
     pad = '        '
+    exact = ['e0 = e', 'v = v1', 's = sin(0.5 * p1)', f'e1 = {ENERGY_SRC}',
+             f'if {ROSE_SRC}:', '    ok = False', 'else:', '    e = e1']
+    stage = kept_stage(tableau)
+    if stage is None:
+        energy = [' ' * 16 + line for line in exact]
+        renew = [' ' * 20 + line for line in ('v = v1', 's = sin(0.5 * p1)',
+                                               f'e = {ENERGY_SRC}')]
+        fresh = []
+    else:
+        # E/I is carried lazily: a step the pre-test accepts leaves it stale, and it is made
+        # from (φ₀, φ'₀) by the same formula where it is read (the same float as carried).
+        make = ['if stale:', '    v = v0', '    s = sin(0.5 * p0)', f'    e = {ENERGY_SRC}',
+                '    stale = False']
+        energy = [' ' * 16 + line for line in (
+            *energy_kept_source(f'p_{stage}').splitlines(), 'if kept:', '    stale = True',
+            'else:', *('    ' + x for x in (*make, *exact)))]
+        renew = [' ' * 20 + 'stale = True']
+        fresh = [' ' * 8 + line for line in make]
     lines = [*step_source_with_n(tableau, n, False, 'plain').splitlines(),
              *step_source_with_n(tableau, n, True, 'branch').splitlines(),
              *laws_source(n).splitlines(),
@@ -253,15 +347,13 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '        nonsmooth = NONSMOOTH[i]', '        coulomb = COULOMB[i]',
              '        vmax = VMAX[i]', '        n = NN[i]', '        use_careful = CAREFUL[i]',
              '        p0 = P[i]', '        v0 = V[i]', '        e = E[i]', '        k = K[i]',
+             '        stale = False',
              '        nxt = next_record(base + k, every, total)',
              '        while k < count:', *(pad + line for line in body),
              '            v = v0', '            a0 = a_0', '            av = abs(v)',
              '            ok = lo <= av <= hi and -INF < p1 < INF and -INF < v1 < INF',
              *tests,
-             '            if ok and check:', '                e0 = e', '                v = v1',
-             '                s = sin(0.5 * p1)', f'                e1 = {ENERGY_SRC}',
-             f'                if {ROSE_SRC}:', '                    ok = False',
-             '                else:', '                    e = e1',
+             '            if ok and check:', *energy,
              '            if not ok:',
              '                if not use_careful:', '                    break',
              '                done, p1, v1 = careful_step(',
@@ -269,14 +361,14 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '                    w2, gamma, n, v_acc, reach, check, nonsmooth, coulomb, GUARD,',
              '                    COUNTS[i])',
              '                if not done:', '                    break',
-             '                if check:', '                    v = v1',
-             '                    s = sin(0.5 * p1)', f'                    e = {ENERGY_SRC}',
+             '                if check:', *renew,
              '            p0 = p1', '            v0 = v1', '            k += 1',
              '            if base + k == nxt:',
              '                r = record_row(nxt, every, total, rows)',
              '                RP[r, i] = p0', '                RV[r, i] = v0',
              '                nxt = next_record(nxt, every, total)',
              '            if not abs(v0) <= vmax:', '                break',
+             *fresh,
              '        P[i] = p0', '        V[i] = v0', '        E[i] = e', '        K[i] = k']
     return '\n'.join(lines) + '\n'
 
@@ -307,6 +399,7 @@ def ain_bounds(ain: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
 
 __all__ = [
     'CROSS_SRC',
+    'ENERGY_KEPT_SRC',
     'ENERGY_SRC',
     'ENERGY_TOL',
     'KERNEL_ARGS',
@@ -323,7 +416,10 @@ __all__ = [
     'ain_bounds',
     'compile_fast_step',
     'compile_kernel',
+    'energy_kept',
+    'energy_kept_source',
     'energy_rose',
+    'kept_stage',
     'kernel_source',
     'next_record',
     'record_row',
