@@ -32,6 +32,11 @@ Python path (``Engine.careful``'s ``except`` or ``Engine._settle``), so those ra
 taken by Python. What the step did is added to the pendulum's counters (:data:`COUNTERS`) only
 where it was taken. Parity tests (``test_sweep_jit.py``) check that both give the same floats
 and counters.
+
+The generated functions (``plain``, ``branch``, ``laws``, one set per law text) are arguments,
+never names of this module: compiled by ``jit.first_class_twin`` they are first-class functions
+of one signature each, so :func:`careful_step` and everything under it is compiled once per
+process, whatever the law texts.
 """
 from __future__ import annotations
 

@@ -216,7 +216,9 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     it spells alike, in one call.
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
     with the exponent an argument (``explicit.step_source_with_n``), and ``laws``, the two laws
-    themselves (``law.laws_source``), which ``careful_step`` takes.
+    themselves (``law.laws_source``), which ``careful_step`` takes as arguments (compiled, as
+    first-class functions: ``jit.first_class_twin`` compiles ``careful_step`` once for every
+    text).
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
     stiff = stiff_source(n)
