@@ -541,30 +541,3 @@ def test_the_parallel_run_takes_the_serial_runs_steps(monkeypatch: pytest.Monkey
     for k in ('phi', 'dphi', 'phi_record', 'dphi_record'):
         assert getattr(a, k).tobytes() == getattr(b, k).tobytes(), k
     assert len(spread.signatures) == 1
-
-
-def _fill(X: Any, IDX: Any, d: float) -> None:
-    """Add 1/d to X at the positions IDX holds (a serial run for jit.Spread)."""
-    for j in range(IDX.shape[0]):
-        X[IDX[j]] += 1.0 / d
-
-
-def test_a_spread_run_covers_every_pendulum_once() -> None:
-    # jit.Spread cuts IDX into one piece per thread and runs the serial run on each: every
-    # position once, whatever the count (fewer than the threads, none); a second argument
-    # type (a read-only array) gets its own first-class function.
-    import numba
-
-    spread = jit.Spread(numba.njit(_fill), jit._spread(('X', 'IDX', 'd')))
-    for size in (0, 1, 3, 1001):
-        x = np.zeros(size + 5)
-        idx = np.arange(size, dtype=np.int64)[::-1].copy()
-        spread(x, idx, 0.5)
-        assert x.tolist() == [2.0] * size + [0.0] * 5
-    frozen = np.arange(7, dtype=np.int64)
-    frozen.flags.writeable = False
-    x = np.zeros(7)
-    spread(x, frozen, 0.25)
-    assert x.tolist() == [4.0] * 7 and len(spread.serial.signatures) == 2
-    spread(x, np.arange(7, dtype=np.int64), 1.0)
-    assert x.tolist() == [5.0] * 7

@@ -148,7 +148,7 @@ FIRST_CLASS_CALLS = ('careful_step',)
 
 
 def _first_class(ty: Any) -> Any:
-    """Return the numba type of an argument of a first-class caller: a function by its type.
+    """Return the numba type of an argument of a :func:`first_class_twin`: a function by type.
 
     A compiled function (``numba.types.Dispatcher``) becomes ``numba.types.FunctionType`` of
     its one signature, float64 arguments where it has none yet (the generated steps and laws
@@ -237,29 +237,25 @@ class Spread:
     Called with the serial run's arguments; cuts the pendulums ``IDX`` into one contiguous
     piece per thread (as ``prange`` shares out a loop) and runs the serial run on each piece in
     parallel (:func:`_spread`, compiled once per process: the serial run, compiled for the
-    types of the arguments, is passed to it as a first-class function, :func:`_first_class`).
-    The run raises nothing (numbers in, numbers out: ``compiled_careful.py``); numba does not
-    carry an exception out of a parallel region reliably.
+    types of the arguments, is passed to it as a first-class function, by its address).
     """
 
     def __init__(self, serial: Any, spread: Any) -> None:
         self.serial = serial
         self.spread = spread
-        self.alone: dict[tuple[Any, ...], Any] = {}
+        self.runs: dict[tuple[Any, ...], Any] = {}
 
     def __call__(self, *args: Any) -> None:
         """Run the serial run on the pieces of ``IDX`` in parallel."""
         import numba
+        from numba.core.types.function_type import CompileResultWAP
 
         typeof: Any = numba.typeof
         key = tuple(typeof(a) for a in args)
-        self.serial.compile(key)
-        run = self.serial
-        if len(run.signatures) > 1:
-            # A first-class function has one signature: this argument type gets its own.
-            run = self.alone.get(key)
-            if run is None:
-                run = self.alone[key] = numba.njit(key)(self.serial.py_func)
+        run = self.runs.get(key)
+        if run is None:
+            self.serial.compile(key)
+            run = self.runs[key] = CompileResultWAP(self.serial.overloads[key])
         self.spread(run, *args)
 
 
@@ -280,17 +276,15 @@ def spread(run, {args}):
 def _spread(names: tuple[str, ...]) -> Any:
     """Return :data:`SPREAD_SRC` for a run of arguments ``names`` compiled with ``parallel``.
 
-    Its ``run`` is a first-class function (``numba.types.FunctionType``, :func:`_first_class`),
-    so one compilation serves the serial runs of every law text.
+    Its ``run`` is a first-class function (``numba.types.FunctionType``), so one compilation
+    serves the serial runs of every law text (:class:`Spread` passes them by address).
     """
     import numba
 
     src = SPREAD_SRC.format(args=', '.join(names),
                             cut=', '.join('IDX[a:b]' if x == 'IDX' else x for x in names))
     env = {'prange': numba.prange, 'get_num_threads': numba.get_num_threads}
-    return _first_class_dispatcher()(py_func=define(src, 'spread', env, '<spread>'), locals={},
-                                     targetoptions={'parallel': True, 'nopython': True,
-                                                    'boundscheck': None})
+    return numba.njit(parallel=True)(define(src, 'spread', env, '<spread>'))
 
 
 def _kernel_twin(fn: Any) -> Any:
