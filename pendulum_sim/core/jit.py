@@ -236,27 +236,22 @@ class Spread:
 
     Called with the serial run's arguments; cuts the pendulums ``IDX`` into one contiguous
     piece per thread (as ``prange`` shares out a loop) and runs the serial run on each piece in
-    parallel (:func:`_spread`, compiled once per process: the serial run, compiled for the
-    types of the arguments, is passed to it as a first-class function, by its address).
+    parallel (:func:`_spread`, compiled once per process: the serial run is passed to it as a
+    first-class function, compiled for the arguments of the first call).
     """
 
     def __init__(self, serial: Any, spread: Any) -> None:
         self.serial = serial
         self.spread = spread
-        self.runs: dict[tuple[Any, ...], Any] = {}
 
     def __call__(self, *args: Any) -> None:
         """Run the serial run on the pieces of ``IDX`` in parallel."""
-        import numba
-        from numba.core.types.function_type import CompileResultWAP
+        if not self.serial.signatures:
+            import numba
 
-        typeof: Any = numba.typeof
-        key = tuple(typeof(a) for a in args)
-        run = self.runs.get(key)
-        if run is None:
-            self.serial.compile(key)
-            run = self.runs[key] = CompileResultWAP(self.serial.overloads[key])
-        self.spread(run, *args)
+            typeof: Any = numba.typeof
+            self.serial.compile(tuple(typeof(a) for a in args))
+        self.spread(self.serial, *args)
 
 
 SPREAD_SRC = """\
@@ -276,15 +271,18 @@ def spread(run, {args}):
 def _spread(names: tuple[str, ...]) -> Any:
     """Return :data:`SPREAD_SRC` for a run of arguments ``names`` compiled with ``parallel``.
 
-    Its ``run`` is a first-class function (``numba.types.FunctionType``), so one compilation
-    serves the serial runs of every law text (:class:`Spread` passes them by address).
+    Its ``run`` is first-class (:func:`first_class_twin`): one compilation serves the serial
+    runs of every law text.
     """
     import numba
 
     src = SPREAD_SRC.format(args=', '.join(names),
                             cut=', '.join('IDX[a:b]' if x == 'IDX' else x for x in names))
     env = {'prange': numba.prange, 'get_num_threads': numba.get_num_threads}
-    return numba.njit(parallel=True)(define(src, 'spread', env, '<spread>'))
+    fn = define(src, 'spread', env, '<spread>')
+    return _first_class_dispatcher()(py_func=fn, locals={},
+                                     targetoptions={'parallel': True, 'nopython': True,
+                                                    'boundscheck': None})
 
 
 def _kernel_twin(fn: Any) -> Any:
