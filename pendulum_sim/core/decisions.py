@@ -194,10 +194,9 @@ def kernel_source(tableau: Tableau, n: float) -> str:
 
     ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, NN, LO, HI, REACH, V_ACC, CHECK,
     NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, COUNTS, CAREFUL, GUARD)``
-    advances every pendulum ``i = IDX[j]`` (``prange`` is ``range``: ``jit.Spread`` shares
-    the pendulums out among the cores, one piece of ``IDX`` per thread), its state
-    ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to step ``count`` of size h.
-    Each step is the plain step of ``explicit.step_source`` where the
+    advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
+    ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
+    step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
     fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
     stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``); a

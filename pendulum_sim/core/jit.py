@@ -29,9 +29,8 @@ the guard's substeps, the reversal split, the fallback, the energy redo, from th
 :func:`_formula`), and the few it declines by ``engine.Engine.careful``. The run's plain step
 is inlined in its loop; the careful path is compiled once per process whatever the law texts
 (:func:`first_class_twin`): the generated functions a text passes to it are typed by their
-signature (first-class functions) and called through their addresses, and the run is spread
-over the cores by one compiled :class:`Spread` that calls the text's serial run through its
-address, so a further text compiles only its serial run and its generated functions.
+signature (first-class functions) and called through their addresses, so a further text
+compiles only its run and its generated functions.
 
 Compiling a method's two steps (plain and branch law) for one exponent costs 0.7–2.3 s, once per
 process (the compiled steps are cached per method, exponent and law); at 2–11 µs saved per
@@ -208,15 +207,13 @@ _KERNELS: dict[types.CodeType, tuple[Any, Any]] = {}
 def compile_kernel(fn: Any) -> tuple[Any, Any]:
     """Return a sweep's generated run (``decisions.kernel_source``) compiled: (parallel, serial).
 
-    The serial one runs the pendulums one after another (``prange`` is ``range``), for runs of a
-    few pendulums, where waking the other threads costs more than the steps; the parallel one
-    (:class:`Spread`) shares them out among the cores, one contiguous piece per thread, each
-    piece run by the serial one: each pendulum's arithmetic unchanged (no fast-math, no
-    reduction across pendulums), so every pendulum takes the steps it takes alone.
-    The serial run is compiled once per source text (the runs of all exponents a text serves
-    share it), on first call, for the array types of that call; the spread and the
-    :data:`FIRST_CLASS_CALLS` it makes (the careful step) once per process
-    (:func:`first_class_twin`).
+    In the parallel one ``prange`` is numba's: the pendulums are shared out among the cores,
+    each one's arithmetic unchanged (no fast-math, no reduction across pendulums), so every
+    pendulum takes the steps it takes alone. The serial one runs them one after another, for
+    runs of a few pendulums, where waking the other threads costs more than the steps.
+    Compiled once per source text (the runs of all exponents a text serves share it), on first
+    call, for the array types of that call; the :data:`FIRST_CLASS_CALLS` it makes (the
+    careful step) once per process (:func:`first_class_twin`).
     """
     if not available():
         raise IntegratorError(f'compiled steps need numba, which is not installed: '
