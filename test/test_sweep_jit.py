@@ -510,34 +510,3 @@ def test_a_function_argument_is_first_class_of_its_one_signature() -> None:
            'has 2')
     with pytest.raises(IntegratorError, match=re.escape(msg)):
         caller(both, 3.0)
-
-
-def test_the_parallel_run_takes_the_serial_runs_steps(monkeypatch: pytest.MonkeyPatch) -> None:
-    # From PARALLEL_MIN pendulums a run is spread over the cores (jit.Spread: the serial run on
-    # one piece of the pendulums per thread, the serial run passed first-class to one compiled
-    # spread). Each pendulum takes the serial run's steps to the bit, careful steps and
-    # counters included, and the spread is compiled once for the runs of every law text.
-    from pendulum_sim.core import compiled_sweep
-    from pendulum_sim.core.decisions import KERNEL_ARGS
-
-    rng = np.random.default_rng(512)
-    size = 4 * compiled_sweep.PARALLEL_MIN
-    n = rng.choice(np.array([0.3, 1.5, 2.0]), size)  # two texts of >= PARALLEL_MIN each
-    gamma = rng.choice(np.array([0.1, 1.0, 30.0, 1e4]), size)
-    p0, v0 = rng.uniform(-3.0, 3.0, size), rng.uniform(-4.0, 4.0, size)
-    tau = np.where(rng.uniform(size=size) < 0.3, rng.uniform(-20.0, 20.0, size), 0.0)
-    spread = jit._spread(KERNEL_ARGS)
-    calls: list[int] = []
-    spread_run = jit.Spread.__call__
-    monkeypatch.setattr(jit.Spread, '__call__', lambda self, *args: calls.append(
-        len(args)) or spread_run(self, *args))
-    a = sweep(W2, gamma, n, p0, v0, 0.4, 0.01, torque=tau, record_every=10, jit=True)
-    assert len(calls) >= 2  # the first call of each text's run was spread
-    monkeypatch.setattr(compiled_sweep, 'PARALLEL_MIN', size + 1)
-    b = sweep(W2, gamma, n, p0, v0, 0.4, 0.01, torque=tau, record_every=10, jit=True)
-    assert len(calls) >= 2 and a.substeps.sum() > 0 and a.reversals.sum() > 0
-    for k in COUNTERS:
-        assert np.array_equal(getattr(a, k), getattr(b, k)), k
-    for k in ('phi', 'dphi', 'phi_record', 'dphi_record'):
-        assert getattr(a, k).tobytes() == getattr(b, k).tobytes(), k
-    assert len(spread.signatures) == 1

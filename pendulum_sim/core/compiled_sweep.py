@@ -2,8 +2,7 @@
 
 With ``jit=True`` a :class:`~pendulum_sim.core.sweep.Sweep` advances each group of pendulums
 (one exponent n) by its compiled run (``decisions.kernel_source``, compiled by
-``jit.compile_kernel`` once per law text, the careful step it calls and the spread over the
-cores once per process): every pendulum takes fast steps, its state in registers, in parallel
+``jit.compile_kernel`` once per law text, the careful step it calls once per process): every pendulum takes fast steps, its state in registers, in parallel
 over the pendulums, until a step is refused or the piece of the run is done. A refused step is
 taken by the compiled careful path (``compiled_careful.careful_step``: Coulomb friction at rest,
 the near-Coulomb creep, the guard's substeps, the reversal split, the fallback, the energy

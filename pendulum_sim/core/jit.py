@@ -42,7 +42,6 @@ import functools
 import types
 from typing import Any
 
-from .codegen import define
 from .errors import IntegratorError
 from .law import damping_derivative, slope_formula
 
@@ -222,64 +221,12 @@ def compile_kernel(fn: Any) -> tuple[Any, Any]:
 
     kernels = _KERNELS.get(fn.__code__)
     if kernels is None:
-        serial = numba.njit(_kernel_twin(fn))
-        names = fn.__code__.co_varnames[:fn.__code__.co_argcount]
-        kernels = _KERNELS[fn.__code__] = (Spread(serial, _spread(names)), serial)
+        twin = _kernel_twin(fn)
+        serial = numba.njit(twin)
+        twin = _kernel_twin(fn)
+        twin.__globals__['prange'] = numba.prange
+        kernels = _KERNELS[fn.__code__] = (numba.njit(parallel=True)(twin), serial)
     return kernels
-
-
-class Spread:
-    """A sweep's serial run spread over the cores: the parallel run of :func:`compile_kernel`.
-
-    Called with the serial run's arguments; cuts the pendulums ``IDX`` into one contiguous
-    piece per thread (as ``prange`` shares out a loop) and runs the serial run on each piece in
-    parallel (:func:`_spread`, compiled once per process: the serial run is passed to it as a
-    first-class function, compiled for the arguments of the first call).
-    """
-
-    def __init__(self, serial: Any, spread: Any) -> None:
-        self.serial = serial
-        self.spread = spread
-
-    def __call__(self, *args: Any) -> None:
-        """Run the serial run on the pieces of ``IDX`` in parallel."""
-        if not self.serial.signatures:
-            import numba
-
-            typeof: Any = numba.typeof
-            self.serial.compile(tuple(typeof(a) for a in args))
-        self.spread(self.serial, *args)
-
-
-SPREAD_SRC = """\
-def spread(run, {args}):
-    pieces = get_num_threads()
-    m = IDX.shape[0]
-    for c in prange(pieces):
-        a = c * m // pieces
-        b = (c + 1) * m // pieces
-        if a < b:
-            run({cut})
-"""
-"""The parallel run over a serial one (:func:`_spread`), its arguments the serial run's."""
-
-
-@functools.cache
-def _spread(names: tuple[str, ...]) -> Any:
-    """Return :data:`SPREAD_SRC` for a run of arguments ``names`` compiled with ``parallel``.
-
-    Its ``run`` is first-class (:func:`first_class_twin`): one compilation serves the serial
-    runs of every law text.
-    """
-    import numba
-
-    src = SPREAD_SRC.format(args=', '.join(names),
-                            cut=', '.join('IDX[a:b]' if x == 'IDX' else x for x in names))
-    env = {'prange': numba.prange, 'get_num_threads': numba.get_num_threads}
-    fn = define(src, 'spread', env, '<spread>')
-    return _first_class_dispatcher()(py_func=fn, locals={},
-                                     targetoptions={'parallel': True, 'nopython': True,
-                                                    'boundscheck': None})
 
 
 def _kernel_twin(fn: Any) -> Any:
