@@ -10,9 +10,12 @@ multiplications, the state in registers over the steps, in parallel over the pen
 compiled sweep runs; no guard, no decisions) over the same pendulums in the same run, the
 three in turn for ``--repeats`` rounds. Prints ns per pendulum-step (the best of each), the
 ratios, and the compiled sweep's ratio to the bare kernel round by round (median and range).
-Then (``--distinct``, issue 20) a sweep of 2000 pendulums with as many distinct non-integer n
-from 0.2 to 5: its set-up, how many source texts that compiled, and its time a step, numpy and
-compiled. Asserts nothing.
+The compiled sweep's "set-up and first step" is its first use in the process: it compiles the
+careful path once and a run per law text (5 texts); ``--first-mix`` (default n = 0, 0.3, 0.5,
+1, 1.5, 2, 2.5, 3, 4, 5: 10 texts) times the same first use in a fresh process for that mix
+(``--first-use``, the figure alone). Then (``--distinct``, issue 20) a sweep of 2000
+pendulums with as many distinct non-integer n from 0.2 to 5: its set-up, how many source texts
+that compiled, and its time a step, numpy and compiled. Asserts nothing.
 """
 from __future__ import annotations
 
@@ -21,6 +24,7 @@ import functools
 import math
 import os
 import platform
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -29,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from pendulum_sim.core import codegen
+from pendulum_sim.core import jit as core_jit
 from pendulum_sim.core.jit import available
 from pendulum_sim.core.law import damping_expression
 from pendulum_sim.core.sweep import Sweep
@@ -103,6 +108,32 @@ def distinct(count: int, steps: int) -> None:
               f'{first:.2f} s, then {per * 1e3:.2f} ms a step', flush=True)
 
 
+TEN_TEXTS = '0,0.3,0.5,1,1.5,2,2.5,3,4,5'
+"""The 10-text mix of ``--first-mix``: each exponent a law text of its own."""
+
+
+def first_use(size: int, mix: list[float]) -> tuple[float, int]:
+    """Return the first compiled sweep's set-up and first step (s) and the law texts it ran.
+
+    ``size`` pendulums with n drawn from ``mix``, as the main benchmark draws them.
+    """
+    rng = np.random.default_rng(0)
+    n = rng.choice(mix, size)
+    gamma = rng.uniform(0.05, 1.0, size)
+    p0, v0 = rng.uniform(-2.5, 2.5, size), rng.uniform(-3.0, 3.0, size)
+    kernels = len(core_jit._KERNELS)
+    t0 = time.perf_counter()
+    Sweep(9.8, gamma, n, p0, v0, 1e-3, jit=True).advance(1e-3)
+    return time.perf_counter() - t0, len(core_jit._KERNELS) - kernels
+
+
+def first_use_fresh(size: int, mix: str) -> str:
+    """Return ``--first-use`` run in a fresh process (nothing compiled yet): its printed line."""
+    out = subprocess.run([sys.executable, __file__, '--size', str(size), '--first-use', mix],
+                         check=True, capture_output=True, text=True)
+    return out.stdout.strip()
+
+
 def best(run: Callable[[], object], repeats: int) -> float:
     """Return the best wall time of ``run()`` over the repeats, in s."""
     out = math.inf
@@ -119,10 +150,21 @@ def main() -> int:
     parser.add_argument('--steps', type=int, default=20)
     parser.add_argument('--repeats', type=int, default=5)
     parser.add_argument('--distinct', type=int, default=2000)
+    parser.add_argument('--first-mix', default=TEN_TEXTS,
+                        help='exponents of a first use timed in a fresh process ("" for none)')
+    parser.add_argument('--first-use', default='',
+                        help='time only the first compiled sweep of this mix of exponents')
     args = parser.parse_args()
     if not available():
         print('numba is not installed: pip install the jit extra')
         return 1
+    if args.first_use:
+        sec, texts = first_use(args.size, [float(x) for x in args.first_use.split(',')])
+        print(f'sweep, compiled: set-up and first step {sec:.2f} s (n = {args.first_use}: '
+              f'{texts} law texts, fresh process)', flush=True)
+        return 0
+    if args.first_mix:
+        print(first_use_fresh(args.size, args.first_mix), flush=True)
     rng = np.random.default_rng(0)
     size, steps, h, w2 = args.size, args.steps, 1e-3, 9.8
     n = rng.choice([1.0, 2.0, 3.0, 4.0, 5.0], size)
@@ -131,12 +173,14 @@ def main() -> int:
     print(f'# sweep per pendulum-step: N = {size}, n = 1..5 mixed, {steps} steps of h = 1 ms, '
           f'{platform.processor() or platform.machine()}, {os.cpu_count()} cores', flush=True)
     runs: dict[str, Callable[[], object]] = {}
-    for name, jit in (('numpy', False), ('compiled', True)):
+    for name, compiled in (('numpy', False), ('compiled', True)):
+        kernels = len(core_jit._KERNELS)
         t0 = time.perf_counter()
-        sw = Sweep(w2, gamma, n, p0, v0, h, jit=jit)
+        sw = Sweep(w2, gamma, n, p0, v0, h, jit=compiled)
         sw.advance(h)                                       # warm-up (compiles with jit)
-        print(f'sweep, {name:8s}: set-up and first step {time.perf_counter() - t0:.2f} s',
-              flush=True)
+        texts = f' (n = 1..5: {len(core_jit._KERNELS) - kernels} law texts)' if compiled else ''
+        print(f'sweep, {name:8s}: set-up and first step {time.perf_counter() - t0:.2f} s'
+              f'{texts}', flush=True)
         sw.advance(steps * h)  # a run as timed: compiles what its refused steps call too
         runs[f'sweep, {name}'] = functools.partial(sw.advance, steps * h)
     order = np.argsort(n, kind='stable')

@@ -20,6 +20,7 @@ import pytest
 from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen, jit
 from pendulum_sim.core.compiled_careful import COUNTERS as CAREFUL_COUNTERS
 from pendulum_sim.core.compiled_careful import careful_step
+from pendulum_sim.core.compiled_sweep import PARALLEL_MIN
 from pendulum_sim.core.coulomb import creep_rate, friction_step
 from pendulum_sim.core.decisions import (
     STIFF_MAX_TRIALS,
@@ -506,6 +507,35 @@ def test_exponents_sharing_a_kernel_run_together_each_its_own_steps() -> None:
     assert res.reversals.sum() > 0  # the compiled careful step took part
 
 
+def test_the_parallel_run_takes_each_pendulums_stepper_steps() -> None:
+    # At least PARALLEL_MIN pendulums of one law text: the run's first call is the parallel
+    # kernel (prange over the pendulums), with careful steps of every kind among them (the
+    # guard's substeps, reversal splits, stiff transients, energy redos): each pendulum ends on
+    # the Stepper's floats and counters, its recording rows included.
+    rng = np.random.default_rng(512)
+    size = PARALLEL_MIN + 88
+    n = rng.choice([1.5, 2.5, 3.7], size)
+    gamma = rng.choice([0.2, 5.0, 50.0], size)
+    p0, v0 = rng.uniform(-3.0, 3.0, size), rng.uniform(-3.0, 3.0, size)
+    v0[::7] *= 10.0  # stiff transients
+    h, steps = 2e-2, 12
+    res = sweep(W2, gamma, n, p0, v0, steps * h, h, record_every=5, jit=True)
+    parallel, _ = jit.compile_kernel(compile_kernel(TABLEAUS['rk4'], 2.5, careful_step))
+    assert parallel.signatures  # the parallel kernel ran (compiled on its first call)
+    assert res.handed_back == 0 and res.dphi_record is not None and res.phi_record is not None
+    for i in range(size):
+        st = Stepper(PendulumParams.from_omega0_sq(W2, float(gamma[i]), float(n[i])),
+                     float(p0[i]), float(v0[i]), h)
+        for k in range(1, steps + 1):
+            st.step()
+            if k % 5 == 0 or k == steps:
+                row = k // 5 if k % 5 == 0 else -1
+                assert (res.phi_record[row, i], res.dphi_record[row, i]) == (st.phi, st.dphi)
+        assert tuple(int(getattr(res, c)[i]) for c in COUNTERS) == tuple(
+            getattr(st.stats, c) for c in COUNTERS), i
+    assert min(res.substeps.sum(), res.reversals.sum()) > 0  # careful steps took part
+
+
 def test_a_kernel_text_leaves_out_the_tests_its_exponent_cannot_fail() -> None:
     # Texts of one special exponent drop what its Problem never sets (Coulomb only at n = 0,
     # no kink for odd whole n, no stiff transient for n <= 1); the shared text keeps them all.
@@ -554,3 +584,53 @@ def test_friction_steps_run_compiled_as_the_stepper_takes_them() -> None:
     assert (b.phi[2], b.dphi[2]) == (1.0, 0.0)  # held at rest: |τ/I − ω0² sin φ| <= γ
     stiff = sweep(W2, 1e4, 1.0, 1.0, 3.0, 0.01, h, jit=True)
     assert stiff.substeps[0] > 0 and stiff.handed_back == 0  # the guard substeps compiled too
+
+
+def _call_twice(f: Any, x: float) -> float:
+    """Return f(x, 1) + f(x, 2): a caller of a function argument, for first_class_twin."""
+    return float(f(x, 1.0) + f(x, 2.0))
+
+
+def test_the_careful_step_compiles_once_for_every_law_text() -> None:
+    # careful_step takes each law text's generated functions (plain, branch, laws) as
+    # arguments; compiled by jit.first_class_twin they are first-class functions of one
+    # signature, so the careful step (and the tree under it) has one compiled form however
+    # many law texts the process runs, and further texts add none. Each sweep takes careful
+    # steps (the guard's substeps, a reversal split), compiled, to the Stepper's bit.
+    twin = jit.first_class_twin(careful_step)
+    h = 1e-3
+    for n in (1.0, 2.0, 0.3, 3.7):
+        res = sweep(W2, 1e4, n, 1.0, 3.0, 0.01, h, jit=True)
+        assert res.substeps[0] + res.reversals[0] > 0
+        st = Stepper(PendulumParams.from_omega0_sq(W2, 1e4, n), 1.0, 3.0, h)
+        for _ in range(10):
+            st.step(0.0)
+        assert (res.phi[0], res.dphi[0]) == (st.phi, st.dphi), n
+        assert len(twin.signatures) == 1, twin.signatures
+    fn_type = type(numba_types().FunctionType(numba_types().float64()))
+    assert [type(a) for a in twin.signatures[0][:3]] == [fn_type] * 3
+
+
+def numba_types() -> Any:
+    """Return ``numba.core.types`` (numba is imported only where the tests run)."""
+    from numba.core import types
+
+    return types
+
+
+def test_a_function_argument_is_first_class_of_its_one_signature() -> None:
+    # Two compiled functions of one signature share one compiled caller; a function without a
+    # signature yet is compiled for float64 arguments; one with two signatures is refused.
+    import numba
+
+    caller = jit.first_class_twin(_call_twice)
+    add = numba.njit('float64(float64, float64)')(lambda x, y: x + y)
+    mul = numba.njit('float64(float64, float64)')(lambda x, y: x * y)
+    lazy = numba.njit(lambda x, y: x - y)
+    assert (caller(add, 3.0), caller(mul, 3.0), caller(lazy, 3.0)) == (9.0, 9.0, 3.0)
+    assert len(caller.signatures) == 1
+    both = numba.njit(['float64(float64, float64)', 'int64(int64, int64)'])(lambda x, y: x + y)
+    msg = ('a function passed to a compiled careful path must have one signature; <lambda> '
+           'has 2')
+    with pytest.raises(IntegratorError, match=re.escape(msg)):
+        caller(both, 3.0)

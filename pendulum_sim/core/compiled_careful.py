@@ -38,6 +38,12 @@ damping slope at the start of a stiff cover or the location of a reversal in it 
 are declined). What the step did is added to the
 pendulum's counters (:data:`COUNTERS`) only where it was taken. Parity tests
 (``test_sweep_jit.py``) check that both give the same floats and counters.
+
+The generated functions (``plain``, ``branch``, ``laws``, ``pair_plain``, ``pair_branch``, one
+set per law text) are arguments, never names of this module: compiled by
+``jit.first_class_twin`` they are first-class functions of one signature each, so
+:func:`careful_step` and everything under it is compiled once per process, whatever the law
+texts.
 """
 from __future__ import annotations
 

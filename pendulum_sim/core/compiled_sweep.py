@@ -1,17 +1,18 @@
 """The compiled sweep's driver: long runs of fast steps compiled, refused steps handed back.
 
 With ``jit=True`` a :class:`~pendulum_sim.core.sweep.Sweep` advances each group of pendulums (one
-exponent n) by its compiled run (``decisions.kernel_source``, compiled by ``jit.compile_kernel``):
-every pendulum takes fast steps, its state in registers, in parallel over the pendulums, until a
-step is refused or the piece of the run is done. A refused step is taken by the compiled careful
-path (``compiled_careful.careful_step``: Coulomb friction at rest, the near-Coulomb creep, the
-guard's substeps, the reversal split, the fallback, the stiff transient's error-controlled
-substeps, the energy redo) where the group's ``use_careful`` is set; the steps it declines (the
-fallback's refusal by its work bound, a result that is not finite) are handed back to the one
-careful path (``engine.Engine.careful``, through the sweep's callback; counted as ``handed_back``),
-and the run goes on from the next step. Each pendulum thus takes exactly the steps the numpy sweep
-and the ``Stepper`` take (parity tests: ``test_sweep_jit.py``), in another order across pendulums:
-they do not interact.
+exponent n) by its compiled run (``decisions.kernel_source``, compiled by ``jit.compile_kernel``
+once per law text, the careful step it calls once per process): every pendulum takes fast steps,
+its state in registers, in parallel over the pendulums, until a step is refused or the piece of the
+run is done. A refused step is taken by the compiled careful path
+(``compiled_careful.careful_step``: Coulomb friction at rest, the near-Coulomb creep, the guard's
+substeps, the reversal split, the fallback, the stiff transient's error-controlled substeps, the
+energy redo) where the group's ``use_careful`` is set; the steps it declines (the fallback's
+refusal by its work bound, a result that is not finite) are handed back to the one careful path
+(``engine.Engine.careful``, through the sweep's callback; counted as ``handed_back``), and the run
+goes on from the next step. Each pendulum thus takes exactly the steps the numpy sweep and the
+``Stepper`` take (parity tests: ``test_sweep_jit.py``), in another order across pendulums: they do
+not interact.
 """
 from __future__ import annotations
 

@@ -297,7 +297,9 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
     with the exponent an argument (``explicit.step_source_with_n``), ``laws``, the two laws
     themselves (``law.laws_source``), and ``pair_plain`` and ``pair_branch``, the steps of
-    STIFF_PAIR with error estimate (``stiff.stiff_pair``), which ``careful_step`` takes.
+    STIFF_PAIR with error estimate (``stiff.stiff_pair``), which ``careful_step`` takes as
+    arguments (compiled, as first-class functions: ``jit.first_class_twin`` compiles
+    ``careful_step`` once for every text).
     """
     body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
     stiff = stiff_source(n)

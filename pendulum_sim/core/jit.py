@@ -27,7 +27,11 @@ step; the steps it refuses are taken by the careful path compiled (``compiled_ca
 the guard's substeps, the reversal split, the fallback, the stiff transient's error-controlled
 substeps, the energy redo, from the functions ``Engine.careful`` runs, their overflow guards
 compiled as the bare formulas by :func:`_formula`), and the few it declines (the fallback's
-refusal by its work bound, a result that is not finite) by ``engine.Engine.careful``.
+refusal by its work bound, a result that is not finite) by ``engine.Engine.careful``. The run's
+plain step is inlined in its loop; the careful path is compiled once per process whatever the
+law texts (:func:`first_class_twin`): the generated functions a text passes to it are typed by
+their signature (first-class functions) and called through their addresses, so a further text
+compiles only its run and its generated functions.
 
 Compiling a method's two steps (plain and branch law) for one exponent costs 0.7–2.3 s, once per
 process (the compiled steps are cached per method, exponent and law); at 2–11 µs saved per
@@ -137,6 +141,66 @@ def numba_twin(fn: Any) -> Any:
     return numba.njit(_twin(fn, deep=True))
 
 
+FIRST_CLASS_CALLS = ('careful_step',)
+"""The functions a sweep's run calls with its generated functions as arguments: compiled by
+:func:`first_class_twin`, once per process whatever the law texts."""
+
+
+def _first_class(ty: Any) -> Any:
+    """Return the numba type of an argument of a :func:`first_class_twin`: a function by type.
+
+    A compiled function (``numba.types.Dispatcher``) becomes ``numba.types.FunctionType`` of
+    its one signature, float64 arguments where it has none yet (the generated steps and laws
+    take floats); any other type is kept.
+    """
+    from numba.core import types as nbtypes
+
+    if not isinstance(ty, nbtypes.Dispatcher):
+        return ty
+    disp = ty.dispatcher
+    if not disp.nopython_signatures:
+        disp.compile((nbtypes.float64,) * disp.py_func.__code__.co_argcount)
+    sigs = disp.nopython_signatures
+    if len(sigs) != 1:
+        raise IntegratorError(f'a function passed to a compiled careful path must have one '
+                              f'signature; {disp.py_func.__name__} has {len(sigs)}')
+    return nbtypes.FunctionType(sigs[0])
+
+
+@functools.cache
+def _first_class_dispatcher() -> Any:
+    """Return numba's CPU dispatcher class typing function arguments as first-class functions."""
+    from numba.core import sigutils
+    from numba.core.registry import CPUDispatcher
+
+    normalize: Any = sigutils.normalize_signature
+
+    class FirstClassDispatcher(CPUDispatcher):  # type: ignore[misc, unused-ignore]
+        """Compile for the function types of the functions passed (:func:`_first_class`)."""
+
+        def compile(self, sig: Any) -> Any:
+            args, ret = normalize(sig)
+            args = tuple(_first_class(a) for a in args)
+            return super().compile(args if ret is None else ret(*args))
+
+    return FirstClassDispatcher
+
+
+@functools.cache
+def first_class_twin(fn: Any) -> Any:
+    """Return ``fn`` compiled as :func:`numba_twin` does, its function arguments first-class.
+
+    Every compiled function passed to it is typed ``numba.types.FunctionType`` of its
+    signature (:func:`_first_class`), not as that function's own dispatcher type, and called
+    through its address: the compiled ``fn`` and everything under it that takes those
+    functions is compiled once for all the functions of one signature (numba otherwise
+    compiles the whole tree again for each). Its arithmetic is the same; a call through an
+    address is not inlined.
+    """
+    return _first_class_dispatcher()(py_func=_twin(fn, deep=True), locals={},
+                                     targetoptions={'nopython': True, 'boundscheck': None})
+
+
 _KERNELS: dict[types.CodeType, tuple[Any, Any]] = {}
 
 
@@ -148,7 +212,8 @@ def compile_kernel(fn: Any) -> tuple[Any, Any]:
     pendulum takes the steps it takes alone. The serial one runs them one after another, for
     runs of a few pendulums, where waking the other threads costs more than the steps.
     Compiled once per source text (the runs of all exponents a text serves share it), on first
-    call, for the array types of that call.
+    call, for the array types of that call; the :data:`FIRST_CLASS_CALLS` it makes (the
+    careful step) once per process (:func:`first_class_twin`).
     """
     if not available():
         raise IntegratorError(f'compiled steps need numba, which is not installed: '
@@ -157,9 +222,17 @@ def compile_kernel(fn: Any) -> tuple[Any, Any]:
 
     kernels = _KERNELS.get(fn.__code__)
     if kernels is None:
-        twin = _twin(fn, deep=True)
+        twin = _kernel_twin(fn)
         serial = numba.njit(twin)
-        twin = _twin(fn, deep=True)
+        twin = _kernel_twin(fn)
         twin.__globals__['prange'] = numba.prange
         kernels = _KERNELS[fn.__code__] = (numba.njit(parallel=True)(twin), serial)
     return kernels
+
+
+def _kernel_twin(fn: Any) -> Any:
+    """Return :func:`_twin` (deep) of a sweep's run, its :data:`FIRST_CLASS_CALLS` first-class."""
+    twin = _twin(fn, deep=True)
+    for name in FIRST_CLASS_CALLS:
+        twin.__globals__[name] = first_class_twin(fn.__globals__[name])
+    return twin
