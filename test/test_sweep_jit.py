@@ -483,6 +483,22 @@ def test_the_run_keeps_the_next_recorded_step() -> None:
             assert next_record(done, every, total) == (later[0] if later else -1)
 
 
+def _assert_each_takes_the_steppers_steps(res: Any, gamma: Any, n: Any, p0: Any, v0: Any,
+                                          h: float, steps: int, every: int) -> None:
+    """Assert that each pendulum of a sweep recorded ``every`` steps took the Stepper's steps."""
+    assert res.dphi_record is not None and res.phi_record is not None
+    for i in range(n.size):
+        st = Stepper(PendulumParams.from_omega0_sq(W2, float(gamma[i]), float(n[i])),
+                     float(p0[i]), float(v0[i]), h)
+        for k in range(1, steps + 1):
+            st.step()
+            if k % every == 0 or k == steps:
+                row = k // every if k % every == 0 else -1
+                assert (res.phi_record[row, i], res.dphi_record[row, i]) == (st.phi, st.dphi)
+        assert tuple(int(getattr(res, c)[i]) for c in COUNTERS) == tuple(
+            getattr(st.stats, c) for c in COUNTERS), i
+
+
 def test_exponents_sharing_a_kernel_run_together_each_its_own_steps() -> None:
     # Distinct non-integer n (and n < 1, which the compiled careful step hands back) share one
     # kernel and run in one call, side by side: every pendulum still takes the Stepper's steps,
@@ -493,25 +509,15 @@ def test_exponents_sharing_a_kernel_run_together_each_its_own_steps() -> None:
     p0, v0 = rng.uniform(-3.0, 3.0, n.size), rng.uniform(-2.0, 2.0, n.size)
     h, steps = 1e-2, 30
     res = sweep(W2, gamma, n, p0, v0, steps * h, h, record_every=7, jit=True)
-    assert res.dphi_record is not None and res.phi_record is not None
-    for i in range(n.size):
-        st = Stepper(PendulumParams.from_omega0_sq(W2, float(gamma[i]), float(n[i])),
-                     float(p0[i]), float(v0[i]), h)
-        for k in range(1, steps + 1):
-            st.step()
-            if k % 7 == 0 or k == steps:
-                row = k // 7 if k % 7 == 0 else -1
-                assert (res.phi_record[row, i], res.dphi_record[row, i]) == (st.phi, st.dphi)
-        assert tuple(int(getattr(res, c)[i]) for c in COUNTERS) == tuple(
-            getattr(st.stats, c) for c in COUNTERS)
+    _assert_each_takes_the_steppers_steps(res, gamma, n, p0, v0, h, steps, 7)
     assert res.reversals.sum() > 0  # the compiled careful step took part
 
 
 def test_the_parallel_run_takes_each_pendulums_stepper_steps() -> None:
     # At least PARALLEL_MIN pendulums of one law text: the run's first call is the parallel
-    # kernel (prange over the pendulums), with careful steps of every kind among them (the
-    # guard's substeps, reversal splits, stiff transients, energy redos): each pendulum ends on
-    # the Stepper's floats and counters, its recording rows included.
+    # kernel (prange over the pendulums), with careful steps among them (the guard's substeps,
+    # reversal splits, the stiff transients of every seventh, started ten times faster): each
+    # pendulum ends on the Stepper's floats and counters, its recording rows included.
     rng = np.random.default_rng(512)
     size = PARALLEL_MIN + 88
     n = rng.choice([1.5, 2.5, 3.7], size)
@@ -522,17 +528,8 @@ def test_the_parallel_run_takes_each_pendulums_stepper_steps() -> None:
     res = sweep(W2, gamma, n, p0, v0, steps * h, h, record_every=5, jit=True)
     parallel, _ = jit.compile_kernel(compile_kernel(TABLEAUS['rk4'], 2.5, careful_step))
     assert parallel.signatures  # the parallel kernel ran (compiled on its first call)
-    assert res.handed_back == 0 and res.dphi_record is not None and res.phi_record is not None
-    for i in range(size):
-        st = Stepper(PendulumParams.from_omega0_sq(W2, float(gamma[i]), float(n[i])),
-                     float(p0[i]), float(v0[i]), h)
-        for k in range(1, steps + 1):
-            st.step()
-            if k % 5 == 0 or k == steps:
-                row = k // 5 if k % 5 == 0 else -1
-                assert (res.phi_record[row, i], res.dphi_record[row, i]) == (st.phi, st.dphi)
-        assert tuple(int(getattr(res, c)[i]) for c in COUNTERS) == tuple(
-            getattr(st.stats, c) for c in COUNTERS), i
+    assert res.handed_back == 0
+    _assert_each_takes_the_steppers_steps(res, gamma, n, p0, v0, h, steps, 5)
     assert min(res.substeps.sum(), res.reversals.sum()) > 0  # careful steps took part
 
 
