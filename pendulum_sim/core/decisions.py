@@ -96,11 +96,16 @@ STIFF_PAIR = DOP853
 STIFF_TOL (h ω_r)⁴ the order-8 pair needs about a third of the trials of the order-5 one."""
 
 
+def reference_rate(omega0: float) -> float:
+    """Return ω_r = max(ω0, 1 s⁻¹): the rate of the stiff transient's test and tolerance."""
+    return max(omega0, 1.0)
+
+
 def accuracy_speed(gamma: float, n: float, omega0: float) -> float:
     """Return the speed above which a damping-dominated n > 1 transient is error-controlled."""
     if n <= 1.0 or gamma <= 0.0:
         return math.inf
-    w_r = max(omega0, 1.0)
+    w_r = reference_rate(omega0)
     log_v = (math.log(STIFF_K * n) + 5.0 * math.log(w_r) - 4.0 * math.log(gamma)) / (
         4.0 * n - 3.0)
     return math.exp(min(log_v, 700.0))
@@ -425,6 +430,7 @@ __all__ = [
     'kernel_source',
     'next_record',
     'record_row',
+    'reference_rate',
     'reversal_suspect',
     'specific_energy',
     'stiff_source',

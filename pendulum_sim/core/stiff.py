@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .decisions import STIFF_MAX_TRIALS, STIFF_PAIR, STIFF_TOL
+from .decisions import STIFF_MAX_TRIALS, STIFF_PAIR, STIFF_TOL, reference_rate
 from .error_control import accepted, error_norm, min_step, step_factor
 from .explicit import compile_step_with_n
 from .law import damping_derivative
@@ -82,8 +82,8 @@ def stiff_cover(pair_plain: Any, pair_branch: Any, p: float, v: float, h: float,
     """Cover a step of h from (φ, φ') in a damping-dominated n > 1 transient.
 
     Substeps of the pair (:func:`stiff_pair`) at the tolerance STIFF_TOL (h ω_r)⁴ in φ and φ'
-    (ω_r = max(ω0, 1 s⁻¹)), the first trial min(h, 1/d) (d the damping slope at the start,
-    ``law.damping_derivative``), every trial after the first counted as a substep; where
+    (ω_r: ``decisions.reference_rate``), the first trial min(h, 1/d) (d the damping slope at
+    the start, ``law.damping_derivative``), every trial after the first counted as a substep; where
     ``nonsmooth`` an accepted substep that crosses φ' = 0 is cut at the reversal
     (``reversal.locate_on_branch``, CUT_TOL, CUT_ITERATIONS) and the next trial starts small.
     Returns ``(code, φ₁, φ'₁, w, substeps, reversals)`` (:data:`TAKEN` … :data:`NOT_FINITE`);
@@ -93,7 +93,7 @@ def stiff_cover(pair_plain: Any, pair_branch: Any, p: float, v: float, h: float,
     d = damping_derivative(gamma, n, v)
     if not d < math.inf:
         return OVERFLOW, p, v, 0.0, subs, turns
-    tol = STIFF_TOL * (h * max(math.sqrt(w2), 1.0)) ** 4.0
+    tol = STIFF_TOL * (h * reference_rate(math.sqrt(w2))) ** 4.0
     hh = min(h, 1.0 / d) if d > 0.0 else h
     vmax = run_speed_limit(gamma, n, w2)
     trials = 0
