@@ -3,9 +3,9 @@
 Every process of the package that starts rclpy (``pendulum_node``, ``pendulum_replay``,
 ``pendulum_pd_controller``) calls :func:`use_loopback_profile` before ``rclpy.init``, and the
 long-running ones pick their executor with :func:`make_executor`, let it go of their node with
-:func:`release` before destroying it and end through :func:`exit_with`. Also where the installed
-config files (scenes, the DDS profile) are. rclpy is imported only inside
-:func:`make_executor`.
+:func:`release` before destroying it with :func:`shut_down`, and end through :func:`exit_with`.
+Also where the installed config files (scenes, the DDS profile) are. rclpy is imported only
+inside :func:`make_executor` and :func:`shut_down`.
 """
 from __future__ import annotations
 
@@ -15,6 +15,8 @@ import sys
 from collections.abc import Callable, MutableMapping
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
+
+from .exit_deadline import exit_deadline
 
 if TYPE_CHECKING:
     from rclpy.executors import Executor
@@ -142,6 +144,32 @@ def release(executor: Executor | None, node: Node | None) -> None:
         executor.remove_node(node)
     executor.shutdown()
     _RETIRED.append(executor)
+
+
+# How long destroying the node and shutting rclpy down may take before the process ends without
+# it. Fast DDS 2.14 (ROS 2 Jazzy) deletes a participant with set_listener(nullptr), which spins
+# while a discovery callback is in flight and keeps the mutex that callback needs to finish
+# (eProsima/Fast-DDS issue #6513). When the peers stop at the same moment (Ctrl-C in a terminal
+# or a launch file), their endpoints leaving start such callbacks: here about one teardown in 300
+# spun for more than 10 s. A normal teardown takes a few tens of milliseconds.
+TEARDOWN_LIMIT = 3.0
+
+
+def shut_down(node: Node | None, code: int, limit: float = TEARDOWN_LIMIT) -> None:
+    """Destroy ``node`` and shut rclpy down; past ``limit`` seconds, end the process with ``code``.
+
+    Call it last, once the node's work is closed (summary printed, recording written): the
+    deadline (:func:`pendulum_sim.exit_deadline.exit_deadline`) ends the process with ``_exit``
+    from a thread of the C library, because the stuck call keeps the GIL. The peers then see the
+    participant itself leave only when its lease runs out; the node's publishers and
+    subscriptions were destroyed before the participant's deletion began.
+    """
+    import rclpy
+
+    with exit_deadline(code, limit):
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
 
 
 def exit_with(main: Callable[[], int]) -> NoReturn:

@@ -40,6 +40,7 @@ from pendulum_sim.dds import (
     exit_with,
     make_executor,
     release,
+    shut_down,
     use_loopback_profile,
 )
 
@@ -264,9 +265,7 @@ def main(args: list[str] | None = None) -> int:
             print(f'{NODE_NAME}: answered {node.answers} states, skipped {node.skipped}',
                   file=sys.stderr, flush=True)
         release(executor, node)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        shut_down(node, code)
     return code
 
 

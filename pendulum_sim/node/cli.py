@@ -25,7 +25,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import FrameType
-from typing import TYPE_CHECKING, Any, NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 
 class Signals:
@@ -62,6 +62,7 @@ from pendulum_sim.dds import (  # noqa: E402
     exit_with,
     make_executor,
     release,
+    shut_down,
     use_loopback_profile,
 )
 
@@ -324,18 +325,10 @@ def _run(executor_kind: str, signals: Signals) -> int:
     finally:
         signals.abort = False  # a signal while closing must not interrupt the close
         release(executor, node)
-        _close(node)
+        if node is not None:
+            node.close()  # the summary and the recording, before the DDS teardown
+        shut_down(node, code)
     return code
-
-
-def _close(node: Any) -> None:
-    """Close the node (summary, recording) and shut rclpy down."""
-    import rclpy
-
-    if node is not None:
-        node.close()
-        node.destroy_node()
-    rclpy.try_shutdown()
 
 
 def entry() -> NoReturn:

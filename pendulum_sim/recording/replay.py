@@ -24,7 +24,7 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
 
-from pendulum_sim.dds import use_loopback_profile
+from pendulum_sim.dds import shut_down, use_loopback_profile
 from pendulum_sim.recording.errors import RecorderError
 from pendulum_sim.recording.reader import RawMessage, Scan, scan
 from pendulum_sim.recording.schemas import message_class
@@ -242,16 +242,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     use_loopback_profile(os.environ)
     rclpy.init()
     node = rclpy.create_node('pendulum_replay')
+    code = 1  # if anything below raises
     try:
         replay(node, the_plan, args.rate, args.loop, args.clock, args.wait_for_subscribers,
                sys.stderr)
+        code = 0
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        code = 0
     finally:
         sys.stderr.write('\n')
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+        shut_down(node, code)
+    return code
 
 
 if __name__ == '__main__':

@@ -29,7 +29,7 @@ def main(argv: list[str] | None = None) -> int:
     from sensor_msgs.msg import JointState
     from std_msgs.msg import UInt32
 
-    from pendulum_sim.dds import use_loopback_profile
+    from pendulum_sim.dds import shut_down, use_loopback_profile
 
     use_loopback_profile(os.environ)
     reliable = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
@@ -46,17 +46,18 @@ def main(argv: list[str] | None = None) -> int:
 
     node.create_subscription(JointState, 'joint_states', on_state, reliable)
     step = node.create_publisher(UInt32, 'pendulum_node/step_periods', reliable)
+    code = 1  # if anything below raises
     try:
         while step.get_subscription_count() < 1:
             executor.spin_once(timeout_sec=0.01)
         step.publish(UInt32(data=periods))
         while not seen or seen[-1] < last:
             executor.spin_once(timeout_sec=0.05)
+        code = 0
     finally:
         executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+        shut_down(node, code)
+    return code
 
 
 if __name__ == '__main__':
