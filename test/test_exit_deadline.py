@@ -16,7 +16,7 @@ from pendulum_sim.exit_deadline import exit_deadline
 pytestmark = pytest.mark.skipif(not sys.platform.startswith('linux'),
                                 reason='the deadline is a Linux POSIX timer')
 
-CHILD = textwrap.dedent('''
+CHILD = textwrap.dedent("""
     import ctypes
     import sys
     from pendulum_sim.exit_deadline import exit_deadline
@@ -25,7 +25,7 @@ CHILD = textwrap.dedent('''
         ctypes.PyDLL(None).pause()  # never returns; the GIL stays held
 
     {body}
-''')
+""")
 
 
 def run_child(body: str) -> subprocess.CompletedProcess[str]:
@@ -36,12 +36,12 @@ def run_child(body: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_a_call_that_keeps_the_gil_is_ended_with_the_code_given() -> None:
-    done = run_child('''
+    done = run_child("""
         print('summary written before the teardown')  # buffered: a pipe is not a tty
         with exit_deadline(7, 0.2) as armed:
             print(f'armed {armed}', file=sys.stderr)
             stuck()
-    ''')
+    """)
     assert done.returncode == 7, done.stderr
     # What was printed before the deadline was armed reached the pipe: it was flushed first.
     assert done.stdout == 'summary written before the teardown\n'
@@ -49,16 +49,16 @@ def test_a_call_that_keeps_the_gil_is_ended_with_the_code_given() -> None:
 
 
 def test_the_code_can_be_zero() -> None:
-    done = run_child('''
+    done = run_child("""
         with exit_deadline(0, 0.2):
             stuck()
-    ''')
+    """)
     assert done.returncode == 0, done.stderr
 
 
 def test_leaving_the_block_disarms_the_deadline() -> None:
     # The first deadline (code 7) is left in time; only the second (code 3) may end the child.
-    done = run_child('''
+    done = run_child("""
         with exit_deadline(7, 0.2):
             pass
         try:
@@ -68,7 +68,7 @@ def test_leaving_the_block_disarms_the_deadline() -> None:
             pass
         with exit_deadline(3, 0.6):
             stuck()
-    ''')
+    """)
     assert done.returncode == 3, done.stderr
 
 
