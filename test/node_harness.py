@@ -138,6 +138,39 @@ class NodeProcess:
         return self.returncode
 
 
+def ready_to_answer(node: Any, executor: Any, server_fqn: str, timeout: float = 30.0) -> None:
+    """Return once the node ``server_fqn`` can answer every client ``node`` has made so far.
+
+    ``service_is_ready()`` says that this side matched the server; the server may not have
+    matched this client yet, and then it drops the request or the answer (rmw_fastrtps waits
+    100 ms for the client's reader, then logs 'client will not receive response'): a call
+    right after start-up waits forever. This asks the server's ``get_parameters`` for nothing,
+    which changes nothing, again each second until it answers, from a client made after the
+    others: discovery announces a participant's endpoints in the order they were made, over
+    one reliable channel for writers and one for readers, so once this answer is back the
+    server has matched the earlier clients' request writers and answer readers too.
+    """
+    client = node.create_client(GetParameters, f'{server_fqn}/get_parameters')
+    try:
+        end = time.monotonic() + timeout
+        while True:
+            while not client.service_is_ready():
+                if time.monotonic() > end:
+                    raise AssertionError(f'{server_fqn}/get_parameters did not appear within '
+                                         f'{timeout} s')
+                executor.spin_once(timeout_sec=0.02)
+            future = client.call_async(GetParameters.Request())
+            ask_again = min(end, time.monotonic() + 1.0)
+            while not future.done() and time.monotonic() < ask_again:
+                executor.spin_once(timeout_sec=0.02)
+            if future.done():
+                return
+            if time.monotonic() >= end:
+                raise AssertionError(f'{server_fqn} did not answer within {timeout} s')
+    finally:
+        node.destroy_client(client)
+
+
 class Received:
     """Messages of one subscription with their receive times (monotonic and wall clock, ns)."""
 
@@ -223,7 +256,7 @@ class Probe:
             self.executor.spin_once(timeout_sec=0.01)
 
     def call(self, srv_type: type, name: str, request: Any, timeout: float = 10.0) -> Any:
-        """Call a service and return its response (waits for the service first)."""
+        """Call a service and return its response (waits until the server can answer first)."""
         client = self.node.create_client(srv_type, name)
         try:
             end = time.monotonic() + timeout
@@ -231,6 +264,7 @@ class Probe:
                 if time.monotonic() > end:
                     raise AssertionError(f'service {name} did not appear within {timeout} s')
                 self.executor.spin_once(timeout_sec=0.02)
+            ready_to_answer(self.node, self.executor, name.rsplit('/', 1)[0], timeout)
             future = client.call_async(request)
             self.spin_until(future.done, timeout, f'a response from {name}')
             return future.result()

@@ -16,6 +16,7 @@ import sys
 import time
 
 import rclpy
+from node_harness import ready_to_answer
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.executors import SingleThreadedExecutor
@@ -39,6 +40,7 @@ def main(argv: list[str]) -> int:
             print('no set_parameters service', file=sys.stderr)
             return 1
         executor.spin_once(timeout_sec=0.01)
+    ready_to_answer(node, executor, fqn)
     print('ready', flush=True)
     futures: list[tuple[float, object]] = []
     values: list[float] = []

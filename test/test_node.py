@@ -23,6 +23,7 @@ from node_harness import (
     Probe,
     all_finite,
     parameter_value,
+    ready_to_answer,
     stamp_ns,
     unique_namespace,
 )
@@ -409,6 +410,7 @@ def test_storm_of_parameters_and_commands() -> None:
         client = probe.node.create_client(SetParameters, f'{node.fqn}/set_parameters')
         probe.spin_until(lambda: len(states) >= 5 and client.service_is_ready(), 20.0,
                          'the node')
+        ready_to_answer(probe.node, probe.executor, node.fqn)
         start_count, start_time = len(states), states.times[-1]
         # 1500 parameter sets and 1500 commands, as fast as the node answers (hundreds per
         # second here; the figure is printed, not asserted). Services keep the last 10

@@ -10,7 +10,7 @@ import signal
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
-from node_harness import NodeProcess, Probe, all_finite
+from node_harness import NodeProcess, Probe, all_finite, ready_to_answer
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -124,6 +124,7 @@ def test_a_hundred_concurrent_resets_are_all_answered() -> None:
                           durability=DurabilityPolicy.VOLATILE)
         client = probe.node.create_client(Trigger, f'{node.fqn}/reset', qos_profile=deep)
         probe.spin_until(client.service_is_ready, 20.0, '~/reset')
+        ready_to_answer(probe.node, probe.executor, node.fqn)
         futures = [client.call_async(Trigger.Request()) for _ in range(100)]
         probe.spin_until(lambda: all(f.done() for f in futures), 60.0, '100 answers')
         assert all(f.result().success for f in futures)

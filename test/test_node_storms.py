@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
-from node_harness import NodeProcess, Probe
+from node_harness import NodeProcess, Probe, ready_to_answer
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, UInt32
@@ -44,6 +44,7 @@ def answers_within(probe: Probe, srv_type: type, name: str, request: object,
     """Wait for the service to exist, then return its answer, which must come in ``seconds``."""
     client = probe.node.create_client(srv_type, name)
     probe.spin_until(client.service_is_ready, 30.0, f'service {name}')
+    ready_to_answer(probe.node, probe.executor, name.rsplit('/', 1)[0])
     future = client.call_async(request)
     probe.spin_until(future.done, seconds, f'the answer of {name}')
     return future.result()

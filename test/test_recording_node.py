@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from node_harness import ready_to_answer
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
@@ -79,6 +80,7 @@ def epoch_ns(rec: Recording) -> int:
 def set_gamma(node: Any, executor: Any, value: float) -> None:
     client = node.create_client(SetParameters, '/pendulum_node/set_parameters')
     assert client.wait_for_service(timeout_sec=10.0)
+    ready_to_answer(node, executor, '/pendulum_node')
     future = client.call_async(SetParameters.Request(parameters=[ParameterMsg(
         name='gamma', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
                                            double_value=value))]))
@@ -215,6 +217,7 @@ def test_a_reset_is_recorded_and_the_run_loads_as_two_segments(tmp_path: Path) -
         assert spin_until(executor, lambda: len(joint_states) >= 100, timeout=30.0)
         client = node.create_client(Trigger, '/pendulum_node/reset')
         assert client.wait_for_service(timeout_sec=10.0)
+        ready_to_answer(node, executor, '/pendulum_node')
         future = client.call_async(Trigger.Request())
         assert spin_until(executor, future.done, timeout=10.0)
         answer = future.result()
