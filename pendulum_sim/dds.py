@@ -159,6 +159,10 @@ TEARDOWN_LIMIT = 3.0
 def shut_down(node: Node | None, code: int, limit: float = TEARDOWN_LIMIT) -> None:
     """Destroy ``node`` and shut rclpy down; past ``limit`` seconds, end the process with ``code``.
 
+    Called from a ``finally`` clause that an exception passes through, the process ends with 1
+    instead of 0, as Python would end it (the traceback, which Python prints only once the
+    exception has left ``main``, is then lost).
+
     For a program's own end, where ending the process is what comes next anyway (the package's
     console scripts), never inside a process that must go on. Call it last, once the node's
     work is closed (summary printed, recording written): the deadline
@@ -169,6 +173,8 @@ def shut_down(node: Node | None, code: int, limit: float = TEARDOWN_LIMIT) -> No
     """
     import rclpy
 
+    if sys.exc_info()[0] is not None and code == 0:
+        code = 1  # called from a finally clause an exception goes through: as Python would end
     with exit_deadline(code, limit):
         if node is not None:
             node.destroy_node()

@@ -83,3 +83,26 @@ def test_bad_arguments_are_refused(code: int, seconds: float, message: str) -> N
         with exit_deadline(code, seconds):
             pass
     assert str(info.value) == message
+
+
+@pytest.mark.parametrize(('raises', 'code', 'expected'), [
+    (False, 0, 0), (False, 2, 2), (True, 0, 1), (True, 2, 2)])
+def test_shut_down_ends_a_stuck_teardown_with_the_programs_code(
+        raises: bool, code: int, expected: int) -> None:
+    # A node whose destruction never returns, as Fast DDS's spinning participant deletion: the
+    # process ends with the code given, or 1 when an exception is on its way out of main.
+    done = run_child(f"""
+        from pendulum_sim.dds import shut_down
+
+        class StuckNode:
+            def destroy_node(self):
+                stuck()
+
+        try:
+            if {raises}:
+                raise RuntimeError('a bug in main')
+        finally:
+            shut_down(StuckNode(), {code}, limit=0.2)
+    """)
+    assert done.returncode == expected, done.stderr
+    assert 'a bug in main' not in done.stderr  # the traceback was never reached

@@ -242,17 +242,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     use_loopback_profile(os.environ)
     rclpy.init()
     node = rclpy.create_node('pendulum_replay')
-    code = 1  # if anything below raises
     try:
         replay(node, the_plan, args.rate, args.loop, args.clock, args.wait_for_subscribers,
                sys.stderr)
-        code = 0
     except (KeyboardInterrupt, ExternalShutdownException):
-        code = 0
+        pass
     finally:
         sys.stderr.write('\n')
-        shut_down(node, code)
-    return code
+        shut_down(node, 0)
+    return 0
 
 
 if __name__ == '__main__':

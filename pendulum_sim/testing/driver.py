@@ -46,18 +46,16 @@ def main(argv: list[str] | None = None) -> int:
 
     node.create_subscription(JointState, 'joint_states', on_state, reliable)
     step = node.create_publisher(UInt32, 'pendulum_node/step_periods', reliable)
-    code = 1  # if anything below raises
     try:
         while step.get_subscription_count() < 1:
             executor.spin_once(timeout_sec=0.01)
         step.publish(UInt32(data=periods))
         while not seen or seen[-1] < last:
             executor.spin_once(timeout_sec=0.05)
-        code = 0
     finally:
         executor.shutdown()
-        shut_down(node, code)
-    return code
+        shut_down(node, 0)
+    return 0
 
 
 if __name__ == '__main__':
