@@ -159,10 +159,6 @@ TEARDOWN_LIMIT = 3.0
 def shut_down(node: Node | None, code: int, limit: float = TEARDOWN_LIMIT) -> None:
     """Destroy ``node`` and shut rclpy down; past ``limit`` seconds, end the process with ``code``.
 
-    Called from a ``finally`` clause that an exception passes through, the process ends with 1
-    instead of 0, as Python would end it (the traceback, which Python prints only once the
-    exception has left ``main``, is then lost).
-
     For a program's own end, where ending the process is what comes next anyway (the package's
     console scripts), never inside a process that must go on. Call it last, once the node's
     work is closed (summary printed, recording written): the deadline
@@ -170,6 +166,10 @@ def shut_down(node: Node | None, code: int, limit: float = TEARDOWN_LIMIT) -> No
     thread of the C library, because the stuck call keeps the GIL. The peers then see the
     participant itself leave only when its lease runs out; the node's publishers and
     subscriptions were destroyed before the participant's deletion began.
+
+    Called from a ``finally`` clause that an exception passes through, the process ends with 1
+    instead of 0, as Python would end it (the traceback, which Python prints only once the
+    exception has left ``main``, is then lost).
     """
     import rclpy
 
