@@ -132,9 +132,13 @@ class NodeProcess:
         return self.returncode
 
     def wait(self, timeout: float = 20.0) -> int:
-        """Wait for the process to exit by itself; return its exit code."""
+        """Wait for the process to exit; return its exit code (fail with its output if not)."""
         assert self.proc is not None
-        self.returncode = self.proc.wait(timeout=timeout)
+        try:
+            self.returncode = self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            raise AssertionError(f'{self.cmd[0]} still running after {timeout} s:\n'
+                                 f'{self.output()}') from None
         return self.returncode
 
 
