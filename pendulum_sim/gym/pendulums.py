@@ -52,12 +52,8 @@ class Pendulums:
     def start(self, i: int, config: Any) -> None:
         """Start joint ``i`` at rest at its configuration's initial state."""
         from pendulum_sim.node.joint import SimulatedJoint
-        from pendulum_sim.testing.batch import _why_not
 
-        why = _why_not(config)
-        if why:
-            raise GymError(f'the environment steps the joint of effort commands with an ideal '
-                           f'sensor and an explicit method; this scene cannot: {why}')
+        check(config)
         common = (config.h, config.period_steps, config.method, config.guard)
         others = [j for j, c in enumerate(self.configs) if c is not None and j != i]
         if self._common is not None and others and common != self._common:
@@ -145,6 +141,16 @@ class Pendulums:
         st = joint.stepper
         self.phi[j], self.vel[j], self.effort[j] = st.phi, st.dphi, joint.torque
         return joint.failed
+
+
+def check(config: Any) -> None:
+    """Refuse a joint configuration the environments cannot step (batch.batchable's reason)."""
+    from pendulum_sim.testing.batch import _why_not
+
+    why = _why_not(config)
+    if why:
+        raise GymError(f'the environment steps the joint of effort commands with an ideal '
+                       f'sensor and an explicit method; this scene cannot: {why}')
 
 
 def _common_text(common: tuple[Any, ...]) -> str:

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import GymError
-from .pendulums import Pendulums
+from .pendulums import Pendulums, check
 from .scenario import Scenarios
 from .tasks import Task
 
@@ -42,6 +42,7 @@ class Runner:
         if scenarios.varies('max_effort'):
             raise GymError('max_effort must be one value: it bounds the action space')
         first = scenarios.first()
+        check(first.config)
         limit = float(first.config.max_effort)
         if not np.isfinite(limit):
             raise GymError('max_effort must be finite: it bounds the action space')
