@@ -55,8 +55,8 @@ class Pendulums:
 
         check(config)
         common = (config.h, config.period_steps, config.method, config.guard)
-        others = [j for j, c in enumerate(self.configs) if c is not None and j != i]
-        if self._common is not None and others and common != self._common:
+        if self._common is not None and common != self._common and any(
+                c is not None for j, c in enumerate(self.configs) if j != i):
             raise GymError(f'every pendulum of a vector environment steps with one h, control '
                            f'period, integrator and guard; episode has {_common_text(common)}, '
                            f'the others {_common_text(self._common)}')
