@@ -209,14 +209,17 @@ def test_a_policy_through_closed_loop_runs_the_environments_episode(
         assert rewards.sum() == pytest.approx(-run.metrics().iae, rel=1e-12)
 
 
-def test_a_policy_gets_the_campaigns_verdict_on_the_environments_episodes(
-        tmp_path: Path) -> None:
-    text = ('controller: pendulum_sim.gym.examples:tracking_law\n'
+CAMPAIGN = ('controller: pendulum_sim.gym.examples:tracking_law\n'
             'scene: controller_test\nepisodes: 4\nseed: 9\nperiods: 301\n'
             'target: {distribution: uniform, low: -0.5, high: 0.5}\n'
             'parameters:\n  gamma: {distribution: uniform, low: 0.05, high: 0.3}\n'
             '  phi0: 0.0\n  max_effort: 1.0\n'
             "requirements:\n  - 'settling_time < 2.5'\n")
+
+
+def test_a_policy_gets_the_campaigns_verdict_on_the_environments_episodes(
+        tmp_path: Path) -> None:
+    text = CAMPAIGN
     path = tmp_path / 'campaign.yaml'
     path.write_text(text)
     env = gymnasium.make(STEP, parameters=path)
@@ -227,6 +230,26 @@ def test_a_policy_gets_the_campaigns_verdict_on_the_environments_episodes(
         assert row['target'] == info['target'] and row['gamma'] == info['parameters']['gamma']
         assert rewards.sum() == pytest.approx(-row['iae'], rel=1e-12)
         assert row['passed'], row['reason']
+
+
+@pytest.mark.slow
+def test_pendulum_campaign_runs_a_policy_law_on_its_dask_cluster(tmp_path: Path) -> None:
+    """The console script, unchanged, on a local Dask cluster: the environment's verdict."""
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(CAMPAIGN)
+    out = tmp_path / 'out'
+    script = Path(sys.executable).parent / 'pendulum_campaign'
+    proc = subprocess.run([str(script), str(path), '--out', str(out), '--workers', '1',
+                           '--no-progress'], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    import pyarrow.parquet as pq
+
+    rows = pq.read_table(out / 'episodes.parquet').to_pylist()
+    env = gymnasium.make(STEP, parameters=path)
+    for k, row in enumerate(rows):
+        _, _, rewards, info = episode(env, tracking, 300, seed=9 if k == 0 else None)
+        assert row['episode'] == k and row['passed'] and row['target'] == info['target']
+        assert rewards.sum() == pytest.approx(-row['iae'], rel=1e-12)
 
 
 # ------------------------------------------------------------------ bad input
