@@ -192,6 +192,21 @@ def test_near_the_speed_bound_the_joint_decides_and_still_in_step() -> None:
     assert vec.unwrapped.runner.pendulums.vel[0] == vel[-1]
 
 
+def test_the_joint_keywords_set_the_nodes_parameters() -> None:
+    """integrator=, h=, control_period= and target= are the node's own settings."""
+    env = pg.StepResponseEnv(integrator='midpoint', h=0.002, control_period=0.02, target=0.3)
+    phi, vel, _, info = episode(env, tracking, 50, seed=1)
+    assert info['target'] == 0.3 and env.metadata['render_fps'] == 50
+    run = closed_loop(policy_law(tracking, task='StepResponse'), periods=51, target=0.3,
+                      overrides={**info['parameters'], 'integrator': 'midpoint', 'h': 0.002,
+                                 'publish_rate': 50.0})
+    assert run.t[1] == 0.02
+    assert phi.tobytes() == run.position.tobytes() and vel.tobytes() == run.velocity.tobytes()
+    rk4 = episode(pg.StepResponseEnv(h=0.002, control_period=0.02, target=0.3), tracking, 50,
+                  seed=1)[0]
+    assert rk4.tobytes() != phi.tobytes()
+
+
 # ------------------------------------------------------------------ the bridge to the bench
 @pytest.mark.parametrize(('env_id', 'task', 'policy'), [(SWING, 'DampedPendulum', energy_swing_up),
                                                          (STEP, 'StepResponse', tracking)])
