@@ -18,10 +18,11 @@ from gymnasium.utils.env_checker import check_env
 
 import pendulum_sim.gym as pg
 from pendulum_sim.gym import GymError, policy_law
-from pendulum_sim.gym.examples import energy_swing_up, tracking
+from pendulum_sim.gym.examples import energy_swing_up, tracking, tracking_batch
 from pendulum_sim.testing import closed_loop
-from pendulum_sim.testing.campaign.episode import run_episode
+from pendulum_sim.testing.campaign.episode import run_episode, run_episodes
 from pendulum_sim.testing.campaign.scenarios import episode_scenario
+from pendulum_sim.testing.campaign.spec import parse_spec
 
 SWING, STEP = pg.ENV_IDS
 # Every damping law the core has: viscous, quadratic, fractional, dry (Coulomb).
@@ -247,6 +248,30 @@ def test_a_policy_gets_the_campaigns_verdict_on_the_environments_episodes(
         assert row['passed'], row['reason']
 
 
+def test_a_batched_policy_runs_a_campaigns_episodes_together_as_one_by_one() -> None:
+    """The @vectorised law of a batched policy: N episodes in lockstep, each as run alone."""
+    law = policy_law(tracking_batch, task='StepResponse', batched=True)
+    assert law.vectorised is True  # type: ignore[attr-defined]
+    text = CAMPAIGN.replace('tracking_law', 'tracking_batch_law').replace('episodes: 4',
+                                                                          'episodes: 6')
+    together = run_episodes(text, list(range(6)), None)
+    spec = parse_spec(text)
+    # The same policy one observation at a time, on the scalar joint: the same run.
+    one = policy_law(lambda obs: tracking_batch(obs[None])[0], task='StepResponse')
+    scalar_law = text.replace('tracking_batch_law', 'tracking_law')
+    for k, row in enumerate(together):
+        drawn = episode_scenario(spec, k)
+        run = closed_loop(one, periods=spec.periods, overrides=drawn.values,
+                          target=drawn.target)
+        assert row['episode'] == k and row['target'] == drawn.target
+        assert row['iae'] == run.metrics().iae and row['passed']
+        # numpy's arctan2 and sin against math's: the scalar example to round-off.
+        assert row['iae'] == pytest.approx(run_episode(scalar_law, k, None)['iae'], rel=1e-9)
+    with pytest.raises(GymError, match=re.escape('action must have shape (3, 1) (torques in '
+                                                 'N m), got shape (3,)')):
+        policy_law(lambda obs: obs[:, 0], batched=True)(0.0, np.zeros(3), np.zeros(3))
+
+
 @pytest.mark.slow
 def test_pendulum_campaign_runs_a_policy_law_on_its_dask_cluster(tmp_path: Path) -> None:
     """The console script, unchanged, on a local Dask cluster: the environment's verdict."""
@@ -311,6 +336,17 @@ def test_a_step_after_the_episode_ended_is_refused_until_reset() -> None:
         env.step(np.zeros(1))
     env.reset()
     env.step(np.zeros(1))
+
+
+def test_a_vector_env_refuses_episodes_of_different_steps_naming_both() -> None:
+    vec = pg.DampedPendulumVectorEnv(2, parameters={'h': [0.001, 0.002]})
+    vec.reset(seed=0)   # every environment's episode 0: h = 1 ms
+    vec.step(np.zeros((2, 1)))
+    message = ('every pendulum of a vector environment steps with one h, control period, '
+               'integrator and guard; episode has h = 0.002 s, 5 steps a period, rk4, guard '
+               'True, the others h = 0.001 s, 10 steps a period, rk4, guard True')
+    with pytest.raises(GymError, match=re.escape(message)):
+        vec.reset()   # episode 1: h = 2 ms for the first, 1 ms still running for the other
 
 
 @pytest.mark.parametrize(('keywords', 'message'), [

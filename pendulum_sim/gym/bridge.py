@@ -14,7 +14,9 @@ campaign table as a PD law::
                       target=0.3)
 
 For a campaign, make the law a module attribute (``mymodule:law``) and name it as the
-campaign file's ``controller``.
+campaign file's ``controller``. With ``batched=True`` the policy takes a batch of
+observations (shape (N, d)) and answers (N, 1); the law is then declared
+:func:`~pendulum_sim.testing.vectorised`, so a campaign steps its episodes N at a time.
 """
 from __future__ import annotations
 
@@ -24,12 +26,14 @@ from typing import Any
 import numpy as np
 
 from .errors import GymError
+from .runner import torques
 from .tasks import TASKS
 
 Policy = Callable[[Any], Any]
 
 
-def policy_law(policy: Policy, *, task: str = 'DampedPendulum') -> Callable[..., float]:
+def policy_law(policy: Policy, *, task: str = 'DampedPendulum',
+               batched: bool = False) -> Callable[..., Any]:
     """Return the law ``(t, position, velocity[, target=]) -> torque`` of ``policy``.
 
     Parameters
@@ -39,6 +43,9 @@ def policy_law(policy: Policy, *, task: str = 'DampedPendulum') -> Callable[...,
     task : str
         ``'DampedPendulum'`` (observation ``[cos φ, sin φ, φ']``) or ``'StepResponse'``
         (``[cos φ, sin φ, φ', φ*]``; the law then takes the keyword ``target``, rad).
+    batched : bool
+        The policy maps observations of shape (N, d) to actions (N, 1); the law answers
+        arrays of states, ``@vectorised``.
     """
     if task not in TASKS:
         raise GymError(f'task must be one of {", ".join(TASKS)}, got {task!r}')
@@ -46,16 +53,12 @@ def policy_law(policy: Policy, *, task: str = 'DampedPendulum') -> Callable[...,
         raise GymError(f'policy must be a callable from an observation to an action, got '
                        f'{policy!r}')
     observe = TASKS[task].observe
+    if batched:
+        return _batched(policy, observe, task == 'StepResponse')
 
     def answer(position: float, velocity: float, target: float) -> float:
         obs = observe(np.array([position]), np.array([velocity]), np.array([target]))[0]
-        action = np.asarray(policy(obs), dtype=np.float64)
-        if action.shape != (1,):
-            raise GymError(f'action must have shape (1,) (torques in N m), got shape '
-                           f'{action.shape}')
-        if not np.isfinite(action[0]):
-            raise GymError(f'action must be a finite torque, got {action[0]}')
-        return float(action[0])
+        return float(torques(policy(obs), (1,))[0])
 
     if task == 'StepResponse':
         def tracking_law(t: float, position: float, velocity: float, *,
@@ -66,5 +69,29 @@ def policy_law(policy: Policy, *, task: str = 'DampedPendulum') -> Callable[...,
 
     def law(t: float, position: float, velocity: float) -> float:
         """Answer with the policy's torque for the state."""
+        return answer(position, velocity, 0.0)
+    return law
+
+
+def _batched(policy: Policy, observe: Any, tracking: bool) -> Callable[..., Any]:
+    """Return the ``@vectorised`` law of a policy on batches of observations."""
+    from pendulum_sim.testing.vector import vectorised
+
+    def answer(position: Any, velocity: Any, target: Any) -> Any:
+        p = np.asarray(position, dtype=np.float64)
+        obs = observe(p, np.asarray(velocity, dtype=np.float64),
+                      np.broadcast_to(np.asarray(target, dtype=np.float64), p.shape))
+        return torques(policy(obs), (p.size, 1))
+
+    if tracking:
+        @vectorised
+        def tracking_law(t: Any, position: Any, velocity: Any, *, target: Any = 0.0) -> Any:
+            """Answer each state with the policy's torque towards its target (rad)."""
+            return answer(position, velocity, target)
+        return tracking_law
+
+    @vectorised
+    def law(t: Any, position: Any, velocity: Any) -> Any:
+        """Answer each state with the policy's torque."""
         return answer(position, velocity, 0.0)
     return law

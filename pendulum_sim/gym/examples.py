@@ -4,7 +4,9 @@
 I = 0.2002 kg m², 1 N m of torque) up by energy shaping and catches it upright with a PD law;
 ``tracking`` holds a target with a PD law and gravity compensation. ``tracking_law`` is
 ``tracking`` as a test bench law (:func:`~pendulum_sim.gym.bridge.policy_law`), to be named
-in a campaign file as ``pendulum_sim.gym.examples:tracking_law``.
+in a campaign file as ``pendulum_sim.gym.examples:tracking_law``; ``tracking_batch`` is the
+same law on a batch of observations (numpy's sin and arctan2: the same to round-off) and
+``tracking_batch_law`` its ``@vectorised`` law, which a campaign runs N episodes at a time.
 """
 from __future__ import annotations
 
@@ -49,3 +51,14 @@ def tracking(obs: FloatArray) -> FloatArray:
 
 
 tracking_law = policy_law(tracking, task='StepResponse')
+
+
+def tracking_batch(obs: FloatArray) -> FloatArray:
+    """Return :func:`tracking`'s torques for a batch of observations (N, 4) as (N, 1)."""
+    sin_phi, velocity, target = obs[:, 1], obs[:, 2], obs[:, 3]
+    phi = np.arctan2(sin_phi, obs[:, 0])
+    tau = MGL * sin_phi + 3.0 * (target - phi) - 0.8 * velocity
+    return np.clip(tau, -LIMIT, LIMIT)[:, None]
+
+
+tracking_batch_law = policy_law(tracking_batch, task='StepResponse', batched=True)

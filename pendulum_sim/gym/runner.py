@@ -29,6 +29,27 @@ FloatArray = NDArray[np.float64]
 MAX_SEED = 2**63 - 1
 
 
+def torques(action: Any, shape: tuple[int, ...]) -> FloatArray:
+    """Return ``action`` as torques (N m, flat); GymError for another shape or a non-finite one.
+
+    A shape of more than one row names the first environment whose torque is not finite.
+    """
+    try:
+        arr = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise GymError(f'action must be an array of numbers of shape {shape} (torques in '
+                       f'N m), got {action!r}') from None
+    if arr.shape != shape:
+        raise GymError(f'action must have shape {shape} (torques in N m), got shape '
+                       f'{arr.shape}')
+    flat = arr.reshape(-1)
+    bad = np.flatnonzero(~np.isfinite(flat))
+    if bad.size:
+        where = f' for environment {int(bad[0])}' if len(shape) > 1 else ''
+        raise GymError(f'action must be a finite torque, got {flat[bad[0]]}{where}')
+    return flat
+
+
 class Runner:
     """N environments' episodes of one task over one set of scenarios."""
 
@@ -84,20 +105,7 @@ class Runner:
 
     def torques(self, action: Any, shape: tuple[int, ...]) -> FloatArray:
         """Return the actions as torques (N m, flat), refusing a bad shape or value."""
-        try:
-            arr = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise GymError(f'action must be an array of numbers of shape {shape} (torques in '
-                           f'N m), got {action!r}') from None
-        if arr.shape != shape:
-            raise GymError(f'action must have shape {shape} (torques in N m), got shape '
-                           f'{arr.shape}')
-        flat = arr.reshape(-1)
-        bad = np.flatnonzero(~np.isfinite(flat))
-        if bad.size:
-            where = f' for environment {int(bad[0])}' if self.size > 1 else ''
-            raise GymError(f'action must be a finite torque, got {flat[bad[0]]}{where}')
-        return flat
+        return torques(action, shape)
 
     def step(self, torque: FloatArray, live: NDArray[np.int64]
              ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_],
