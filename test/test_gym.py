@@ -338,6 +338,22 @@ def test_a_step_after_the_episode_ended_is_refused_until_reset() -> None:
     env.step(np.zeros(1))
 
 
+def test_a_parameter_file_is_a_scene(tmp_path: Path) -> None:
+    path = tmp_path / 'heavy.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    m: 0.3\n    inertia: 0.31\n'
+                    '    gamma: 0.4\n    n: 2.0\n    publish_rate: 50.0\n')
+    env = pg.DampedPendulumEnv(scene=str(path))
+    _, info = env.reset(seed=0)
+    values = env.runner.episodes[0].values
+    assert (values['m'], values['gamma'], values['n'], values['publish_rate']) == (
+        0.3, 0.4, 2.0, 50.0)
+    assert env.metadata['render_fps'] == 50
+    phi, vel, _, info = episode(env, energy_swing_up, 100, seed=0)
+    run = closed_loop(policy_law(energy_swing_up), scene=str(path), periods=101,
+                      overrides=info['parameters'])
+    assert phi.tobytes() == run.position.tobytes() and vel.tobytes() == run.velocity.tobytes()
+
+
 def test_a_vector_env_refuses_episodes_of_different_steps_naming_both() -> None:
     vec = pg.DampedPendulumVectorEnv(2, parameters={'h': [0.001, 0.002]})
     vec.reset(seed=0)   # every environment's episode 0: h = 1 ms
@@ -350,8 +366,9 @@ def test_a_vector_env_refuses_episodes_of_different_steps_naming_both() -> None:
 
 
 @pytest.mark.parametrize(('keywords', 'message'), [
-    ({'scene': 'no_such_scene'}, "scene 'no_such_scene'"),
-    ({'parameters': {'no_such_parameter': 1.0}}, "'no_such_parameter'"),
+    ({'scene': 'no_such_scene'}, "unknown scene 'no_such_scene'; known scenes: "),
+    ({'parameters': {'no_such_parameter': 1.0}},
+     "unknown parameter 'no_such_parameter' in parameters"),
     ({'parameters': {'gamma': {'distribution': 'uniform', 'low': 1.0, 'high': 0.5}}},
      'parameters.gamma: uniform needs low < high, got low = 1, high = 0.5'),
     ({'parameters': {'max_effort': [1.0, 2.0]}},
