@@ -171,6 +171,17 @@ def test_the_vector_env_is_n_scalar_envs_bit_for_bit_with_next_step_autoreset() 
         assert np.array(mine_r).tobytes() == got_r[:, i].tobytes(), i
     # The episodes drew the fractional, the Coulomb and the quadratic damping law in turn.
     assert laws == {1.5, 0.0, 2.0}
+    # Gymnasium's own SyncVectorEnv of the scalar envs (its autoreset, its seeding) agrees.
+    sync = gymnasium.make_vec(SWING, num_envs=n, vectorization_mode='sync',
+                              parameters=MIXED, max_episode_steps=length)
+    obs, _ = sync.reset(seed=11)
+    theirs, theirs_r = [obs], []
+    for a in actions:
+        obs, reward, *_ = sync.step(a)
+        theirs.append(obs)
+        theirs_r.append(reward)
+    assert np.array(theirs).tobytes() == got.tobytes()
+    assert np.array(theirs_r).tobytes() == got_r.tobytes()
 
 
 def test_near_the_speed_bound_the_joint_decides_and_still_in_step() -> None:
