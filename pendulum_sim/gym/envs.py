@@ -76,6 +76,10 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
     max_episode_steps : int, optional
         Truncate each episode after this many steps (``gymnasium.make`` truncates with its
         ``TimeLimit`` wrapper instead, at the registered 1000 or 500).
+    target : number, list or mapping, optional
+        ``StepResponse``: the target's space (rad), as a campaign file's ``target``.
+
+    Observations are float64, the joint's state unrounded (Pendulum-v1's are float32).
     """
 
     metadata: dict[str, Any] = {'render_modes': RENDER_MODES, 'render_fps': 100}  # noqa: RUF012
