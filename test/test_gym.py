@@ -75,6 +75,11 @@ def test_a_frame_shows_the_bob_where_the_angle_puts_it() -> None:
 
 
 def test_the_environments_are_found_in_a_fresh_process_and_by_the_entry_point() -> None:
+    # Gymnasium 1.x reads no plugin entry points: the bare id needs the import first.
+    bare = subprocess.run([sys.executable, '-c', 'import gymnasium\n'
+                           "gymnasium.make('pendulum_sim/DampedPendulum-v0')"],
+                          capture_output=True, text=True, timeout=120)
+    assert 'NamespaceNotFound: Namespace pendulum_sim not found.' in bare.stderr
     code = ('import gymnasium, sys\n'
             "env = gymnasium.make('pendulum_sim.gym:pendulum_sim/DampedPendulum-v0')\n"
             'obs, _ = env.reset(seed=1)\n'
