@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from .errors import GymError
 from .render import frame
-from .runner import Runner
+from .runner import Runner, torques
 from .scenario import Scenarios
 from .tasks import STEP, SWING_UP, Task
 
@@ -119,7 +119,7 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
         """Apply the torque ``action`` (shape (1,), N m) for one control period."""
         r = self._runner
         r.check_running(0)
-        torque = r.torques(action, (1,))
+        torque = torques(action, (1,))
         obs, reward, terminated, truncated, failed = r.step(torque, _ONE)
         info: dict[str, Any] = {'effort': float(r.pendulums.effort[0])}
         if failed:

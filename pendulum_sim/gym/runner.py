@@ -103,10 +103,6 @@ class Runner:
         p = self.pendulums
         return np.asarray(self.task.observe(p.phi[live], p.vel[live], self.target[live]))
 
-    def torques(self, action: Any, shape: tuple[int, ...]) -> FloatArray:
-        """Return the actions as torques (N m, flat), refusing a bad shape or value."""
-        return torques(action, shape)
-
     def step(self, torque: FloatArray, live: NDArray[np.int64]
              ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_],
                         dict[int, str]]:

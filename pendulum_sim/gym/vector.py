@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from .envs import RENDER_MODES, fps, make_runner, spaces_of
 from .errors import GymError
 from .render import frame
-from .runner import Runner
+from .runner import Runner, torques
 from .tasks import STEP, SWING_UP, Task
 
 FloatArray = NDArray[np.float64]
@@ -90,7 +90,7 @@ class JointVectorEnv(VectorEnv[FloatArray, FloatArray, FloatArray]):
         r = self._runner
         if any(i < 0 for i in r.index):
             raise GymError('step() before reset(): call reset() first')
-        torque = r.torques(actions, (self.num_envs, 1))
+        torque = torques(actions, (self.num_envs, 1))
         resetting = np.flatnonzero(self._autoreset)
         live = np.flatnonzero(~self._autoreset)
         for i in resetting.tolist():
