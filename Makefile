@@ -69,6 +69,7 @@ bench: setup
 	$(PY) bench/record.py bench/bench_near_coulomb.py
 	$(PY) bench/record.py bench/bench_servo.py --png bench/results/servo_tracking.png
 	$(PY) bench/record.py bench/bench_testbench.py
+	$(PY) bench/record.py bench/bench_gym.py
 
 clean:
 	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache docs/_build

@@ -33,6 +33,8 @@ setup(
         'plots': ['matplotlib>=3.7'],
         'peers': ['scipy>=1.10', 'mujoco>=3.2', 'pybullet>=3.2', 'pin>=4.1', 'drake>=1.51'],
         'jit': ['numba>=0.59'],
+        # Gymnasium environments of the joint (pendulum_sim.gym).
+        'gym': ['gymnasium>=1.0'],
         'docs': ['sphinx>=8', 'myst-parser>=4'],
         'test': [
             'pytest>=8', 'wheel>=0.40', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10',
@@ -43,6 +45,8 @@ setup(
             'control>=0.10', 'dask[distributed]>=2024.1', 'pyarrow>=14',
             # Property tests of the fast path's sound pre-tests.
             'hypothesis>=6.100',
+            # The Gymnasium environments, their checker and Pendulum-v1 (the benchmark's peer).
+            'gymnasium>=1.0',
         ],
         'campaign': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'matplotlib>=3.7'],
     },
@@ -61,5 +65,7 @@ setup(
             'pendulum_campaign = pendulum_sim.testing.campaign.cli:main',
         ],
         'pytest11': ['pendulum_sim = pendulum_sim.testing.pytest_plugin'],
+        # Gymnasium's plugin group before 1.0 (1.x registers on `import pendulum_sim.gym`).
+        'gymnasium.envs': ['pendulum_sim = pendulum_sim.gym:register_envs'],
     },
 )
