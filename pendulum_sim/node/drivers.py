@@ -335,16 +335,17 @@ class SyncDriver(Driver):
         super().reconfigure(values, names, now_ns)
         self.exchange.timeout_ns = round(float(values['sync_timeout']) * 1e9)
         self.exchange.action = str(values['sync_timeout_action'])
+        self.exchange.reconfigured()
 
     def after_reset(self, now_ns: int) -> None:
         self._failure_logged = False
         if self.exchange.reset():
-            self._publish_awaited(now_ns, clock=False)
+            self._publish_awaited(now_ns, clock=False, reset=True)
 
-    def _publish_awaited(self, now_ns: int, clock: bool) -> None:
+    def _publish_awaited(self, now_ns: int, clock: bool, reset: bool = False) -> None:
         joint = self.joint
         if self.publish(clock):
-            self.exchange.published(joint.steps, joint.stamp_ns(), now_ns)
+            self.exchange.published(joint.steps, joint.stamp_ns(), now_ns, reset)
         else:   # nothing to answer: the next period goes on with the last command
             self.exchange.unseen()
 
