@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import TestingError
-from .loop import ClosedLoopRun
+from .run import ClosedLoopRun
 from .scene import Value
 
 JOINT_STATES = '/joint_states'
