@@ -284,6 +284,13 @@ def effort_input_active(values: Mapping[str, Value]) -> bool:
     return bool(values['effort_input']) and values['command_interface'] == 'effort'
 
 
+def start_epoch_ns(values: Mapping[str, Value], wall_ns: int) -> int:
+    """Return the stamp of step 0 (ns): ``start_time``; a negative one starts a real-time run
+    at the wall clock ``wall_ns`` and a lockstep run at 0."""
+    start = float(values['start_time'])
+    return wall_ns if start < 0.0 and not values['lockstep'] else round(max(start, 0) * 1e9)
+
+
 def joint_config(values: Mapping[str, Value], epoch_ns: int = 0) -> JointConfig:
     """Return the simulated joint's config of a parameter set (raises JointError)."""
     return JointConfig.from_values(values, physics(values), epoch_ns)
