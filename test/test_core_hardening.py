@@ -1,6 +1,7 @@
-"""The core API's second hardening pass: tolerances, work bounds, torque and flag types, huge
-integers. Each input is refused with the core's own message naming the argument and its limit,
-or gives a finite, energy-consistent result; work is asserted as counted steps, never as time."""
+"""The core API's second and third hardening passes: tolerances, work bounds, torque and flag
+types, huge integers, a huge damping exponent, a step that must pass the speed bound. Each
+input is refused with the core's own message naming the argument and its limit, or gives a
+finite, energy-consistent result; work is asserted as counted steps, never as time."""
 from __future__ import annotations
 
 import importlib
@@ -26,6 +27,7 @@ from pendulum_sim.core.model import (
     MAX_RUN_TRIALS,
     MAX_SPEED,
     MAX_TOLERANCE,
+    check_speed_ahead,
     oscillation_trials,
     run_speed_limit,
 )
@@ -372,3 +374,96 @@ def test_numpy_booleans_are_flags() -> None:
     a = sweep(9.8, 1.0, 1.0, 1.0, 0.0, 0.01, 1e-3, guard=yes, energy_check=no)
     b = sweep(9.8, 1.0, 1.0, 1.0, 0.0, 0.01, 1e-3, guard=True, energy_check=False)
     assert a.phi[0] == b.phi[0] and a.dphi[0] == b.dphi[0]
+
+
+# --------------------------------------------------------------------------- 17: a huge n
+
+
+def capped_swing(t: float) -> float:
+    """Return φ(t) from 2 rad at rest for n -> inf, γ = 1, ω0² = 9.8: the damping γ |φ'|^n is
+    0 below 1 rad/s and unbounded above, a speed cap. The undamped fall until |φ'| = 1, where
+    ½ φ'² = ω0² (cos φ − cos 2), takes t1 = ∫ dφ / sqrt(2 ω0² (cos φ − cos 2)) (eq 23); then
+    gravity still pulls (sin φ > 0) and the cap holds |φ'| = 1."""
+    from scipy.integrate import quad
+
+    w2, c2 = PAPER.omega0_sq, math.cos(2.0)
+    phi1 = math.acos(c2 + 1.0 / (2.0 * w2))
+    # φ = 2 − u²: the integrand's square-root singularity at φ = 2 is gone.
+    t1, _ = quad(lambda u: 2.0 * u / math.sqrt(2.0 * w2 * (math.cos(2.0 - u * u) - c2)), 0.0,
+                 math.sqrt(2.0 - phi1), epsabs=1e-14, epsrel=1e-13)
+    assert t < t1 + (phi1 - 0.2)  # still on the cap
+    return phi1 - (t - t1)
+
+
+@pytest.mark.parametrize('method', METHODS)
+def test_a_huge_damping_exponent_gives_the_speed_capped_swing(method: str) -> None:
+    # v ** (n − 1) overflowed in the work estimate of the adaptive methods (OverflowError).
+    run = simulate(PendulumParams(n=1e300), 2.0, 0.0, 1.0, 1e-3, method)
+    assert np.isfinite(run.phi).all() and np.isfinite(run.energy).all()
+    # Adaptive methods to 1e-8 rad; the fixed steps meet the cap within a step of h = 1 ms
+    # (measured 4.5e-7 rad for RK4).
+    tol = 1e-8 if method in ADAPTIVE else 1e-6
+    assert abs(run.phi[-1] - capped_swing(1.0)) < tol
+    assert np.abs(run.dphi).max() <= 1.0 + 1e-12
+
+
+def test_the_swing_estimate_takes_a_huge_exponent() -> None:
+    # A lower estimate: the damping may end the swing at once, so no work is claimed.
+    assert oscillation_trials('rodas4', 3, 1.0, 1e-8, 1e-10, PendulumParams(n=1e300),
+                              2.0, 0.0) == 0.0
+
+
+# --------------------------------------------------------------------------- 18: a step that
+# cannot end inside the speed bound
+
+
+def ahead_message(h: str, t: str, ain: str, c: str, v: str, least: str,
+                  bound: str = '10000.012') -> str:
+    return (f'dphi would pass +-{bound} rad/s within the step of h = {h} s from t = {t} s: '
+            f'torque/I = {ain} rad/s^2 outweighs gravity and damping below that bound by {c} '
+            f'rad/s^2, so from dphi = {v} rad/s it reaches at least {least} rad/s: the run '
+            f'stops there, before the step')
+
+
+@pytest.mark.parametrize('method', METHODS)
+def test_a_step_too_long_to_work_through_that_must_pass_the_speed_bound_is_refused_first(
+        method: str) -> None:
+    # τ/I = 1e8 rad/s² for h = 0.3 s adds 3e7 rad/s: RK4 took 1.8e7 guard substeps (81 s)
+    # before the speed bound refused the step; now nothing is stepped.
+    params = PAPER.with_changes(gamma=0.0)
+    exact = f'^{re.escape(ahead_message("0.3", "0", "1e+08", "1e+08", "0", "3e+07"))}$'
+    with pytest.raises(IntegratorError, match=exact):
+        simulate(params, 0.0, 0.0, 10.0, 0.3, method, torque=2e7)
+    stepper = Stepper(params, 0.0, 0.0, 0.3, method)
+    stepper.step(1.0)
+    p, v, before = stepper.phi, stepper.dphi, stepper.stats.as_dict()
+    c = 1e8 - params.omega0_sq   # no damping: only gravity holds the torque back
+    later = ahead_message('0.3', '0.3', '1e+08', '1e+08', f'{v:g}', f'{v + c * 0.3:.6g}')
+    with pytest.raises(IntegratorError, match=f'^{re.escape(later)}$'):
+        stepper.step(2e7)
+    assert (stepper.phi, stepper.dphi, stepper.steps) == (p, v, 1)
+    assert stepper.stats.as_dict() == before    # no work spent on it
+    stepper.step(1.0)   # the run goes on from the state it kept
+    assert stepper.steps == 2
+
+
+@pytest.mark.parametrize(('gamma', 'n'), [(0.0, 1.0), (0.5, 0.0), (1e-4, 1.0), (0.1, 2.0),
+                                          (1e-9, 2.5)])
+def test_a_step_refused_ahead_is_one_the_speed_bound_refuses_after_it(gamma: float,
+                                                                      n: float) -> None:
+    # The decision ahead is sound: at h = 1 ms the step is cheap to take, and every state
+    # and torque it refuses ahead is refused by the check after the step too (the same ones
+    # at h = 0.3 s were too long to take). At γ = 0.1, n = 2 the damping below the bound
+    # (1e7 rad/s²) outweighs the smaller torques: those are not decided ahead.
+    params = PAPER.with_changes(gamma=gamma, n=n)
+    refused_ahead = 0
+    for v0 in (-9000.0, -1000.0, 0.0, 5000.0, 9990.0):
+        for torque in (-2e7, -1e7, -2e6, 2e5, 2e6, 1e7, 2e7):
+            try:
+                check_speed_ahead(v0, torque / params.inertia, 1e-3, gamma, n,
+                                  params.omega0_sq, 0.0)
+            except IntegratorError:
+                refused_ahead += 1
+                with pytest.raises(IntegratorError, match=r'^dphi reached '):
+                    Stepper(params, 0.3, v0, 1e-3).step(torque)
+    assert refused_ahead >= 10

@@ -254,6 +254,51 @@ def test_a_reset_is_a_new_publication_at_the_same_stamp() -> None:
     assert loop.applied == [(0, 1.0), (1, 2.0), (2, 8.0)]
 
 
+def test_a_reset_while_its_state_awaits_its_answer_publishes_nothing_more() -> None:
+    # A burst of resets sends the reset state once: answers to 200 copies overflowed the
+    # controller's queue and the node's, and the count of unstamped answers never caught up.
+    loop = Loop()
+    loop.settle()
+    loop.send(1.0, None)
+    assert loop.ex.reset()
+    loop.ex.published(loop.step, loop.step * PERIOD, loop.now, reset=True)
+    assert not any(loop.ex.reset() for _ in range(199))
+    assert loop.published == [0, PERIOD]              # the Loop's own publications
+    assert loop.send(9.0, None) is Verdict.LATE       # the answer to the state replaced
+    assert loop.send(2.0, None) is Verdict.ANSWER     # the one answer to the one reset state
+    assert loop.send(3.0, None) is Verdict.ANSWER
+    assert loop.applied == [(0, 1.0), (1, 2.0), (2, 3.0)]
+    assert loop.ex.stats['late'] == 1
+    # Stamped: the reset stamp has one publication more, not 200.
+    loop = Loop()
+    loop.settle()
+    loop.send(1.0, 0)
+    assert loop.ex.reset()
+    loop.ex.published(loop.step, PERIOD, loop.now, reset=True)
+    assert not loop.ex.reset()
+    assert loop.send(9.0, PERIOD) is Verdict.LATE     # the state replaced
+    assert loop.send(2.0, PERIOD) is Verdict.ANSWER   # the reset state, its one publication
+    assert loop.send(2.0, PERIOD) is Verdict.DUPLICATE
+    assert loop.applied == [(0, 1.0), (1, 2.0)]
+
+
+@pytest.mark.parametrize('between', ['period', 'parameters', 'stop'])
+def test_a_reset_after_the_joint_moved_or_changed_publishes_its_state_anew(
+        between: str) -> None:
+    loop = Loop('stop')
+    loop.settle()
+    assert loop.ex.reset()
+    loop.ex.published(loop.step, loop.step * PERIOD, loop.now, reset=True)
+    if between == 'period':
+        assert loop.send(9.0, None) is Verdict.LATE   # the state replaced
+        assert loop.send(1.0, None) is Verdict.ANSWER  # a period taken since
+    elif between == 'parameters':
+        loop.ex.reconfigured()                        # a new phi0 may apply to this reset
+    else:
+        assert loop.run(dt=TIMEOUT) is Action.STOPPED  # stopped: to be published again
+    assert loop.ex.reset()
+
+
 def test_a_reset_before_the_loop_started_publishes_nothing() -> None:
     loop = Loop()
     assert not loop.ex.reset()

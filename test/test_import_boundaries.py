@@ -1,12 +1,17 @@
 """What each layer may import: the ROS-free parts load without ROS (and the light ones without
 plotting, scipy or Dask), checked in a fresh interpreter so nothing imported by another test
-hides a dependency."""
+hides a dependency; and no module of the package imports itself back, through however many
+others (every import statement counts, inside a function or under TYPE_CHECKING too)."""
 from __future__ import annotations
 
+import ast
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / 'pendulum_sim'
 
 ROS = ('rclpy', 'rcl_interfaces', 'sensor_msgs', 'std_msgs', 'rosgraph_msgs',
        'builtin_interfaces')
@@ -33,3 +38,91 @@ def test_a_layer_imports_only_what_it_needs(name: str) -> None:
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == '[]', f'{name} imports {out.stdout.strip()}'
+
+
+def _module_files() -> dict[str, Path]:
+    """Return every module of the package by its dotted name (a package by its own)."""
+    out = {}
+    for path in sorted(PACKAGE.rglob('*.py')):
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix('').parts)
+        if parts[-1] == '__init__':
+            parts.pop()
+        out['.'.join(parts)] = path
+    return out
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Return, per module, the modules of the package it imports anywhere in its text.
+
+    ``from P import name`` is an import of the module ``P.name`` where there is one, else of
+    ``P``; relative imports are resolved against the module's package.
+    """
+    files = _module_files()
+    graph: dict[str, set[str]] = {}
+    for name, path in files.items():
+        package = name if path.name == '__init__.py' else name.rsplit('.', 1)[0]
+        found: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+            if isinstance(node, ast.Import):
+                found.update(a.name for a in node.names if a.name in files)
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ''
+                if node.level:
+                    up = package.rsplit('.', node.level - 1)[0] if node.level > 1 else package
+                    base = f'{up}.{base}' if base else up
+                for alias in node.names:
+                    sub = f'{base}.{alias.name}'
+                    if sub in files:
+                        found.add(sub)
+                    elif base in files:
+                        found.add(base)
+        graph[name] = found - {name}
+    return graph
+
+
+def find_circle(graph: dict[str, set[str]]) -> list[str]:
+    """Return one circle of imports (a list of modules, the first again at the end), or []."""
+    state: dict[str, int] = {}   # 1: on the path being walked, 2: done
+
+    def walk(node: str, path: list[str]) -> list[str]:
+        state[node] = 1
+        path.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == 1:
+                return [*path[path.index(nxt):], nxt]
+            if nxt not in state:
+                found = walk(nxt, path)
+                if found:
+                    return found
+        path.pop()
+        state[node] = 2
+        return []
+
+    for start in sorted(graph):
+        if start not in state:
+            found = walk(start, [])
+            if found:
+                return found
+    return []
+
+
+def test_the_import_graph_sees_imports_inside_functions() -> None:
+    graph = import_graph()
+    # closed_loop imports the DDS path and the recorder only when it needs them.
+    assert graph['pendulum_sim.testing.loop'] >= {'pendulum_sim.testing.ros',
+                                                  'pendulum_sim.testing.record',
+                                                  'pendulum_sim.testing.run'}
+    assert find_circle({'a': {'b'}, 'b': {'c'}, 'c': {'a'}, 'd': {'a'}}) == ['a', 'b', 'c', 'a']
+
+
+def test_no_module_imports_itself_back() -> None:
+    circle = find_circle(import_graph())
+    assert circle == [], 'import circle: ' + ' -> '.join(circle)
+
+
+def test_the_test_bench_imports_nothing_of_the_reports() -> None:
+    # The reports draw the test bench's runs; the test bench never reaches up into them.
+    graph = import_graph()
+    up = sorted(f'{m} -> {d}' for m, deps in graph.items() if m.startswith('pendulum_sim.testing')
+                for d in deps if d.startswith('pendulum_sim.reports'))
+    assert up == []

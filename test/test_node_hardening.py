@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import signal
+from pathlib import Path
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
@@ -16,6 +17,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 from test_node import diagnostics_of
+
+from pendulum_sim.node.parameters import SPECS, check
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -129,3 +132,18 @@ def test_a_hundred_concurrent_resets_are_all_answered() -> None:
         probe.spin_until(lambda: all(f.done() for f in futures), 60.0, '100 answers')
         assert all(f.result().success for f in futures)
         assert node.stop(signal.SIGINT) == 0
+
+
+def test_a_joint_name_with_a_nul_arrives_cut_at_the_nul(tmp_path: Path) -> None:
+    # What the parameter reference says: rcl passes C strings, so the node only ever sees the
+    # name up to the NUL (and so cannot refuse it); without rclpy the NUL is refused.
+    params = tmp_path / 'nul.yaml'
+    params.write_text('/**:\n  ros__parameters:\n    joint_name: "pend\\0x"\n')
+    with NodeProcess('default', params_file=params) as node, Probe() as probe:
+        states = probe.subscribe(JointState, f'{node.namespace}/joint_states')
+        probe.spin_until(lambda: len(states) >= 1, 30.0, 'a state')
+        assert list(states.msgs[0].name) == ['pend']
+        assert node.stop(signal.SIGINT) == 0
+    assert check({**{s.name: s.default for s in SPECS}, 'joint_name': 'pend\x00x'}) == (
+        "joint_name must hold no control characters (a URDF or a log would not show them), "
+        "got 'pend\\x00x' with '\\x00'")

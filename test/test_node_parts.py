@@ -8,11 +8,13 @@ from test_joint import PARAMS, H, joint  # the joint every ROS-free node test st
 
 from pendulum_sim.core.model import MAX_SPEED
 from pendulum_sim.node import commands
-from pendulum_sim.node.drivers import RealTimeDriver, SyncDriver
+from pendulum_sim.node.commands import Drops
+from pendulum_sim.node.drivers import RealTimeDriver, SyncDriver, make_driver, wake_period
 from pendulum_sim.node.exchange import Gate, SyncExchange
 from pendulum_sim.node.joint import JointConfig, SimulatedJoint
-from pendulum_sim.node.parameters import SPECS, check
+from pendulum_sim.node.parameters import SPECS, check, start_epoch_ns
 from pendulum_sim.node.realtime import WakeStats
+from pendulum_sim.node.telemetry import Telemetry
 
 
 def defaults(**changes: object) -> dict[str, object]:
@@ -307,3 +309,45 @@ def test_a_due_wake_is_served_before_a_queued_parameter_set_and_only_once() -> N
     assert stats.taken(15 * ms) and stats.taken(20 * ms) and not stats.taken(25 * ms)
     assert WakeStats(0).overdue(10**12) is None      # no period (as fast as possible, sync)
     assert not WakeStats(0).taken(0)
+
+
+# ---------------------------------------------------------------- the mode's timer and reports
+@pytest.mark.parametrize(('mode', 'period', 'scheduled', 'kind'), [
+    ({}, 1.0 / 50.0, True, RealTimeDriver),                              # real time
+    ({'lockstep': True}, 1e-3, True, RealTimeDriver),                    # paced lockstep
+    ({'lockstep': True, 'real_time_factor': 0.0}, 1e-3, False, RealTimeDriver),   # free
+    ({'lockstep': True, 'synchronous': True, 'real_time_factor': 0.0}, 0.02, False,
+     SyncDriver),
+])
+def test_each_mode_has_its_timer_period_and_driver(mode: dict[str, object], period: float,
+                                                   scheduled: bool, kind: type) -> None:
+    values = defaults(publish_rate=50.0, **mode)
+    assert wake_period(values) == (period, scheduled)
+    driver = make_driver(values, joint(), Gate(), lambda c: True, lambda level, text: None, 0,
+                         lambda: (True, 1), 'waiting')
+    assert type(driver) is kind
+    if isinstance(driver, SyncDriver):
+        assert driver.exchange.timeout_ns == 1_000_000_000 and driver.exchange.action == 'hold'
+    else:
+        assert driver.lockstep == bool(mode.get('lockstep', False))
+
+
+def test_a_negative_start_time_anchors_real_time_to_the_wall_clock() -> None:
+    wall = 1_700_000_000_123_456_789
+    assert start_epoch_ns(defaults(start_time=-1.0), wall) == wall
+    assert start_epoch_ns(defaults(start_time=-1.0, lockstep=True), wall) == 0
+    assert start_epoch_ns(defaults(start_time=2.5), wall) == 2_500_000_000
+
+
+def test_a_report_is_due_once_a_second_and_missed_ones_are_not_made_up() -> None:
+    j = joint()
+    gate = Gate()
+    driver = RealTimeDriver(j, gate, lambda c: True, lambda level, text: None, 0, 1.0, False)
+    tel = Telemetry(j, driver, gate, Drops(), WakeStats(0), {}, 1.0, start_ns=7)
+    s = 1_000_000_000
+    assert not tel.report_due(s + 6)
+    assert tel.report_due(s + 7)
+    assert not tel.report_due(s + 8)
+    assert tel.report_due(5 * s + 100)      # three missed: one report, the next at 6 s + 7
+    assert not tel.report_due(6 * s + 6)
+    assert tel.report_due(6 * s + 7)

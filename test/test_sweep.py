@@ -273,6 +273,10 @@ BAD = [
     ({'t_end': -1.0}, IntegratorError, 't_end must be > 0 s, got -1.0'),
     ({'method': 'dopri5'}, IntegratorError,
      "sweep supports the explicit methods euler, midpoint, rk4, got 'dopri5'"),
+    ({'phi0': [1.0, [2.0]]}, ModelError,  # ragged: numpy's ValueError before
+     'phi0 must be a real number or a 1-D array of them, got [1.0, [2.0]]'),
+    ({'method': np.array(['rk4'])}, IntegratorError,  # TypeError: unhashable before
+     "sweep supports the explicit methods euler, midpoint, rk4, got array(['rk4'], dtype='<U3')"),
     ({'record_every': 0}, IntegratorError, 'record_every must be an integer >= 1, got 0'),
     ({'record_every': 2.5}, IntegratorError, 'record_every must be an integer >= 1, got 2.5'),
 ]

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from mcap_ros2.reader import read_ros2_messages
-from node_harness import NodeProcess, Probe, stamp_ns
+from node_harness import NodeProcess, Probe, ready_to_answer, stamp_ns
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, UInt32
@@ -241,3 +241,49 @@ def test_a_reset_publishes_the_reset_state_and_its_answer_at_the_reset_stamp(
     assert [t for t in commands if t != reset_ns] == (
         [k * PERIOD_NS for k in range(5)] + [reset_ns + k * PERIOD_NS for k in (1, 2, 3)])
     assert commands.count(reset_ns) in (1, 2)
+
+
+
+EVERY = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL,
+                   reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+
+
+def after_a_burst_of_resets(probe: Probe, node: NodeProcess, reset: Any, states: Any,
+                            diags: Any) -> tuple[dict[str, str], dict[str, str]]:
+    """Call ~/reset 200 times at once; return the diagnostics reports made after the 300
+    states after the burst and after 300 more."""
+    futures = [reset.call_async(Trigger.Request()) for _ in range(200)]
+    probe.spin_until(lambda: all(f.done() for f in futures), 30.0, 'the 200 replies')
+    assert all(f.result().success for f in futures)
+    return report_after(probe, node, states, diags), report_after(probe, node, states, diags)
+
+
+def report_after(probe: Probe, node: NodeProcess, states: Any, diags: Any) -> dict[str, str]:
+    """Wait for 300 more states, then return a diagnostics report made after them (the late
+    answers of a burst come before the answers to the states after it)."""
+    n = len(states)
+    probe.spin_until(lambda: len(states) >= n + 300, 30.0, '300 more states')
+    k = len(diags)
+    return last_diagnostics(probe, diags, node, lambda d: len(diags) > k)
+
+
+def test_a_burst_of_resets_leaves_the_loop_at_full_rate() -> None:
+    # 200 ~/reset calls at once, three times, against pendulum_pd_controller (one unstamped
+    # answer per state). After each burst every state is answered: no timeout, no late answer.
+    # A stalled loop takes one state per sync_timeout (60 s), so the 300 states after a burst
+    # never come within the wait.
+    params = {'sync_timeout': 60.0, 'diagnostics': True}
+    with NodeProcess('controller_test', params) as node, Controller(
+            namespace=node.namespace) as ctl, Probe() as probe:
+        diags = probe.subscribe(DiagnosticArray, '/diagnostics')
+        states = probe.subscribe(JointState, f'{node.namespace}/joint_states', EVERY)
+        probe.spin_until(lambda: len(states) >= 20, 30.0, 'the loop to run')
+        reset = probe.node.create_client(Trigger, f'{node.fqn}/reset', qos_profile=EVERY)
+        probe.spin_until(reset.service_is_ready, 30.0, '~/reset')
+        ready_to_answer(probe.node, probe.executor, node.fqn)
+        for _ in range(3):
+            first, later = after_a_burst_of_resets(probe, node, reset, states, diags)
+            assert later['sync_timeouts'] == '0', later
+            assert later['sync_late'] == first['sync_late'], (first, later)
+        stop_clean(node)
+        assert ctl.alive()

@@ -5,6 +5,7 @@ import csv
 import re
 import subprocess
 import sys
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -69,6 +70,22 @@ def test_plot_draws_the_same_figure_and_a_recording_keeps_a_known_target(
     proc = report(str(mcap), '--out', str(tmp_path / 'r'))     # the target from the file
     assert proc.returncode == 0, proc.stderr
     assert read_metrics(tmp_path / 'r' / 'metrics.csv') == run.metrics().as_dict()
+
+
+def test_a_joint_name_with_a_nul_is_refused_before_anything_is_written(tmp_path: Path) -> None:
+    # rclpy's serialization passes C strings: the NUL would end the recorded name at 'a'.
+    from pendulum_sim.testing.errors import TestingError
+    from pendulum_sim.testing.record import write_run
+
+    run = closed_loop(pd, periods=5)
+    message = ("joint_name must hold no control characters (a URDF or a log would not show "
+               "them), got 'a\\x00b' with '\\x00'")
+    with pytest.raises(TestingError, match=f'^{re.escape(message)}$'):
+        write_run(run, tmp_path / 'run.mcap', joint_name='a\x00b')
+    with pytest.raises(TestingError, match=f'^{re.escape(message)}$'):
+        write_run(replace(run, parameters={**run.parameters, 'joint_name': 'a\x00b'}),
+                  tmp_path / 'run.mcap')
+    assert not (tmp_path / 'run.mcap').exists()
 
 
 def test_a_recording_without_target_or_closed_loop_exits_2_with_the_reason(

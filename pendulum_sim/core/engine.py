@@ -41,7 +41,7 @@ from .guard import FALLBACK, GuardStats, StabilityGuard, safe_speed_range
 from .implicit import dirk_safe, fallback, fallback_refused
 from .law import DampingFn
 from .methods import Advance, Method
-from .model import FloatArray
+from .model import FloatArray, check_speed_ahead
 from .problem import Problem
 from .split import SplitSteps
 from .stiff import OVERFLOW, TO_GUARD, stiff_cover, stiff_pair
@@ -133,6 +133,17 @@ class Engine:
         return embedded.dense_run(self.problem, self.method.tableau, self.pair_steps(),
                                   self.plain.from_rest, p, v, t_out, ain, self.rtol,
                                   self.atol, stats, budget)
+
+    def check_ahead(self, v: float, h: float, ain: float, t: float) -> None:
+        """Refuse at once a step from t that is too long to work through and could only end
+        in the speed bound's refusal.
+
+        Too long: the fallback's work bound (``implicit.fallback_refused``: more than
+        MAX_FALLBACK_SUBSTEPS substeps of at most MAX_ANGLE); certain to end beyond the bound:
+        ``model.check_speed_ahead``. Every other step is taken, and checked after it.
+        """
+        if not self.unguarded and fallback_refused(v, h, ain, self.w2, self.omega0):
+            check_speed_ahead(v, ain, h, self.gamma, self.n, self.w2, t)
 
     # ------------------------------------------------------------------ fast path
     def fast_range(self, h: float, ain: float) -> tuple[float, float]:

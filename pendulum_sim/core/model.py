@@ -379,6 +379,32 @@ def check_speed(dphi: float, gamma: float, n: float, omega0_sq: float,
 
 
 
+def check_speed_ahead(dphi: float, ain: float, h: float, gamma: float, n: float,
+                      omega0_sq: float, t: float) -> None:
+    """Refuse, before it is taken, a step from t that certainly ends beyond the speed bound.
+
+    While |φ'| <= L (:func:`run_speed_limit`), the input acceleration ``ain`` = τ/I outweighs
+    gravity (at most ω0²) and damping (at most γ L^n) by c = |τ/I| − ω0² − γ L^n; where c > 0
+    the speed along τ grows at least at c and cannot fall back through L, so a start
+    ``sign(τ) φ'`` with ``sign(τ) φ' + c h > L`` ends the step of the exact flow beyond L
+    (:func:`check_speed` would refuse it after the work). The caller asks only where that
+    work is beyond the one-step work bound (``implicit.fallback_refused``).
+    """
+    lim = run_speed_limit(gamma, n, omega0_sq)
+    try:
+        damping = gamma * lim ** n if gamma > 0.0 else 0.0
+    except OverflowError:
+        return
+    c = abs(ain) - omega0_sq - damping
+    least = (dphi if ain > 0.0 else -dphi) + c * h
+    if c > 0.0 and least > lim:
+        raise IntegratorError(
+            f'dphi would pass +-{lim:.9g} rad/s within the step of h = {h:g} s from t = {t:g} '
+            f's: torque/I = {ain:g} rad/s^2 outweighs gravity and damping below that bound by '
+            f'{c:.6g} rad/s^2, so from dphi = {dphi:g} rad/s it reaches at least {least:.6g} '
+            f'rad/s: the run stops there, before the step')
+
+
 def check_count(name: str, value: object, minimum: int = 1) -> int:
     """Return an integer count >= ``minimum`` (bools and floats refused, IntegratorError)."""
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
@@ -410,7 +436,11 @@ def oscillation_trials(method: str, error_order: int, t_end: float, rtol: float,
         return 0.0
     v = math.sqrt(2.0 * e0)
     if n >= 1.0:
-        left = e0 * math.exp(-2.0 * g * v ** (n - 1.0) * t_end)
+        try:
+            rate = v ** (n - 1.0)
+        except OverflowError:   # a large n at v > 1 (n = 1e300): the bound is 0
+            rate = math.inf
+        left = e0 * math.exp(-2.0 * g * rate * t_end)
     else:
         left = e0 - g * v ** (n + 1.0) * t_end
     if not (left > 0.0 and rtol * math.sqrt(2.0 * left) >= atol):

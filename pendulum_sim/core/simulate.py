@@ -210,6 +210,7 @@ def _dense(stepper: Stepper, t_end: float, k_full: int, last: float, record_ever
     params = stepper.params
     t = output_times(t_end, stepper.h, k_full, last, record_every)
     p0, v0 = stepper.phi, stepper.dphi
+    stepper.engine.check_ahead(v0, stepper.h, tau / params.inertia, 0.0)
     phi, dphi, w = stepper.engine.dense(p0, v0, t, tau / params.inertia, stepper.stats,
                                         budget)
     phi[0], dphi[0], w[0] = p0, v0, 0.0

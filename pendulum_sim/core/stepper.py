@@ -227,11 +227,13 @@ class Stepper:
                 except (OverflowError, ValueError):
                     r = None
             if r is None:
+                self._engine.check_ahead(v, h, ain, self._steps * self._h)
                 p1, v1, w = self._slow(p, v, h, ain, self.stats)
                 self._e = math.nan
             else:
                 p1, v1, w, self._e = r
         else:
+            self._engine.check_ahead(v, h, ain, self._steps * self._h)
             p1, v1, w = self._slow(p, v, h, ain, self.stats)
         if not abs(v1) <= self._max_speed:
             params = self._params

@@ -149,13 +149,13 @@ class SweepResult:
 
 
 def _as_vector(name: str, value: Any) -> FloatArray:
-    if np.ndim(value) == 0:  # one number: the core's scalar validation and its message
-        return np.asarray(check_finite(name, value))
-    try:
+    try:  # a ragged list raises here (numpy's ValueError)
         arr = np.asarray(value)
     except Exception:
         raise ModelError(f'{name} must be a real number or a 1-D array of them, got {value!r}'
                          ) from None
+    if arr.ndim == 0:  # one number: the core's scalar validation and its message
+        return np.asarray(check_finite(name, value))
     if arr.dtype.kind not in 'iuf':
         raise ModelError(f'{name} must be a real number or a 1-D array of them, got {value!r}')
     if arr.ndim > 1:
@@ -518,7 +518,7 @@ class Sweep:
         if self.jit and not jit_available():
             raise IntegratorError(f'jit=True needs numba, which is not installed: '
                                   f'{INSTALL_HINT}')
-        if method not in SWEEP_METHODS:
+        if not isinstance(method, str) or method not in SWEEP_METHODS:
             raise IntegratorError(f'sweep supports the explicit methods '
                                   f'{", ".join(SWEEP_METHODS)}, got {method!r}')
         self.method = method

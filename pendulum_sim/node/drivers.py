@@ -35,6 +35,8 @@ from .parameters import Value, joint_config
 from .realtime import RateMeter, Schedule
 
 WAKE_BUDGET_NS = 10_000_000
+LOCKSTEP_PERIOD = 1e-3       # free and paced lockstep: the timer's period (s)
+SYNC_WATCH_PERIOD = 0.02     # synchronous mode: how often to look for controllers, timeouts (s)
 CHUNK_STEPS = 256
 CATCH_UP_SECONDS = 0.25
 REMIND_AFTER_NS = 20_000_000    # synchronous: /clock again after this long without an answer
@@ -335,16 +337,17 @@ class SyncDriver(Driver):
         super().reconfigure(values, names, now_ns)
         self.exchange.timeout_ns = round(float(values['sync_timeout']) * 1e9)
         self.exchange.action = str(values['sync_timeout_action'])
+        self.exchange.reconfigured()
 
     def after_reset(self, now_ns: int) -> None:
         self._failure_logged = False
         if self.exchange.reset():
-            self._publish_awaited(now_ns, clock=False)
+            self._publish_awaited(now_ns, clock=False, reset=True)
 
-    def _publish_awaited(self, now_ns: int, clock: bool) -> None:
+    def _publish_awaited(self, now_ns: int, clock: bool, reset: bool = False) -> None:
         joint = self.joint
         if self.publish(clock):
-            self.exchange.published(joint.steps, joint.stamp_ns(), now_ns)
+            self.exchange.published(joint.steps, joint.stamp_ns(), now_ns, reset)
         else:   # nothing to answer: the next period goes on with the last command
             self.exchange.unseen()
 
@@ -407,3 +410,30 @@ class SyncDriver(Driver):
             if not self.gate.open:
                 self.rate.pause(self.clock())
         return taken
+
+
+def wake_period(values: Mapping[str, Value]) -> tuple[float, bool]:
+    """Return the node's timer period (s) for the mode of ``values``, and whether its wakes
+    keep a schedule (real time and paced lockstep; not free lockstep or synchronous mode,
+    which step as fast as they may), against which the wake statistics are measured."""
+    if values['synchronous']:
+        return SYNC_WATCH_PERIOD, False
+    if values['lockstep']:
+        return LOCKSTEP_PERIOD, float(values['real_time_factor']) != 0.0
+    return 1.0 / float(values['publish_rate']), True
+
+
+def make_driver(values: Mapping[str, Value], joint: SimulatedJoint, gate: Gate,
+                publish: Publish, log: Log, now_ns: int, ready: Callable[[], tuple[bool, int]],
+                waiting_text: str, remind: Callable[[int, bool], None] | None = None,
+                remind_state: bool = False) -> Driver:
+    """Return the driver of the mode of ``values``: a :class:`SyncDriver` with its exchange
+    in synchronous mode (``ready``, ``waiting_text``, ``remind`` and ``remind_state`` are
+    its), a :class:`RealTimeDriver` otherwise."""
+    if values['synchronous']:
+        exchange = SyncExchange(gate, round(float(values['sync_timeout']) * 1e9),
+                                str(values['sync_timeout_action']))
+        return SyncDriver(joint, exchange, publish, log, now_ns, ready, waiting_text,
+                          remind=remind, remind_state=remind_state)
+    return RealTimeDriver(joint, gate, publish, log, now_ns, float(values['real_time_factor']),
+                          bool(values['lockstep']))

@@ -29,7 +29,11 @@ Which command answers which state (the rules, also tabled in the reference docs)
 - A controller connecting while publications are owed an answer starts the count afresh at the
   next publication it can see.
 - A reset publishes the reset state at the reset stamp as a new publication, awaited like any
-  other.
+  other; unless the awaited publication is that reset state already (published by the last
+  reset, with no period taken and no live parameter applied since): then it goes on awaiting
+  its answer and nothing is published, so a burst of resets sends the state once instead of
+  once per reset (the answers to a burst of copies overflowed the controller's queue and the
+  node's, and answers counted by number never caught up again).
 - A state that cannot go out (a sensor delay still filling) is no publication: nothing awaits
   an answer, and the next period is advanced at once with the last command.
 
@@ -133,6 +137,7 @@ class Publication:
     since_ns: int         # when the wait (re)started, steady clock
     answered: bool = False
     value: float | None = None
+    reset: bool = False   # the state a reset left, the joint unchanged since
 
 
 class SyncExchange:
@@ -235,9 +240,9 @@ class SyncExchange:
             return Action.STOPPED
         return Action.HOLD
 
-    def published(self, step: int, stamp_ns: int, now_ns: int) -> None:
+    def published(self, step: int, stamp_ns: int, now_ns: int, reset: bool = False) -> None:
         """Record that the state at ``step`` was published (after PUBLISH, REPUBLISH, a period
-        or a reset); it now awaits its answer."""
+        or a reset: ``reset`` True); it now awaits its answer."""
         aw = self._awaiting
         if self._republish and aw is not None and aw.step == step and not aw.answered:
             # The same state again (after a stop): either copy's answer answers it, and the
@@ -250,7 +255,7 @@ class SyncExchange:
             return
         self._republish = False
         self._stepping = False
-        self._awaiting = Publication(self._publications, step, stamp_ns, now_ns)
+        self._awaiting = Publication(self._publications, step, stamp_ns, now_ns, reset=reset)
         self._publications += 1
         self._last_stamp = stamp_ns
         pubs = self._stamp_pubs
@@ -310,8 +315,16 @@ class SyncExchange:
         """Start the period after ADVANCE or HOLD: return the answer to apply (None: hold)."""
         aw = self._awaiting
         value = aw.value if aw is not None and aw.answered else None
+        if aw is not None:
+            aw.reset = False   # the joint moves on from the state it awaited
         self._stepping = True
         return value
+
+    def reconfigured(self) -> None:
+        """Record that live parameters were applied: a reset after them publishes its state
+        anew, even if the awaited state is a reset's."""
+        if self._awaiting is not None:
+            self._awaiting.reset = False
 
     def period_done(self) -> None:
         """Count a period taken through the gate (call before publishing its end state)."""
@@ -332,7 +345,13 @@ class SyncExchange:
 
     def reset(self) -> bool:
         """Forget the period under way (a reset); return True if the reset state must be
-        published (the exchange has started), as a new publication awaiting its answer."""
+        published, as a new publication awaiting its answer: the exchange has started, and the
+        awaited publication is not that reset state already (left by the last reset, nothing
+        stepped, applied, stopped or to be published again since)."""
+        aw = self._awaiting
+        if (aw is not None and aw.reset and not self._stepping and not self._stopped
+                and not self._republish):
+            return False
         self._stepping = False
         self._republish = False
         self._stopped = False

@@ -225,17 +225,29 @@ def _checked(values: Mapping[str, Value]) -> tuple[str | None, PendulumParams | 
     return _check_rest(values, params), params
 
 
-def _check_rest(values: Mapping[str, Value], params: PendulumParams) -> str | None:
-    if values['integrator'] not in METHODS:
-        known = ', '.join(sorted(METHODS))
-        return f"integrator must be one of {known}, got '{values['integrator']}'"
-    name = str(values['joint_name'])
+def joint_name_refusal(name: str) -> str | None:
+    """Return why ``name`` cannot name the joint, or None: blank, or a control character.
+
+    A URDF or a log would not show a control character, and a NUL ends a ROS string (rcl
+    passes C strings: ``'a\\x00b'`` set through a parameter file arrives as ``'a'``), so the
+    package refuses one wherever it takes a name without rclpy.
+    """
     if not name.strip():
         return f"joint_name must be a non-empty name, got '{name}'"
     control = next((c for c in name if unicodedata.category(c) == 'Cc'), None)
     if control is not None:
         return (f'joint_name must hold no control characters (a URDF or a log would not show '
                 f'them), got {name!r} with {control!r}')
+    return None
+
+
+def _check_rest(values: Mapping[str, Value], params: PendulumParams) -> str | None:
+    if values['integrator'] not in METHODS:
+        known = ', '.join(sorted(METHODS))
+        return f"integrator must be one of {known}, got '{values['integrator']}'"
+    reason = joint_name_refusal(str(values['joint_name']))
+    if reason is not None:
+        return reason
     rtf = float(values['real_time_factor'])
     if rtf == 0.0 and not values['lockstep']:
         return 'real_time_factor must be > 0 unless lockstep is true, got 0.0'
@@ -270,6 +282,13 @@ def _check_rest(values: Mapping[str, Value], params: PendulumParams) -> str | No
 def effort_input_active(values: Mapping[str, Value]) -> bool:
     """Return True when the node subscribes to effort_command (effort_input, effort interface)."""
     return bool(values['effort_input']) and values['command_interface'] == 'effort'
+
+
+def start_epoch_ns(values: Mapping[str, Value], wall_ns: int) -> int:
+    """Return the stamp of step 0 (ns): ``start_time``; a negative one starts a real-time run
+    at the wall clock ``wall_ns`` and a lockstep run at 0."""
+    start = float(values['start_time'])
+    return wall_ns if start < 0.0 and not values['lockstep'] else round(max(start, 0) * 1e9)
 
 
 def joint_config(values: Mapping[str, Value], epoch_ns: int = 0) -> JointConfig:

@@ -28,9 +28,9 @@ from pendulum_sim import __version__
 
 from . import commands, replies
 from . import diagnostics as diag
-from .drivers import WAKE_BUDGET_NS, Driver, RealTimeDriver, SyncDriver
+from .drivers import WAKE_BUDGET_NS, make_driver, wake_period
 from .errors import ParameterError
-from .exchange import Gate, StepError, SyncExchange
+from .exchange import Gate, StepError
 from .joint import SimulatedJoint
 from .outputs import Recording, StateOutputs
 from .parameters import (
@@ -41,6 +41,7 @@ from .parameters import (
     effort_input_active,
     joint_config,
     refusal,
+    start_epoch_ns,
 )
 from .qos import (
     COMMAND_QOS,
@@ -55,9 +56,6 @@ from .status import StatusLine, summary_text
 from .telemetry import Telemetry
 from .urdf import urdf_from_values
 
-DIAGNOSTICS_PERIOD_NS = 1_000_000_000
-LOCKSTEP_PERIOD = 1e-3
-SYNC_WATCH_PERIOD = 0.02     # synchronous mode: how often to look for controllers, timeouts
 ENERGY_TERMS = ('kinetic', 'potential', 'dissipated_power', 'residual')
 
 
@@ -124,34 +122,21 @@ class PendulumNode(Node):
 
         # The joint and its driver start after every entity (and the recorder) exists, so the
         # first wake has no set-up time to catch up; a wall-anchored epoch is read now.
-        start = float(v['start_time'])
-        epoch_ns = time.time_ns() if start < 0.0 and not lockstep else round(max(start, 0) * 1e9)
-        self._joint = joint = SimulatedJoint(joint_config(v, epoch_ns))
+        self._joint = joint = SimulatedJoint(joint_config(v, start_epoch_ns(v, time.time_ns())))
         self._gate = gate = Gate(bool(v['start_paused']))
         self._outputs = StateOutputs(joint, self._joint_name, self._js_pub, clock, energy,
                                      terms, self._recording)
         now = time.monotonic_ns()
-        rtf = float(v['real_time_factor'])
-        self._driver: Driver
-        if self._sync:
-            period = SYNC_WATCH_PERIOD
-            exchange = SyncExchange(gate, round(float(v['sync_timeout']) * 1e9),
-                                    str(v['sync_timeout_action']))
-            self._driver = SyncDriver(
-                joint, exchange, self._outputs, self._log, now, self._ready,
-                f'synchronous: waiting for a controller (a subscriber on {self._js_pub.topic_name}'
-                f" and a reliable publisher on {', '.join(self._topics.values())})",
-                remind=self._outputs.remind, remind_state=set(self._topics) == {'joint_commands'})
-        else:
-            period = LOCKSTEP_PERIOD if lockstep else 1.0 / float(v['publish_rate'])
-            self._driver = RealTimeDriver(joint, gate, self._outputs, self._log, now, rtf,
-                                          lockstep)
-        asap = lockstep and rtf == 0.0 and not self._sync
+        self._driver = make_driver(
+            v, joint, gate, self._outputs, self._log, now, self._ready,
+            f'synchronous: waiting for a controller (a subscriber on {self._js_pub.topic_name}'
+            f" and a reliable publisher on {', '.join(self._topics.values())})",
+            remind=self._outputs.remind, remind_state=set(self._topics) == {'joint_commands'})
+        period, scheduled = wake_period(v)
         self._period_ns = round(period * 1e9)
-        self._wakes = WakeStats(0 if asap or self._sync else self._period_ns)
+        self._wakes = WakeStats(self._period_ns if scheduled else 0)
         self._telemetry = Telemetry(joint, self._driver, gate, self._drops, self._wakes,
-                                    self._incompatible, rtf)
-        self._next_report_ns = now + DIAGNOSTICS_PERIOD_NS
+                                    self._incompatible, float(v['real_time_factor']), now)
         self._status = status if v['status_line'] else None
         self._timer = self.create_timer(period, self._on_wake,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -242,9 +227,7 @@ class PendulumNode(Node):
         self._outputs.refresh()
         taken = self._driver.wake(now, now + WAKE_BUDGET_NS)
         self._driver.check_failed()
-        if now >= self._next_report_ns:
-            self._next_report_ns += DIAGNOSTICS_PERIOD_NS * max(
-                1, (now - self._next_report_ns) // DIAGNOSTICS_PERIOD_NS + 1)
+        if self._telemetry.report_due(now):
             self._report(now)
         status = self._status
         if status is not None and status.due(now / 1e9):

@@ -19,6 +19,9 @@ from .joint import SimulatedJoint
 from .realtime import WakeStats
 from .status import status_text
 
+REPORT_PERIOD_NS = 1_000_000_000
+"""The period of the diagnostics report (and of the window figures), steady clock."""
+
 
 class Telemetry:
     """Collect the node's figures: wake statistics, the local error estimate, the counters.
@@ -33,11 +36,13 @@ class Telemetry:
         Incompatible-QoS events per command topic.
     rtf_target : float
         The ``real_time_factor`` parameter (the node updates it).
+    start_ns : int
+        Steady-clock time at start: the first report is due one period later.
     """
 
     def __init__(self, joint: SimulatedJoint, driver: Driver, gate: Gate, drops: Drops,
                  wakes: WakeStats, incompatible: Mapping[str, int],
-                 rtf_target: float = 0.0) -> None:
+                 rtf_target: float = 0.0, start_ns: int = 0) -> None:
         self.joint = joint
         self.driver = driver
         self.gate = gate
@@ -47,6 +52,16 @@ class Telemetry:
         self.rtf_target = rtf_target
         self._last_error = math.nan
         self._max_error = 0.0
+        self._next_report_ns = start_ns + REPORT_PERIOD_NS
+
+    def report_due(self, now_ns: int) -> bool:
+        """Return True when a report is due at ``now_ns`` (steady clock): once every
+        :data:`REPORT_PERIOD_NS`, the missed ones skipped, not made up."""
+        if now_ns < self._next_report_ns:
+            return False
+        self._next_report_ns += REPORT_PERIOD_NS * max(
+            1, (now_ns - self._next_report_ns) // REPORT_PERIOD_NS + 1)
+        return True
 
     def start_text(self, values: Mapping[str, object]) -> str:
         """Return the line logged at start: mode, step, integrator, period, commands, joint."""

@@ -2,7 +2,7 @@
 
 Reads a closed-loop recording (made by ``pendulum_node`` in synchronous mode, by
 ``closed_loop(..., record=...)`` or by a campaign), draws the run's figure with the same
-function as :meth:`ClosedLoopRun.plot <pendulum_sim.testing.loop.ClosedLoopRun.plot>` and writes
+function as :meth:`ClosedLoopRun.plot <pendulum_sim.testing.run.ClosedLoopRun.plot>` and writes
 ``summary.md`` with every step metric and ``metrics.csv``.
 """
 from __future__ import annotations

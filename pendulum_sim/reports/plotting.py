@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from pendulum_sim.pyplot_agg import pyplot as pyplot
+
 CORE_STYLE = '-'
 SCIPY_STYLE = '--'
 JIT_STYLE = ':'  # the core's adaptive methods with compiled steps
@@ -30,14 +32,6 @@ def missing_note() -> str:
     """Return the note written in place of the figures when matplotlib is missing."""
     return ('**matplotlib is not installed: no figures were drawn.** The CSV tables hold every '
             'number; install matplotlib (`pip install matplotlib`) and re-run for the PNGs.')
-
-
-def pyplot() -> Any:
-    """Return matplotlib.pyplot on the non-interactive Agg backend."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def save(fig: Any, out: Path, name: str) -> str:

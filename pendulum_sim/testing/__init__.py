@@ -12,15 +12,16 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from pendulum_sim.testing.errors import CampaignError, ControllerFailed, TestingError
-    from pendulum_sim.testing.loop import ClosedLoopRun, closed_loop
+    from pendulum_sim.testing.loop import closed_loop
     from pendulum_sim.testing.metrics import StepMetrics, step_metrics
+    from pendulum_sim.testing.run import ClosedLoopRun
     from pendulum_sim.testing.vector import vectorised
 
 __all__ = ['CampaignError', 'ClosedLoopRun', 'ControllerFailed', 'StepMetrics', 'TestingError',
            'closed_loop', 'step_metrics', 'vectorised']
 
 _WHERE = {'CampaignError': 'errors', 'ControllerFailed': 'errors', 'TestingError': 'errors',
-          'ClosedLoopRun': 'loop', 'closed_loop': 'loop', 'StepMetrics': 'metrics',
+          'ClosedLoopRun': 'run', 'closed_loop': 'loop', 'StepMetrics': 'metrics',
           'step_metrics': 'metrics', 'vectorised': 'vector'}
 
 

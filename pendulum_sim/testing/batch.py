@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 
 from .errors import TestingError
-from .loop import ClosedLoopRun, answer_reason, run_in_process
+from .loop import answer_reason, run_in_process
+from .run import ClosedLoopRun
 from .scene import Value, epoch_ns
 from .target import takes_target
 

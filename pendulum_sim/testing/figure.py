@@ -8,18 +8,40 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
 
 from .metrics import SETTLING_THRESHOLD, StepMetrics
 
-if TYPE_CHECKING:
-    from .loop import ClosedLoopRun
+
+class Drawn(Protocol):
+    """What the figure reads of a run (:class:`~pendulum_sim.testing.run.ClosedLoopRun`)."""
+
+    @property
+    def t(self) -> NDArray[np.float64]: ...
+
+    @property
+    def position(self) -> NDArray[np.float64]: ...
+
+    @property
+    def velocity(self) -> NDArray[np.float64]: ...
+
+    @property
+    def effort(self) -> NDArray[np.float64]: ...
+
+    @property
+    def max_effort(self) -> float: ...
+
+    def metrics(self, target: float | None = None, *,
+                initial: float | None = None) -> StepMetrics: ...
 
 
-def closed_loop_figure(run: ClosedLoopRun, target: float, path: Path,
+def closed_loop_figure(run: Drawn, target: float, path: Path,
                        metrics: StepMetrics | None = None, title: str | None = None) -> Path:
     """Draw ``run`` towards ``target`` as a PNG at ``path``; return the path."""
-    from pendulum_sim.reports.plotting import pyplot
+    from pendulum_sim.pyplot_agg import pyplot
 
     plt = pyplot()
     m = run.metrics(target) if metrics is None else metrics

@@ -18,84 +18,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from .errors import ControllerFailed, TestingError
-from .metrics import StepMetrics, step_metrics
-from .scene import Value, epoch_ns, finite_limit, scene_values
+from .run import ClosedLoopRun
+from .scene import Value, epoch_ns, scene_values
 from .target import bind_target, substitute_target
 
-FloatArray = NDArray[np.float64]
+__all__ = ['MAX_PERIODS', 'ClosedLoopRun', 'Law', 'answer_reason', 'closed_loop',
+           'run_in_process']
+
 Law = Callable[[float, float, float], float]
 MAX_PERIODS = 10_000_000
-
-
-@dataclass(frozen=True)
-class ClosedLoopRun:
-    """The samples of one closed-loop run and what it was run with.
-
-    Attributes
-    ----------
-    t, position, velocity, effort, command : numpy arrays
-        One entry per control period: the state's stamp (s), the measured angle (rad) and rate
-        (rad/s), the torque applied in the step before it (N m), and the controller's answer.
-    parameters : dict
-        The node parameters of the run (scene, overrides and the closed-loop settings).
-    failed : str or None
-        Why the simulation stopped early (the joint's reason), or None.
-    target : float or None
-        The reference, when the caller gave one (the figure and ``metrics()`` use it).
-    """
-
-    t: FloatArray
-    position: FloatArray
-    velocity: FloatArray
-    effort: FloatArray
-    command: FloatArray
-    parameters: dict[str, Value] = field(default_factory=dict)
-    failed: str | None = None
-    target: float | None = None
-
-    @property
-    def max_effort(self) -> float:
-        """Return the joint's torque limit of the run (N m, inf when unknown)."""
-        value = self.parameters.get('max_effort', math.inf)
-        return float(value)
-
-    def _target(self, target: float | None) -> float:
-        chosen = self.target if target is None else target
-        if chosen is None:
-            raise TestingError('no target: give metrics(target) or plot(path, target=...)')
-        return float(chosen)
-
-    def metrics(self, target: float | None = None, *,
-                initial: float | None = None) -> StepMetrics:
-        """Return the step metrics of the angle towards ``target`` (rad).
-
-        The step is measured from ``initial``, by default the first measured angle (the run
-        starts at rest at ``phi0``, not at 0 as a textbook step response).
-        """
-        if self.t.size < 2:
-            raise TestingError(f'a run of {self.t.size} sample(s) has no step metrics')
-        return step_metrics(self.t, self.position, self._target(target),
-                            initial=float(self.position[0]) if initial is None else initial,
-                            effort=self.effort, effort_limit=finite_limit(self.parameters))
-
-    def plot(self, path: str | Path, *, target: float | None = None) -> Path:
-        """Draw the run's figure (angle, velocity, effort; settling band and time) to ``path``."""
-        from .figure import closed_loop_figure
-
-        return closed_loop_figure(self, self._target(target), Path(path))
-
-    def with_target(self, target: float) -> ClosedLoopRun:
-        """Return the same run with its reference set."""
-        return ClosedLoopRun(self.t, self.position, self.velocity, self.effort, self.command,
-                             dict(self.parameters), self.failed, float(target))
 
 
 def _check_periods(periods: int) -> int:

@@ -22,9 +22,10 @@ from typing import Any
 
 import pytest
 
-from .loop import ClosedLoopRun, Law
+from .loop import Law
 from .loop import closed_loop as _closed_loop
 from .metrics import StepMetrics
+from .run import ClosedLoopRun
 
 RUNS_KEY = pytest.StashKey['_Recorded']()
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import TestingError
-from .loop import ClosedLoopRun
+from .run import ClosedLoopRun
 from .scene import Value
 
 JOINT_STATES = '/joint_states'
@@ -27,9 +27,13 @@ def write_run(run: ClosedLoopRun, path: Path, joint_name: str | None = None) -> 
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
 
+    from pendulum_sim.node.parameters import joint_name_refusal
     from pendulum_sim.recording import McapRecorder
 
     name = joint_name or str(run.parameters.get('joint_name', 'pendulum_joint'))
+    reason = joint_name_refusal(name)   # a NUL would end the name in the recorded message
+    if reason is not None:
+        raise TestingError(reason)
     meta = {'scene': {k: str(v) for k, v in run.parameters.items()}}
     if run.target is not None:
         meta['closed_loop'] = {'target': repr(run.target)}

@@ -30,7 +30,7 @@ from typing import IO
 import yaml
 
 from .errors import ControllerFailed, TestingError
-from .loop import ClosedLoopRun
+from .run import ClosedLoopRun
 from .scene import Value, epoch_ns
 
 POLL = 0.02

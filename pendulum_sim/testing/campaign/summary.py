@@ -126,7 +126,7 @@ def write_summary(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path,
 def write_figures(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path) -> list[str]:
     """Draw the metric distributions and the pass rate over the two most influential params."""
     try:
-        from pendulum_sim.reports.plotting import pyplot
+        from pendulum_sim.pyplot_agg import pyplot
         plt = pyplot()
     except ImportError:
         return []
