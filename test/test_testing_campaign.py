@@ -76,6 +76,21 @@ def table(folder: Path) -> list[dict[str, Any]]:
     return [{k: v for k, v in row.items() if k not in RUN_COLUMNS} for row in rows]
 
 
+def stored(folder: Path) -> list[int]:
+    """Return the ids of the episodes in the folder's database (read while it is written)."""
+    import sqlite3
+
+    if not (folder / 'episodes.sqlite').is_file():
+        return []
+    db = sqlite3.connect(f'file:{folder / "episodes.sqlite"}?mode=ro', uri=True, timeout=30)
+    try:
+        return [i for (i,) in db.execute('SELECT episode FROM episodes ORDER BY episode')]
+    except sqlite3.OperationalError:   # created, its table not yet
+        return []
+    finally:
+        db.close()
+
+
 def same_rows(a: list[dict[str, Any]], b: list[dict[str, Any]]) -> bool:
     """Return True for equal rows, NaN equal to NaN, floats compared bit for bit."""
     return [json.dumps(r, sort_keys=True) for r in a] == [json.dumps(r, sort_keys=True)
@@ -182,9 +197,14 @@ def test_each_episode_draws_from_its_own_seed_whatever_ran_before() -> None:
     assert scenario(other, 0)['phi0'] != forward[0]['phi0']
 
 
-def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reason() -> None:
+def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reason(
+        tmp_path: Path) -> None:
+    from pendulum_sim.testing import closed_loop
+    from pendulum_sim.testing.examples import pd  # what campaign_laws:fragile answers
+    from pendulum_sim.testing.record import load_run
+
     text = FRAGILE.format(episodes=40, periods=300)
-    rows = [run_episode(text, i, None) for i in range(40)]
+    rows = [run_episode(text, i, str(tmp_path)) for i in range(40)]
     reasons = {r['reason'].split(' at t = ')[0].split(' rad/s')[0] for r in rows
                if not r['passed']}
     raised = [r for r in rows if r['reason'].startswith('the controller raised RuntimeError: '
@@ -193,10 +213,21 @@ def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reas
     assert raised and nan, reasons
     passed = [r for r in rows if r['passed']]
     assert passed and all(r['reason'] == '' and r['settling_time'] < 2.5 for r in passed)
-    for r in raised + nan:
-        assert all(math.isnan(r[m]) for m in METRIC_NAMES)
     # Fast swings (large phi0) raise: the reason follows the physics, not the episode id.
     assert min(r['phi0'] for r in raised) > max(r['phi0'] for r in passed)
+    # The run up to the fault is kept: its recording replays the states the law answered,
+    # which are the same episode's states run without the fault, and the row's metrics are
+    # that run's.
+    spec = parse_spec(text)
+    for r in raised + nan:
+        fault_t = float(r['reason'].split(' at t = ')[1].split(' s')[0])
+        run = load_run(tmp_path / 'failures' / f'episode-{r["episode"]:06d}.mcap')
+        assert run.t.size >= 2 and run.t[-1] < fault_t and run.target == 0.5
+        values = scenario(spec, r['episode'])
+        whole = closed_loop(pd, scene=spec.scene, periods=run.t.size, overrides=values)
+        for name in ('t', 'position', 'velocity', 'effort'):
+            assert np.array_equal(getattr(run, name), getattr(whole, name)), name
+        assert same_rows([{m: r[m] for m in METRIC_NAMES}], [run.metrics().as_dict()])
 
 
 # ------------------------------------------------------------------ local runs, rerun, resume
@@ -244,10 +275,16 @@ def test_a_campaign_writes_its_table_summary_figures_and_failing_recordings(
     assert again.returncode == 0
     assert again.stdout == (f'episode {slow[0]["episode"]} reproduced bit for bit (failed: '
                             f'{slow[0]["reason"]})\n')
-    stored = out / 'episodes' / f'{slow[0]["episode"]:06d}.json'
-    row = json.loads(stored.read_text())
-    row['overshoot'] = 1.0
-    stored.write_text(json.dumps(row))
+    import sqlite3
+
+    with sqlite3.connect(out / 'episodes.sqlite') as db:
+        (text,) = db.execute('SELECT row FROM episodes WHERE episode = ?',
+                             (slow[0]['episode'],)).fetchone()
+        row = json.loads(text)
+        row['overshoot'] = 1.0
+        db.execute('UPDATE episodes SET row = ? WHERE episode = ?',
+                   (json.dumps(row), slow[0]['episode']))
+    db.close()
     again = cli('--rerun', str(out), str(slow[0]['episode']))
     assert again.returncode == 1
     assert again.stdout.startswith(f'episode {slow[0]["episode"]} differs from the stored '
@@ -274,9 +311,8 @@ def test_a_campaign_killed_half_way_and_resumed_has_every_episode_once(tmp_path:
     proc = subprocess.Popen([str(BIN / 'pendulum_campaign'), str(path), '--out', str(out),
                              '--workers', '1', '--no-progress'], start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    episodes = out / 'episodes'
     end = time.monotonic() + 120
-    while len(list(episodes.glob('*.json'))) < 10:
+    while len(stored(out)) < 10:
         assert proc.poll() is None and time.monotonic() < end, 'the campaign did not start'
         time.sleep(0.02)
     os.killpg(proc.pid, signal.SIGKILL)   # the campaign, its cluster and its workers at once
@@ -285,7 +321,7 @@ def test_a_campaign_killed_half_way_and_resumed_has_every_episode_once(tmp_path:
     while _alive(proc.pid):
         assert time.monotonic() < end
         time.sleep(0.05)
-    before = sorted(int(p.stem) for p in episodes.glob('*.json'))
+    before = stored(out)
     assert 10 <= len(before) < 40
     resumed = cli(str(path), '--out', str(out), '--resume', '--workers', '2')
     assert resumed.returncode in (0, 1), resumed.stderr
@@ -442,13 +478,13 @@ def test_a_worker_killed_mid_campaign_has_its_episodes_rerun_on_another(
                              '--scheduler', address, '--no-progress'],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     end = time.monotonic() + 120
-    while len(list((out / 'episodes').glob('*.json'))) < 4:
+    while len(stored(out)) < 4:
         assert proc.poll() is None and time.monotonic() < end, 'the campaign did not start'
         time.sleep(0.02)
     workers[0].kill()
     workers[0].wait()
     assert proc.poll() is None     # killed while the campaign ran ...
-    assert len(list((out / 'episodes').glob('*.json'))) < 30    # ... with episodes to go
+    assert len(stored(out)) < 30    # ... with episodes to go
     _, err = proc.communicate(timeout=300)
     assert proc.returncode in (0, 1), err
     rows = table(out)

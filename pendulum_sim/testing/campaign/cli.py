@@ -55,7 +55,8 @@ def same(a: Any, b: Any) -> bool:
 
 def rerun(folder: Path, episode_text: str) -> int:
     """Rerun one episode and compare it with the stored row; return the exit status."""
-    from .episode import RUN_COLUMNS, run_episode
+    from .episode import RUN_COLUMNS, fault_row
+    from .sandbox import Fault, run_chunk
     from .spec import parse_spec
     from .store import CAMPAIGN_FILE, EpisodeStore
 
@@ -74,7 +75,8 @@ def rerun(folder: Path, episode_text: str) -> int:
         raise CampaignError(f'--rerun: EPISODE must be in [0, {spec.episodes - 1}], got '
                             f'{episode}')
     stored = EpisodeStore(folder).read(episode)
-    again = run_episode(text, episode, None)
+    got = run_chunk(text, [episode], None, spec.episode_timeout)[0]
+    again = fault_row(spec, got.episode, got.reason) if isinstance(got, Fault) else got
     differ = [c for c in again if c not in RUN_COLUMNS and not same(again[c], stored.get(c))]
     verdict = 'passed' if again['passed'] else f'failed: {again["reason"]}'
     if differ:
