@@ -51,7 +51,7 @@ class QuietNanny(Nanny):
     """A Dask nanny whose worker is a :class:`QuietWorker`."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, worker_class=QuietWorker, **kwargs)
+        super().__init__(*args, **{**kwargs, 'worker_class': QuietWorker})
 
 
 class QuietCluster(LocalCluster):
