@@ -101,10 +101,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.scheduler is not None and args.workers is not None:
             raise CampaignError('--workers sizes the local cluster; it cannot go with '
                                 '--scheduler')
-        from .execute import run_campaign
+        from .execute import check_address, run_campaign
         from .spec import read_spec
         from .summary import write_results
 
+        if args.scheduler is not None:
+            check_address(args.scheduler)
         spec = read_spec(args.campaign)
         out = Path(args.out)
         rows = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers,

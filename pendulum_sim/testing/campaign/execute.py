@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -86,6 +87,7 @@ def make_client(scheduler: str | None, workers: int | None) -> Any:
     except ImportError:
         raise CampaignError("campaigns need Dask: pip install 'dask[distributed]'") from None
     if scheduler is not None:
+        check_address(scheduler)
         try:
             return Client(scheduler, timeout='20s')
         except ValueError:
@@ -96,6 +98,24 @@ def make_client(scheduler: str | None, workers: int | None) -> Any:
     from .cluster import local_cluster
 
     return Client(local_cluster(workers or os.cpu_count() or 1))
+
+
+_HOST = re.compile(r'^[A-Za-z0-9._\-]+$|^\[?[0-9A-Fa-f:.]+\]?$')
+
+
+def check_address(address: str) -> None:
+    """Refuse ``address`` unless it reads ``[scheme://]host[:port]`` (CampaignError)."""
+    from distributed.comm import parse_address
+    from distributed.comm.addressing import parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        host, _ = parse_host_port(location, 8786)
+    except ValueError:
+        host, scheme = '', ''
+    if scheme not in ('tcp', 'tls', 'ucx', 'ws', 'wss') or not _HOST.match(str(host)):
+        raise CampaignError(f'--scheduler must be an address such as tcp://host:8786, got '
+                            f'{shown(address)}')
 
 
 def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
