@@ -8,8 +8,12 @@ from __future__ import annotations
 import os
 import sys
 import time
+from typing import Any
 
-from pendulum_sim.testing.examples import pd
+import numpy as np
+
+from pendulum_sim.testing import vectorised
+from pendulum_sim.testing.examples import pd, pd_batch
 
 FAULTY = 0.4
 HOARD: list[bytes] = []
@@ -55,3 +59,11 @@ def hangs(t: float, position: float, velocity: float, *, target: float) -> float
 def text(t: float, position: float, velocity: float, *, target: float) -> object:
     """Return the torque as a string ('0.5' reads as a number, but a command is a number)."""
     return '0.5' if _faulty(t, target) else pd(t, position, velocity, target=target)
+
+
+@vectorised
+def batch_exit(t: float, position: Any, velocity: Any, *, target: Any) -> Any:
+    """The example batched law, which calls os._exit(4) when one of its episodes is faulty."""
+    if t > 0.1 and bool(np.any(np.asarray(target) == FAULTY)):
+        os._exit(4)
+    return pd_batch(t, position, velocity, target=target)

@@ -163,6 +163,84 @@ def test_a_bad_campaign_file_exits_2_with_one_line_saying_why(
     assert not (tmp_path / 'out').exists()
 
 
+PD = 'controller: pendulum_sim.testing.examples:pd\nepisodes: 4\nperiods: 50\ntarget: 0.5\n'
+# Nested anchors, "billion laughs": 9 strings, then 9 aliases of the one before, 6 deep.
+LAUGHS = '[&a [' + ', '.join(['lol'] * 9) + '], ' + ', '.join(
+    f'&{k} [' + ', '.join([f'*{p}'] * 9) + ']'
+    for p, k in zip('abcde', 'bcdef', strict=True)) + ']'
+
+
+def bomb(key: str) -> str:
+    """Return a campaign whose ``key`` (an accepted one) holds :data:`LAUGHS`."""
+    if key == 'controller':
+        return PD.replace('pendulum_sim.testing.examples:pd', LAUGHS)
+    return PD + {'scene': f'scene: {LAUGHS}\n',
+                 'requirement': f'requirements: [{LAUGHS}]\n',
+                 'low': f'parameters: {{m: {{distribution: uniform, low: {LAUGHS}, '
+                        'high: 1.0}}\n'}[key]
+
+
+@pytest.mark.parametrize(('text', 'msg'), [
+    (PD + 'parameters: {m: {distribution: uniform, low: -1.0e+308, high: 1.0e+308}}\n',
+     'parameters.m: uniform needs high - low finite, got low = -1e+308, high = 1e+308'),
+    (PD.replace('target: 0.5', 'target: ' + '[' * 20000 + ']' * 20000),
+     'campaign.yaml: lists and mappings are nested more than 32 deep (line 4)'),
+    (PD + 'episodes: 7\n', "campaign.yaml: key 'episodes' is given twice (line 5)"),
+    (PD + 'parameters: {m: heavy}\n', "m must be a float, got 'heavy'"),
+    (PD + 'parameters: {m: -1.0}\n', 'm must be > 0 kg, got -1.0'),
+    (PD + 'parameters: {gamma: [0.1, 0.2, -0.5]}\n', 'gamma must be >= 0 s^(n-2), got -0.5'),
+    (PD + "requirements: ['overshoot < nan']\n",
+     "requirement 'overshoot < nan': the bound must be a number, got nan"),
+    (PD + 'scene: {notyaml}\n', "notyaml.yaml is not valid YAML: expected ',' or ']', but got "
+     "':' at line 2, column 4"),
+    (PD + 'episode_timeout: 0\n', 'episode_timeout must be > 0 s, got 0'),
+    (PD + "parameters: {m: '" + 'x' * 1000 + "'}\n", "m must be a float, got '" + 'x' * 56
+     + '...'),
+])
+def test_what_no_episode_could_run_is_refused_before_the_first_with_exit_2(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, msg: str) -> None:
+    notyaml = tmp_path / 'notyaml.yaml'
+    notyaml.write_text('a: [1, 2\n  b: }{\n')
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(text.replace('{notyaml}', str(notyaml)))
+    assert main([str(path), '--out', str(tmp_path / 'out'), '--no-progress']) == 2
+    err = capsys.readouterr().err
+    assert err == f'pendulum_campaign: error: {msg}\n'
+    assert not (tmp_path / 'out').exists()
+
+
+@pytest.mark.parametrize('key', ['controller', 'scene', 'requirement', 'low'])
+def test_a_yaml_bomb_is_refused_with_a_short_message(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], key: str) -> None:
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(bomb(key))
+    assert len(path.read_bytes()) < 700
+    assert main([str(path), '--out', str(tmp_path / 'out'), '--no-progress']) == 2
+    err = capsys.readouterr().err
+    assert re.fullmatch(r'pendulum_campaign: error: campaign\.yaml: anchors and aliases '
+                        r'expand to more than 10000 values \(line \d+\); write the values '
+                        r'out\n', err), err
+    assert not (tmp_path / 'out').exists()
+
+
+def test_a_few_aliases_are_read_as_their_values() -> None:
+    spec = parse_spec(PD.replace('target: 0.5', 'target: &t 0.4')
+                      + 'parameters: {phi0: *t, gamma: [0.1, 0.2]}\n')
+    assert spec.target == 0.4 and spec.parameters[0] == ('phi0', 0.4)
+
+
+def test_the_scheduler_address_is_checked_before_anything_is_written(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(PD)
+    assert main([str(path), '--out', str(tmp_path / 'out'), '--scheduler',
+                 'not an address']) == 2
+    assert capsys.readouterr().err == ('pendulum_campaign: error: --scheduler must be an '
+                                       "address such as tcp://host:8786, got 'not an "
+                                       "address'\n")
+    assert not (tmp_path / 'out').exists()
+
+
 def test_a_missing_key_and_a_missing_file_exit_2(tmp_path: Path) -> None:
     path = tmp_path / 'c.yaml'
     path.write_text('controller: pendulum_sim.testing.examples:pd\nepisodes: 3\nperiods: 5\n')
@@ -493,3 +571,44 @@ def test_a_worker_killed_mid_campaign_has_its_episodes_rerun_on_another(
     for r in rows:
         assert same_rows([r], [{k: v for k, v in run_episode(text, r['episode'], None).items()
                                 if k not in RUN_COLUMNS}])
+
+
+# ------------------------------------------------------------------ the earlier JSON layout
+OLD = PD.replace('episodes: 4', 'episodes: 6') + 'parameters: {gamma: [0.1, 0.4, 1.0]}\n'
+
+
+def json_layout(tmp: Path, episodes: range) -> tuple[Path, Path]:
+    """Return a campaign file and a folder of the earlier layout holding ``episodes``."""
+    path = tmp / 'campaign.yaml'
+    path.write_text(OLD)
+    out = tmp / 'old'
+    (out / 'episodes').mkdir(parents=True)
+    (out / 'campaign.yaml').write_text(OLD)
+    for i in episodes:
+        (out / 'episodes' / f'{i:06d}.json').write_text(json.dumps(run_episode(OLD, i, None)))
+    return path, out
+
+
+def test_a_folder_of_the_json_layout_resumes_into_the_database(tmp_path: Path) -> None:
+    path, out = json_layout(tmp_path, range(4))
+    (out / 'episodes' / '000004.4242.tmp').write_text('{"episode": 4, "rea')   # cut short
+    proc = cli(str(path), '--out', str(out), '--resume', '--workers', '1', '--no-progress')
+    assert proc.returncode == 0, proc.stderr
+    assert stored(out) == list(range(6))
+    assert not (out / 'episodes').exists()     # the rows moved, the leftover went
+    rows = table(out)
+    assert same_rows(rows, [{k: v for k, v in run_episode(OLD, i, None).items()
+                             if k not in RUN_COLUMNS} for i in range(6)])
+
+
+def test_a_cut_short_row_of_the_json_layout_is_refused_with_nothing_written(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path, out = json_layout(tmp_path, range(3))
+    row = out / 'episodes' / '000002.json'
+    row.write_text(row.read_text()[:40])
+    before = sorted(p.name for p in out.rglob('*'))
+    assert main([str(path), '--out', str(out), '--resume', '--no-progress']) == 2
+    assert capsys.readouterr().err == (f"pendulum_campaign: error: '{row}' is not a whole "
+                                       'episode row; delete it and --resume runs episode 2 '
+                                       'again\n')
+    assert sorted(p.name for p in out.rglob('*')) == before

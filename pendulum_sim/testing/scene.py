@@ -104,7 +104,9 @@ def _typed(name: str, value: Any, default: Value) -> Value:
     else:
         ok = isinstance(value, str)
     if not ok:
-        raise TestingError(f'{name} must be a {type(default).__name__}, got {value!r}')
+        shown = repr(value)
+        shown = shown if len(shown) <= 60 else shown[:57] + '...'
+        raise TestingError(f'{name} must be a {type(default).__name__}, got {shown}')
     return value  # type: ignore[no-any-return]
 
 

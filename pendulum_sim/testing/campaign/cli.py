@@ -23,6 +23,7 @@ from pendulum_sim.arguments import positive_int
 from ..errors import CampaignError
 
 PROG = 'pendulum_campaign'
+MAX_LINE = 400   # characters of an error line at most (values in it are shortened too)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -113,7 +114,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                             resume=args.resume, progress=not args.no_progress)
         write_results(spec, rows, out)
     except CampaignError as exc:
-        print(f'{PROG}: error: {exc}', file=sys.stderr)
+        line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        print(f'{PROG}: error: ' + (line if len(line) <= MAX_LINE else line[:MAX_LINE - 3]
+                                    + '...'), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f'\n{PROG}: interrupted; the finished episodes are kept, --resume continues',
