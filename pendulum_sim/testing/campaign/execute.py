@@ -105,8 +105,7 @@ _HOST = re.compile(r'^[A-Za-z0-9._\-]+$|^\[?[0-9A-Fa-f:.]+\]?$')
 
 def check_address(address: str) -> None:
     """Refuse ``address`` unless it reads ``[scheme://]host[:port]`` (CampaignError)."""
-    from distributed.comm import parse_address
-    from distributed.comm.addressing import parse_host_port
+    from distributed.comm.addressing import parse_address, parse_host_port
 
     try:
         scheme, location = parse_address(address)
