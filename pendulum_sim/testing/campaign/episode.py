@@ -66,9 +66,9 @@ def failure_path(out: Path, episode: int) -> Path:
     return out / 'failures' / f'episode-{episode:06d}.mcap'
 
 
-def verdict(spec: CampaignSpec, metrics: StepMetrics) -> str:
+def verdict(spec: CampaignSpec, metrics: StepMetrics | dict[str, float]) -> str:
     """Return why the metrics fail the requirements ('' when they meet them all)."""
-    values = metrics.as_dict()
+    values = metrics.as_dict() if isinstance(metrics, StepMetrics) else metrics
     reasons = [r.check(values[r.metric]) for r in spec.requirements]
     return '; '.join(r for r in reasons if r)
 
@@ -89,7 +89,7 @@ def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any], target: flo
         else:
             metrics = m.as_dict()
             reason = reason or (f'the simulation stopped: {run.failed}' if run.failed else
-                                verdict(spec, m))
+                                verdict(spec, metrics))
     return {'episode': episode, **values, 'target': target, **metrics, 'passed': not reason,
             'reason': reason,
             'worker_host': socket.gethostname(), 'worker_pid': os.getpid(),
