@@ -280,12 +280,14 @@ def main() -> int:
     print(f'(a) in-process, scalar : {scalar:9.2f} episodes/s (10 s episodes, h = 1 ms, '
           '100 Hz)', flush=True)
     for with_n in (False, True) if args.vector_n else (False,):
+        load = os.getloadavg()[0]
         alone, campaign = vector_campaign(args.vector_episodes, with_n)
         drawn = 'gamma, phi0 and n' if with_n else 'gamma and phi0'
-        print(f'(e) {args.vector_episodes} episodes of pd_batch, {drawn} drawn: run_batch '
-              f'{alone:8.1f} episodes/s, pendulum_campaign --workers 1 end to end '
-              f'{campaign:8.1f} episodes/s = {campaign / alone:.2f} x run_batch = '
-              f'{campaign / scalar:.1f} x (a)', flush=True)
+        print(f'(e) {args.vector_episodes} episodes of pd_batch, {drawn} drawn (load average '
+              f'{load:.2f} before, {os.getloadavg()[0]:.2f} after): run_batch {alone:8.1f} '
+              f'episodes/s, pendulum_campaign --workers 1 end to end {campaign:8.1f} '
+              f'episodes/s = {campaign / alone:.2f} x run_batch = {campaign / scalar:.1f} x (a)',
+              flush=True)
     if args.only_vector:
         return 0
     for n in sorted({1000, args.batch_n}):
