@@ -65,7 +65,7 @@ def _scalar(law: BatchLaw, target: float | None) -> Callable[[float, float, floa
 
     def one(t: float, position: float, velocity: float) -> Any:
         out = np.asarray(law(t, np.array([position]), np.array([velocity]), **extra))
-        return out.reshape(-1)[0]   # as answered: the scalar loop decides what is a command
+        return out.reshape(-1).tolist()[0]   # as answered: the scalar loop decides what it is
     return one
 
 

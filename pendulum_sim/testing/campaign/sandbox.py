@@ -240,8 +240,10 @@ def main() -> None:
     threading.Thread(target=_orphan_guard, args=(os.getppid(),), daemon=True).start()
     from .episode import batched, cached_spec, fault_row, run_episode, run_episodes
 
-    stdin, stdout = sys.stdin.buffer.fileno(), sys.stdout.buffer
-    sys.stdout = sys.stderr   # what a law prints stays out of the messages
+    stdin = sys.stdin.buffer.fileno()
+    stdout = os.fdopen(os.dup(1), 'wb')   # the messages' own descriptor, and what a law
+    os.dup2(2, 1)                         # prints (print, C code) goes to stderr
+    sys.stdout = sys.stderr
     while True:
         try:
             text, episodes, out = receive(stdin)
