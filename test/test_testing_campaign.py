@@ -308,6 +308,32 @@ def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reas
         assert same_rows([{m: r[m] for m in METRIC_NAMES}], [run.metrics().as_dict()])
 
 
+def test_the_scene_is_read_once_per_process(tmp_path: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    from pendulum_sim.node import scenes
+    from pendulum_sim.testing.campaign import episode
+
+    reads: list[object] = []
+    real = scenes.read_params_file
+
+    def counted(path: Any) -> Any:
+        reads.append(path)
+        return real(path)
+
+    monkeypatch.setattr(scenes, 'read_params_file', counted)
+    episode.cached_spec.cache_clear()
+    episode._scene.cache_clear()
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text(scenes.find_scene('controller_test').read_text())
+    text = (PD.replace('episodes: 4', 'episodes: 20') + f'scene: {scene}\n'
+            + 'parameters: {gamma: {distribution: uniform, low: 0.1, high: 1.0}}\n')
+    rows = [run_episode(text, i, None) for i in range(10)]
+    rows += episode.run_episodes(text.replace('examples:pd', 'examples:pd_batch'),
+                                 list(range(10, 20)), None)
+    assert [r['episode'] for r in rows] == list(range(20)) and all(r['passed'] for r in rows)
+    assert reads == [scene.resolve()]   # not once per episode
+
+
 # ------------------------------------------------------------------ local runs, rerun, resume
 @pytest.mark.slow
 def test_a_campaign_writes_its_table_summary_figures_and_failing_recordings(

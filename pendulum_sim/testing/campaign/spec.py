@@ -392,11 +392,12 @@ def _check_values(spec: CampaignSpec) -> None:
     with the reason an episode would give.
     """
     from ..errors import TestingError
-    from ..scene import read_scene, with_overrides
+    from ..scene import with_overrides
+    from .episode import scene_base  # read once per process, for the episodes too
     from .scenarios import episode_scenario
 
     try:
-        base = read_scene(spec.scene)
+        base = scene_base(spec.scene)
         first = episode_scenario(spec, 0).values
         with_overrides(base, first)
         for name, space in spec.parameters:
