@@ -234,21 +234,28 @@ def _orphan_guard(parent: int) -> None:
 
 
 def main() -> None:
-    """Serve chunks: read (text, episodes, out), send each row list, then None."""
+    """Serve chunks until the worker is gone; leave without a word when it is."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the campaign's to handle
     CLOCK.append(LawClock(int(sys.argv[1])))
     threading.Thread(target=_orphan_guard, args=(os.getppid(),), daemon=True).start()
-    from .episode import batched, cached_spec, fault_row, run_episode, run_episodes
-
     stdin = sys.stdin.buffer.fileno()
     stdout = os.fdopen(os.dup(1), 'wb')   # the messages' own descriptor, and what a law
     os.dup2(2, 1)                         # prints (print, C code) goes to stderr
     sys.stdout = sys.stderr
+    try:
+        serve(stdin, stdout)
+    except (EOFError, OSError):   # the worker closed the pipes (it ends, or was killed)
+        pass
+    sys.stderr.flush()
+    os._exit(0)   # nothing left to flush into a pipe nobody reads
+
+
+def serve(stdin: int, stdout: IO[bytes]) -> None:
+    """Read (text, episodes, out), send each finished episode's rows, then None; repeat."""
+    from .episode import batched, cached_spec, fault_row, run_episode, run_episodes
+
     while True:
-        try:
-            text, episodes, out = receive(stdin)
-        except EOFError:
-            return
+        text, episodes, out = receive(stdin)
         spec = cached_spec(text)
         if batched(spec):
             send(stdout, 'batch')
