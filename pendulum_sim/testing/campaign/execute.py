@@ -1,12 +1,15 @@
-"""Run a campaign's pending episodes on Dask and store each row as it arrives.
+"""Run a campaign's pending episodes on Dask and store each task's rows as it arrives.
 
-By default a local Dask cluster (``LocalCluster``, one single-threaded worker process per core,
-or ``workers``); with ``scheduler`` an existing ``dask.distributed`` cluster
-(``Client('tcp://host:8786')``). Episodes are submitted in chunks (:func:`chunk_size`) with
-``Client.map`` and collected with ``as_completed``: each chunk's rows are written to the store
-the moment it arrives, so an interruption loses only the episodes still running. An episode
-depends on the campaign and its id only, so the table is the same whichever worker ran what,
-in whatever order; a worker that dies mid-chunk has the chunk rerun elsewhere by the scheduler.
+By default a local Dask cluster (:mod:`~pendulum_sim.testing.campaign.cluster`, one
+single-threaded worker process per core, or ``workers``); with ``scheduler`` an existing
+``dask.distributed`` cluster (``Client('tcp://host:8786')``). Episodes are submitted in chunks
+(:func:`chunk_size`), one task each, and collected with ``as_completed``: each task runs its
+episodes in its worker's episode process (:mod:`~pendulum_sim.testing.campaign.sandbox`), and
+its rows are committed to the store in one transaction the moment it ends, so an
+interruption loses only the tasks still running. An episode depends on the campaign and its
+id only, so the table is the same whichever worker ran what, in whatever order; a worker that
+dies mid-task has the task rerun elsewhere by the scheduler, and a task that fails as a whole
+is run again one episode per task.
 """
 from __future__ import annotations
 
