@@ -15,12 +15,18 @@
     with Dask's default configuration (statistical profiler on, 20 ms ticks), in turn for
     ``--rounds`` rounds, wall and CPU time: (dask − loop) / loop per round and the median;
     the cluster's start-up apart; the load average before and after (the machine may be
-    shared).
+    shared);
+(e) a campaign of a vectorised law at the batched core's speed: ``--vector-episodes`` 10 s
+    episodes of ``pd_batch`` (γ and φ0 drawn; with ``--vector-n`` also n ~ uniform(1.2, 1.6)),
+    ``pendulum_campaign --workers 1`` end to end (its start-up, the cluster, the episode
+    process, metrics, the SQLite store, the table, figures and summary) beside ``run_batch``
+    alone on the same episodes' parameters, and their ratio.
 
     ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py
     ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py --skip-ros --skip-campaign
 
-Targets (issue 16): (b) >= 10x (a) at N = 10^4; (d) <= 10 %. Figures to read, not assertions.
+Targets (issue 16): (b) >= 10x (a) at N = 10^4; (d) <= 10 %; (issue 30): (e) >= 0.7x
+run_batch and >= 25x (a). Figures to read, not assertions.
 """
 from __future__ import annotations
 
@@ -194,8 +200,52 @@ def plain_loop(episodes: int, periods: int, out: str) -> tuple[float, float]:
     store.create(text, False)
     start, cpu = time.perf_counter(), time.process_time()
     for i in range(episodes):
-        store.write(run_episode(text, i, out))
+        store.write([run_episode(text, i, out)])
     return time.perf_counter() - start, time.process_time() - cpu
+
+
+VECTOR_CAMPAIGN = """
+controller: pendulum_sim.testing.examples:pd_batch
+episodes: {episodes}
+seed: 1
+periods: 1000
+target: 0.5
+parameters:
+  gamma: {{distribution: loguniform, low: 0.02, high: 1.0}}
+  phi0: {{distribution: uniform, low: 0.6, high: 1.4}}
+requirements: ['settling_time < 3.0']
+"""
+
+
+def vector_campaign(episodes: int, with_n: bool) -> tuple[float, float]:
+    """Return the episodes per second of run_batch alone and of pendulum_campaign end to end."""
+    from pendulum_sim.testing.campaign.episode import episode_values
+    from pendulum_sim.testing.campaign.scenarios import episode_scenario
+    from pendulum_sim.testing.campaign.spec import parse_spec
+
+    text = VECTOR_CAMPAIGN.format(episodes=episodes)
+    if with_n:
+        text = text.replace('requirements:', '  n: {distribution: uniform, low: 1.2, '
+                            'high: 1.6}\nrequirements:')
+    spec = parse_spec(text)
+    drawn = [episode_scenario(spec, i) for i in range(episodes)]
+    values = [episode_values(spec, d.values) for d in drawn]
+    run_batch(pd_batch, values[:64], 5, targets=[d.target for d in drawn[:64]])   # warm-up
+    start = time.perf_counter()
+    run_batch(pd_batch, values, spec.periods, targets=[d.target for d in drawn])
+    alone = episodes / (time.perf_counter() - start)
+    del values
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / 'campaign.yaml'
+        path.write_text(text)
+        start = time.perf_counter()
+        proc = subprocess.run([str(Path(sys.executable).parent / 'pendulum_campaign'),
+                               str(path), '--out', str(Path(tmp) / 'out'), '--workers', '1',
+                               '--no-progress'], capture_output=True, text=True)
+        wall = time.perf_counter() - start
+        if proc.returncode not in (0, 1):
+            raise RuntimeError(proc.stderr)
+    return alone, episodes / wall
 
 
 def _cpu_seconds(procs: list[Any]) -> float:
@@ -212,6 +262,10 @@ def main() -> int:
     parser.add_argument('--campaign-episodes', type=int, default=1000)
     parser.add_argument('--campaign-periods', type=int, default=300)
     parser.add_argument('--rounds', type=int, default=3)
+    parser.add_argument('--vector-episodes', type=int, default=10_000)
+    parser.add_argument('--vector-n', action='store_true',
+                        help='(e) also with n drawn (slow until the core batches real n)')
+    parser.add_argument('--only-vector', action='store_true', help='run (e) alone')
     parser.add_argument('--skip-ros', action='store_true')
     parser.add_argument('--skip-campaign', action='store_true',
                         help='leave out (d), the Dask overhead: (a) and (b) alone')
@@ -225,6 +279,17 @@ def main() -> int:
     scalar = scalar_rate(args.scalar_episodes)
     print(f'(a) in-process, scalar : {scalar:9.2f} episodes/s (10 s episodes, h = 1 ms, '
           '100 Hz)', flush=True)
+    for with_n in (False, True) if args.vector_n else (False,):
+        load = os.getloadavg()[0]
+        alone, campaign = vector_campaign(args.vector_episodes, with_n)
+        drawn = 'gamma, phi0 and n' if with_n else 'gamma and phi0'
+        print(f'(e) {args.vector_episodes} episodes of pd_batch, {drawn} drawn (load average '
+              f'{load:.2f} before, {os.getloadavg()[0]:.2f} after): run_batch {alone:8.1f} '
+              f'episodes/s, pendulum_campaign --workers 1 end to end {campaign:8.1f} '
+              f'episodes/s = {campaign / alone:.2f} x run_batch = {campaign / scalar:.1f} x (a)',
+              flush=True)
+    if args.only_vector:
+        return 0
     for n in sorted({1000, args.batch_n}):
         rate = batched_rate(n, args.batch_periods)
         how = ('whole' if args.batch_periods >= EPISODE_PERIODS else

@@ -116,9 +116,30 @@ def test_a_nan_answer_fails_only_its_episode_with_the_scalar_reason() -> None:
                        episodes[1], 300)
     assert str(runs[1]) == str(scalar_failure.value)
     assert str(runs[1]).startswith('the controller returned nan at t = ')
+    # Both keep the run up to the fault, the same one.
+    batched, scalar = runs[1].run, scalar_failure.value.run   # type: ignore[union-attr]
+    assert isinstance(batched, ClosedLoopRun) and isinstance(scalar, ClosedLoopRun)
+    assert batched.t.size == scalar.t.size > 2
+    for name in ('t', 'position', 'velocity', 'effort', 'command'):
+        assert np.array_equal(getattr(batched, name), getattr(scalar, name)), name
     with pytest.raises(TestingError, match=re.escape(
             'a vectorised law must answer one command per state: got shape (3,) for 2 states')):
         run_batch(wrong_shape, episodes, 5)
+
+
+@vectorised
+def strings(t: float, position: Any, velocity: Any) -> Any:
+    """Answer the example torques as strings after 0.1 s ('0.5' reads as a number)."""
+    tau = pd_batch(t, position, velocity)
+    return tau.astype(str) if t > 0.1 else tau
+
+
+def test_a_string_answer_is_refused_by_the_batch_as_by_the_scalar_joint() -> None:
+    episodes = [scene_values('controller_test', {'phi0': x}) for x in (0.6, 1.6)]
+    runs = run_batch(strings, episodes, 50)
+    assert all(isinstance(r, TestingError) for r in runs)
+    assert [re.sub(r"'[^']*'", "'…'", str(r)) for r in runs] == [
+        "the controller returned '…' at t = 0.11 s; a command is a number"] * 2
 
 
 CAMPAIGN = """

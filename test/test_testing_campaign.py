@@ -76,6 +76,21 @@ def table(folder: Path) -> list[dict[str, Any]]:
     return [{k: v for k, v in row.items() if k not in RUN_COLUMNS} for row in rows]
 
 
+def stored(folder: Path) -> list[int]:
+    """Return the ids of the episodes in the folder's database (read while it is written)."""
+    import sqlite3
+
+    if not (folder / 'episodes.sqlite').is_file():
+        return []
+    db = sqlite3.connect(f'file:{folder / "episodes.sqlite"}?mode=ro', uri=True, timeout=30)
+    try:
+        return [i for (i,) in db.execute('SELECT episode FROM episodes ORDER BY episode')]
+    except sqlite3.OperationalError:   # created, its table not yet
+        return []
+    finally:
+        db.close()
+
+
 def same_rows(a: list[dict[str, Any]], b: list[dict[str, Any]]) -> bool:
     """Return True for equal rows, NaN equal to NaN, floats compared bit for bit."""
     return [json.dumps(r, sort_keys=True) for r in a] == [json.dumps(r, sort_keys=True)
@@ -148,6 +163,84 @@ def test_a_bad_campaign_file_exits_2_with_one_line_saying_why(
     assert not (tmp_path / 'out').exists()
 
 
+PD = 'controller: pendulum_sim.testing.examples:pd\nepisodes: 4\nperiods: 50\ntarget: 0.5\n'
+# Nested anchors, "billion laughs": 9 strings, then 9 aliases of the one before, 6 deep.
+LAUGHS = '[&a [' + ', '.join(['lol'] * 9) + '], ' + ', '.join(
+    f'&{k} [' + ', '.join([f'*{p}'] * 9) + ']'
+    for p, k in zip('abcde', 'bcdef', strict=True)) + ']'
+
+
+def bomb(key: str) -> str:
+    """Return a campaign whose ``key`` (an accepted one) holds :data:`LAUGHS`."""
+    if key == 'controller':
+        return PD.replace('pendulum_sim.testing.examples:pd', LAUGHS)
+    return PD + {'scene': f'scene: {LAUGHS}\n',
+                 'requirement': f'requirements: [{LAUGHS}]\n',
+                 'low': f'parameters: {{m: {{distribution: uniform, low: {LAUGHS}, '
+                        'high: 1.0}}\n'}[key]
+
+
+@pytest.mark.parametrize(('text', 'msg'), [
+    (PD + 'parameters: {m: {distribution: uniform, low: -1.0e+308, high: 1.0e+308}}\n',
+     'parameters.m: uniform needs high - low finite, got low = -1e+308, high = 1e+308'),
+    (PD.replace('target: 0.5', 'target: ' + '[' * 20000 + ']' * 20000),
+     'campaign.yaml: lists and mappings are nested more than 32 deep (line 4)'),
+    (PD + 'episodes: 7\n', "campaign.yaml: key 'episodes' is given twice (line 5)"),
+    (PD + 'parameters: {m: heavy}\n', "m must be a float, got 'heavy'"),
+    (PD + 'parameters: {m: -1.0}\n', 'm must be > 0 kg, got -1.0'),
+    (PD + 'parameters: {gamma: [0.1, 0.2, -0.5]}\n', 'gamma must be >= 0 s^(n-2), got -0.5'),
+    (PD + "requirements: ['overshoot < nan']\n",
+     "requirement 'overshoot < nan': the bound must be a number, got nan"),
+    (PD + 'scene: {notyaml}\n', "notyaml.yaml is not valid YAML: expected ',' or ']', but got "
+     "':' at line 2, column 4"),
+    (PD + 'episode_timeout: 0\n', 'episode_timeout must be > 0 s, got 0'),
+    (PD + "parameters: {m: '" + 'x' * 1000 + "'}\n", "m must be a float, got '" + 'x' * 56
+     + '...'),
+])
+def test_what_no_episode_could_run_is_refused_before_the_first_with_exit_2(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, msg: str) -> None:
+    notyaml = tmp_path / 'notyaml.yaml'
+    notyaml.write_text('a: [1, 2\n  b: }{\n')
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(text.replace('{notyaml}', str(notyaml)))
+    assert main([str(path), '--out', str(tmp_path / 'out'), '--no-progress']) == 2
+    err = capsys.readouterr().err
+    assert err == f'pendulum_campaign: error: {msg}\n'
+    assert not (tmp_path / 'out').exists()
+
+
+@pytest.mark.parametrize('key', ['controller', 'scene', 'requirement', 'low'])
+def test_a_yaml_bomb_is_refused_with_a_short_message(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], key: str) -> None:
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(bomb(key))
+    assert len(path.read_bytes()) < 700
+    assert main([str(path), '--out', str(tmp_path / 'out'), '--no-progress']) == 2
+    err = capsys.readouterr().err
+    assert re.fullmatch(r'pendulum_campaign: error: campaign\.yaml: anchors and aliases '
+                        r'expand to more than 10000 values \(line \d+\); write the values '
+                        r'out\n', err), err
+    assert not (tmp_path / 'out').exists()
+
+
+def test_a_few_aliases_are_read_as_their_values() -> None:
+    spec = parse_spec(PD.replace('target: 0.5', 'target: &t 0.4')
+                      + 'parameters: {phi0: *t, gamma: [0.1, 0.2]}\n')
+    assert spec.target == 0.4 and spec.parameters[0] == ('phi0', 0.4)
+
+
+def test_the_scheduler_address_is_checked_before_anything_is_written(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(PD)
+    assert main([str(path), '--out', str(tmp_path / 'out'), '--scheduler',
+                 'not an address']) == 2
+    assert capsys.readouterr().err == ('pendulum_campaign: error: --scheduler must be an '
+                                       "address such as tcp://host:8786, got 'not an "
+                                       "address'\n")
+    assert not (tmp_path / 'out').exists()
+
+
 def test_a_missing_key_and_a_missing_file_exit_2(tmp_path: Path) -> None:
     path = tmp_path / 'c.yaml'
     path.write_text('controller: pendulum_sim.testing.examples:pd\nepisodes: 3\nperiods: 5\n')
@@ -182,9 +275,14 @@ def test_each_episode_draws_from_its_own_seed_whatever_ran_before() -> None:
     assert scenario(other, 0)['phi0'] != forward[0]['phi0']
 
 
-def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reason() -> None:
+def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reason(
+        tmp_path: Path) -> None:
+    from pendulum_sim.testing import closed_loop
+    from pendulum_sim.testing.examples import pd  # what campaign_laws:fragile answers
+    from pendulum_sim.testing.record import load_run
+
     text = FRAGILE.format(episodes=40, periods=300)
-    rows = [run_episode(text, i, None) for i in range(40)]
+    rows = [run_episode(text, i, str(tmp_path)) for i in range(40)]
     reasons = {r['reason'].split(' at t = ')[0].split(' rad/s')[0] for r in rows
                if not r['passed']}
     raised = [r for r in rows if r['reason'].startswith('the controller raised RuntimeError: '
@@ -193,10 +291,47 @@ def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reas
     assert raised and nan, reasons
     passed = [r for r in rows if r['passed']]
     assert passed and all(r['reason'] == '' and r['settling_time'] < 2.5 for r in passed)
-    for r in raised + nan:
-        assert all(math.isnan(r[m]) for m in METRIC_NAMES)
     # Fast swings (large phi0) raise: the reason follows the physics, not the episode id.
     assert min(r['phi0'] for r in raised) > max(r['phi0'] for r in passed)
+    # The run up to the fault is kept: its recording replays the states the law answered,
+    # which are the same episode's states run without the fault, and the row's metrics are
+    # that run's.
+    spec = parse_spec(text)
+    for r in raised + nan:
+        fault_t = float(r['reason'].split(' at t = ')[1].split(' s')[0])
+        run = load_run(tmp_path / 'failures' / f'episode-{r["episode"]:06d}.mcap')
+        assert run.t.size >= 2 and run.t[-1] < fault_t and run.target == 0.5
+        values = scenario(spec, r['episode'])
+        whole = closed_loop(pd, scene=spec.scene, periods=run.t.size, overrides=values)
+        for name in ('t', 'position', 'velocity', 'effort'):
+            assert np.array_equal(getattr(run, name), getattr(whole, name)), name
+        assert same_rows([{m: r[m] for m in METRIC_NAMES}], [run.metrics().as_dict()])
+
+
+def test_the_scene_is_read_once_per_process(tmp_path: Path,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    from pendulum_sim.node import scenes
+    from pendulum_sim.testing.campaign import episode
+
+    reads: list[object] = []
+    real = scenes.read_params_file
+
+    def counted(path: Any) -> Any:
+        reads.append(path)
+        return real(path)
+
+    monkeypatch.setattr(scenes, 'read_params_file', counted)
+    episode.cached_spec.cache_clear()
+    episode._scene.cache_clear()
+    scene = tmp_path / 'scene.yaml'
+    scene.write_text(scenes.find_scene('controller_test').read_text())
+    text = (PD.replace('episodes: 4', 'episodes: 20') + f'scene: {scene}\n'
+            + 'parameters: {gamma: {distribution: uniform, low: 0.1, high: 1.0}}\n')
+    rows = [run_episode(text, i, None) for i in range(10)]
+    rows += episode.run_episodes(text.replace('examples:pd', 'examples:pd_batch'),
+                                 list(range(10, 20)), None)
+    assert [r['episode'] for r in rows] == list(range(20)) and all(r['passed'] for r in rows)
+    assert reads == [scene.resolve()]   # not once per episode
 
 
 # ------------------------------------------------------------------ local runs, rerun, resume
@@ -244,10 +379,16 @@ def test_a_campaign_writes_its_table_summary_figures_and_failing_recordings(
     assert again.returncode == 0
     assert again.stdout == (f'episode {slow[0]["episode"]} reproduced bit for bit (failed: '
                             f'{slow[0]["reason"]})\n')
-    stored = out / 'episodes' / f'{slow[0]["episode"]:06d}.json'
-    row = json.loads(stored.read_text())
-    row['overshoot'] = 1.0
-    stored.write_text(json.dumps(row))
+    import sqlite3
+
+    with sqlite3.connect(out / 'episodes.sqlite') as db:
+        (text,) = db.execute('SELECT row FROM episodes WHERE episode = ?',
+                             (slow[0]['episode'],)).fetchone()
+        row = json.loads(text)
+        row['overshoot'] = 1.0
+        db.execute('UPDATE episodes SET row = ? WHERE episode = ?',
+                   (json.dumps(row), slow[0]['episode']))
+    db.close()
     again = cli('--rerun', str(out), str(slow[0]['episode']))
     assert again.returncode == 1
     assert again.stdout.startswith(f'episode {slow[0]["episode"]} differs from the stored '
@@ -274,9 +415,8 @@ def test_a_campaign_killed_half_way_and_resumed_has_every_episode_once(tmp_path:
     proc = subprocess.Popen([str(BIN / 'pendulum_campaign'), str(path), '--out', str(out),
                              '--workers', '1', '--no-progress'], start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    episodes = out / 'episodes'
     end = time.monotonic() + 120
-    while len(list(episodes.glob('*.json'))) < 10:
+    while len(stored(out)) < 10:
         assert proc.poll() is None and time.monotonic() < end, 'the campaign did not start'
         time.sleep(0.02)
     os.killpg(proc.pid, signal.SIGKILL)   # the campaign, its cluster and its workers at once
@@ -285,7 +425,7 @@ def test_a_campaign_killed_half_way_and_resumed_has_every_episode_once(tmp_path:
     while _alive(proc.pid):
         assert time.monotonic() < end
         time.sleep(0.05)
-    before = sorted(int(p.stem) for p in episodes.glob('*.json'))
+    before = stored(out)
     assert 10 <= len(before) < 40
     resumed = cli(str(path), '--out', str(out), '--resume', '--workers', '2')
     assert resumed.returncode in (0, 1), resumed.stderr
@@ -442,13 +582,13 @@ def test_a_worker_killed_mid_campaign_has_its_episodes_rerun_on_another(
                              '--scheduler', address, '--no-progress'],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     end = time.monotonic() + 120
-    while len(list((out / 'episodes').glob('*.json'))) < 4:
+    while len(stored(out)) < 4:
         assert proc.poll() is None and time.monotonic() < end, 'the campaign did not start'
         time.sleep(0.02)
     workers[0].kill()
     workers[0].wait()
     assert proc.poll() is None     # killed while the campaign ran ...
-    assert len(list((out / 'episodes').glob('*.json'))) < 30    # ... with episodes to go
+    assert len(stored(out)) < 30    # ... with episodes to go
     _, err = proc.communicate(timeout=300)
     assert proc.returncode in (0, 1), err
     rows = table(out)
@@ -457,3 +597,44 @@ def test_a_worker_killed_mid_campaign_has_its_episodes_rerun_on_another(
     for r in rows:
         assert same_rows([r], [{k: v for k, v in run_episode(text, r['episode'], None).items()
                                 if k not in RUN_COLUMNS}])
+
+
+# ------------------------------------------------------------------ the earlier JSON layout
+OLD = PD.replace('episodes: 4', 'episodes: 6') + 'parameters: {gamma: [0.1, 0.4, 1.0]}\n'
+
+
+def json_layout(tmp: Path, episodes: range) -> tuple[Path, Path]:
+    """Return a campaign file and a folder of the earlier layout holding ``episodes``."""
+    path = tmp / 'campaign.yaml'
+    path.write_text(OLD)
+    out = tmp / 'old'
+    (out / 'episodes').mkdir(parents=True)
+    (out / 'campaign.yaml').write_text(OLD)
+    for i in episodes:
+        (out / 'episodes' / f'{i:06d}.json').write_text(json.dumps(run_episode(OLD, i, None)))
+    return path, out
+
+
+def test_a_folder_of_the_json_layout_resumes_into_the_database(tmp_path: Path) -> None:
+    path, out = json_layout(tmp_path, range(4))
+    (out / 'episodes' / '000004.4242.tmp').write_text('{"episode": 4, "rea')   # cut short
+    proc = cli(str(path), '--out', str(out), '--resume', '--workers', '1', '--no-progress')
+    assert proc.returncode == 0, proc.stderr
+    assert stored(out) == list(range(6))
+    assert not (out / 'episodes').exists()     # the rows moved, the leftover went
+    rows = table(out)
+    assert same_rows(rows, [{k: v for k, v in run_episode(OLD, i, None).items()
+                             if k not in RUN_COLUMNS} for i in range(6)])
+
+
+def test_a_cut_short_row_of_the_json_layout_is_refused_with_nothing_written(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path, out = json_layout(tmp_path, range(3))
+    row = out / 'episodes' / '000002.json'
+    row.write_text(row.read_text()[:40])
+    before = sorted(p.name for p in out.rglob('*'))
+    assert main([str(path), '--out', str(out), '--resume', '--no-progress']) == 2
+    assert capsys.readouterr().err == (f"pendulum_campaign: error: '{row}' is not a whole "
+                                       'episode row; delete it and --resume runs episode 2 '
+                                       'again\n')
+    assert sorted(p.name for p in out.rglob('*')) == before

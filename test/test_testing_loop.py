@@ -113,10 +113,29 @@ def raises(t: float, position: float, velocity: float) -> float:
     (lambda t, p, v: math.nan if t > 0.015 else 0.0,
      'the controller returned nan at t = 0.02 s; a command must be finite'),
     (lambda t, p, v: 'full', "the controller returned 'full' at t = 0 s; a command is a number"),
+    (lambda t, p, v: '0.5', "the controller returned '0.5' at t = 0 s; a command is a number"),
+    (lambda t, p, v: 10**400 if t > 0.015 else 0.0,
+     'the controller returned an int of 401 digits at t = 0.02 s (OverflowError: too large '
+     'for a float); a command must be finite'),
 ])
 def test_a_failing_controller_fails_the_run_with_the_reason(law: object, msg: str) -> None:
     with pytest.raises(ControllerFailed, match=re.escape(msg)):
         closed_loop(law, periods=50)  # type: ignore[arg-type]
+
+
+def test_a_failing_controller_leaves_the_run_up_to_the_fault() -> None:
+    from pendulum_sim.testing.examples import pd
+
+    def until(t: float, position: float, velocity: float) -> float:
+        return pd(t, position, velocity) if t < 0.2 else math.inf
+
+    with pytest.raises(ControllerFailed) as caught:
+        closed_loop(until, periods=50)
+    run = caught.value.run
+    whole = closed_loop(pd, periods=50)
+    assert run is not None and run.t.size == 20 and math.isclose(run.t[-1], 0.19)
+    for name in ('t', 'position', 'velocity', 'effort', 'command'):
+        assert np.array_equal(getattr(run, name), getattr(whole, name)[:20]), name
 
 
 @pytest.mark.parametrize(('kwargs', 'msg'), [

@@ -193,11 +193,15 @@ def test_rerun_reproduces_an_episode_with_a_drawn_target(tmp_path: Path,
     capsys.readouterr()
     assert main(['--rerun', str(out), '4']) == 0
     assert capsys.readouterr().out.startswith('episode 4 reproduced bit for bit (')
-    stored = out / 'episodes' / '000004.json'
-    row = json.loads(stored.read_text())
-    drawn = row['target']
-    row['target'] = 0.5
-    stored.write_text(json.dumps(row))
+    import sqlite3
+
+    db = sqlite3.connect(out / 'episodes.sqlite')
+    with db:
+        row = json.loads(db.execute('SELECT row FROM episodes WHERE episode = 4').fetchone()[0])
+        drawn = row['target']
+        row['target'] = 0.5
+        db.execute('UPDATE episodes SET row = ? WHERE episode = 4', (json.dumps(row),))
+    db.close()
     assert main(['--rerun', str(out), '4']) == 1
     assert capsys.readouterr().out.startswith(
         f'episode 4 differs from the stored result in target (0.5 then, {drawn!r} now)')

@@ -64,10 +64,9 @@ def _scalar(law: BatchLaw, target: float | None) -> Callable[[float, float, floa
     """Return the batched law as a scalar one (one-element arrays in, the element out)."""
     extra = {} if target is None else {'target': np.array([target])}
 
-    def one(t: float, position: float, velocity: float) -> float:
-        out = np.asarray(law(t, np.array([position]), np.array([velocity]), **extra),
-                         dtype=float)
-        return float(out.reshape(-1)[0])
+    def one(t: float, position: float, velocity: float) -> Any:
+        out = np.asarray(law(t, np.array([position]), np.array([velocity]), **extra))
+        return out.reshape(-1).tolist()[0]   # as answered: the scalar loop decides what it is
     return one
 
 
@@ -153,7 +152,10 @@ def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value
                 break
         try:
             extra = {} if targets is None else {'target': targets[live]}
-            cmd = np.asarray(law(t, phi[live].copy(), vel[live].copy(), **extra), dtype=float)
+            raw = np.asarray(law(t, phi[live].copy(), vel[live].copy(), **extra))
+            if raw.dtype.kind not in 'biuf':   # strings, objects: not commands
+                raise TypeError(f'a vectorised law answered {raw.dtype}')
+            cmd = raw.astype(float)
         except Exception:
             redo.extend(ids[j] for j in live.tolist())   # the scalar joint says who raised
             active[live] = False
@@ -163,7 +165,11 @@ def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value
                                f'shape {cmd.shape} for {live.size} states')
         bad = ~np.isfinite(cmd)
         for j, value in zip(live[bad].tolist(), cmd[bad].tolist(), strict=True):
-            results[ids[j]] = answer_reason(value, t)
+            failure = answer_reason(value, t)
+            upto = [np.ascontiguousarray(out[r, j, :step]) for r in range(5)]
+            failure.run = ClosedLoopRun(upto[0], upto[1], upto[2], upto[3], upto[4],
+                                        parameters=dict(values[j]))
+            results[ids[j]] = failure
             active[j] = False
         live, cmd = live[~bad], cmd[~bad]
         out[0, live, step] = t

@@ -1,6 +1,8 @@
 """Exceptions of the controller test bench."""
 from __future__ import annotations
 
+from typing import Any
+
 
 class TestingError(ValueError):
     """A metric, a closed-loop run or a campaign cannot be computed as asked (says why)."""
@@ -9,9 +11,14 @@ class TestingError(ValueError):
 
 
 class ControllerFailed(TestingError):
-    """The controller under test raised, returned a non-finite command or could not start."""
+    """The controller under test raised, returned a non-finite command or could not start.
+
+    ``run`` is the in-process run up to the state the controller failed to answer (a
+    :class:`~pendulum_sim.testing.ClosedLoopRun`), when there is one.
+    """
 
     __test__ = False
+    run: Any = None
 
 
 class CampaignError(TestingError):

@@ -159,13 +159,23 @@ def run_in_process(law: Law, values: Mapping[str, Value], periods: int) -> Close
             continue
         sample = sent.pop()
         t = sample.stamp_ns / 1e9
-        value = _answer(law, t, sample.position, sample.velocity)
+        try:
+            value = _answer(law, t, sample.position, sample.velocity)
+        except ControllerFailed as exc:
+            exc.run = _samples(out, n, values, joint.failed)   # the run up to the fault
+            raise
         out[:, n] = (t, sample.position, sample.velocity, sample.effort, value)
         n += 1
         driver.command(value, None, 0)   # answers the state, advances, sends the next
+    return _samples(out, n, values, joint.failed)
+
+
+def _samples(out: FloatArray, n: int, values: Mapping[str, Value],
+             failed: str | None) -> ClosedLoopRun:
+    """Return the run of the first ``n`` answered states in ``out``."""
     times, position, velocity, effort, command = (np.ascontiguousarray(row[:n]) for row in out)
     return ClosedLoopRun(times, position, velocity, effort, command, parameters=dict(values),
-                         failed=joint.failed)
+                         failed=failed)
 
 
 def _quiet(level: str, text: str) -> None:
@@ -187,7 +197,13 @@ def answer_reason(value: object, t: float) -> ControllerFailed:
     if isinstance(value, float):
         return ControllerFailed(f'the controller returned {value} at t = {t:.9g} s; a command '
                                 'must be finite')
-    return ControllerFailed(f'the controller returned {value!r} at t = {t:.9g} s; a command '
+    if isinstance(value, int) and not isinstance(value, bool):   # too large for a float
+        return ControllerFailed(f'the controller returned an int of {len(str(abs(value)))} '
+                                f'digits at t = {t:.9g} s (OverflowError: too large for a '
+                                'float); a command must be finite')
+    shown = repr(value)
+    shown = shown if len(shown) <= 60 else shown[:57] + '...'
+    return ControllerFailed(f'the controller returned {shown} at t = {t:.9g} s; a command '
                             'is a number')
 
 
@@ -198,9 +214,11 @@ def _answer(law: Law, t: float, position: float, velocity: float) -> float:
     except Exception as exc:
         raise ControllerFailed(f'the controller raised {type(exc).__name__}: {exc} at '
                                f't = {t:.9g} s') from exc
+    if isinstance(raw, (str, bytes, bytearray)):   # float() would read '0.5'
+        raise answer_reason(raw, t)
     try:
         value = float(raw)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise answer_reason(raw, t) from None
     if not math.isfinite(value):
         raise answer_reason(value, t)

@@ -29,7 +29,7 @@ The tracking and effort metrics use the trapezoidal rule on the samples:
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -71,7 +71,7 @@ class StepMetrics:
 
     def as_dict(self) -> dict[str, float]:
         """Return the metrics as ``{field name: value}`` in field order."""
-        return asdict(self)
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
     def text(self) -> str:
         """Return the metrics one per line, ``name = value``, for logs and reports."""

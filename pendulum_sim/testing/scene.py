@@ -34,15 +34,42 @@ def scene_values(scene: str, overrides: Mapping[str, Any] | None = None) -> dict
         If the scene cannot be found or read, an override names a parameter the node does not
         have or has a value of the wrong type, or the whole set is unusable (the node's reason).
     """
+    return with_overrides(read_scene(scene), overrides)
+
+
+def read_scene(scene: str) -> dict[str, Value]:
+    """Return the node's defaults with the parameters of ``scene`` (a name or a file) applied.
+
+    Raises
+    ------
+    TestingError
+        If the scene cannot be found or read.
+    """
     from pendulum_sim.node.errors import SceneError
-    from pendulum_sim.node.parameters import SPEC_BY_NAME, SPECS, check
-    from pendulum_sim.node.scenes import find_scene, read_params_file, unknown_parameter
+    from pendulum_sim.node.parameters import SPECS
+    from pendulum_sim.node.scenes import find_scene, read_params_file
 
     values: dict[str, Value] = {s.name: s.default for s in SPECS}
     try:
         values.update(read_params_file(find_scene(scene)))
     except SceneError as exc:
         raise TestingError(str(exc)) from None
+    return values
+
+
+def with_overrides(scene: Mapping[str, Value],
+                   overrides: Mapping[str, Any] | None = None) -> dict[str, Value]:
+    """Return the values :func:`read_scene` gave with ``overrides`` and the closed-loop settings.
+
+    Raises
+    ------
+    TestingError
+        As :func:`scene_values`, for everything but reading the scene.
+    """
+    from pendulum_sim.node.parameters import SPEC_BY_NAME, check
+    from pendulum_sim.node.scenes import unknown_parameter
+
+    values = dict(scene)
     for name, value in (overrides or {}).items():
         reason = unknown_parameter(name, 'overrides')
         if reason is not None:
@@ -77,7 +104,9 @@ def _typed(name: str, value: Any, default: Value) -> Value:
     else:
         ok = isinstance(value, str)
     if not ok:
-        raise TestingError(f'{name} must be a {type(default).__name__}, got {value!r}')
+        shown = repr(value)
+        shown = shown if len(shown) <= 60 else shown[:57] + '...'
+        raise TestingError(f'{name} must be a {type(default).__name__}, got {shown}')
     return value  # type: ignore[no-any-return]
 
 

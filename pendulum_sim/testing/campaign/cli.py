@@ -23,6 +23,7 @@ from pendulum_sim.arguments import positive_int
 from ..errors import CampaignError
 
 PROG = 'pendulum_campaign'
+MAX_LINE = 400   # characters of an error line at most (values in it are shortened too)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,7 +56,8 @@ def same(a: Any, b: Any) -> bool:
 
 def rerun(folder: Path, episode_text: str) -> int:
     """Rerun one episode and compare it with the stored row; return the exit status."""
-    from .episode import RUN_COLUMNS, run_episode
+    from .episode import RUN_COLUMNS, fault_row
+    from .sandbox import Fault, run_chunk
     from .spec import parse_spec
     from .store import CAMPAIGN_FILE, EpisodeStore
 
@@ -74,7 +76,8 @@ def rerun(folder: Path, episode_text: str) -> int:
         raise CampaignError(f'--rerun: EPISODE must be in [0, {spec.episodes - 1}], got '
                             f'{episode}')
     stored = EpisodeStore(folder).read(episode)
-    again = run_episode(text, episode, None)
+    got = run_chunk(text, [episode], None, spec.episode_timeout)[0]
+    again = fault_row(spec, got.episode, got.reason) if isinstance(got, Fault) else got
     differ = [c for c in again if c not in RUN_COLUMNS and not same(again[c], stored.get(c))]
     verdict = 'passed' if again['passed'] else f'failed: {again["reason"]}'
     if differ:
@@ -99,17 +102,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.scheduler is not None and args.workers is not None:
             raise CampaignError('--workers sizes the local cluster; it cannot go with '
                                 '--scheduler')
-        from .execute import run_campaign
+        from .execute import check_address, run_campaign
         from .spec import read_spec
         from .summary import write_results
 
+        if args.scheduler is not None:
+            check_address(args.scheduler)
         spec = read_spec(args.campaign)
         out = Path(args.out)
         rows = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers,
                             resume=args.resume, progress=not args.no_progress)
         write_results(spec, rows, out)
     except CampaignError as exc:
-        print(f'{PROG}: error: {exc}', file=sys.stderr)
+        line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        print(f'{PROG}: error: ' + (line if len(line) <= MAX_LINE else line[:MAX_LINE - 3]
+                                    + '...'), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f'\n{PROG}: interrupted; the finished episodes are kept, --resume continues',

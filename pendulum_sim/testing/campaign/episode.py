@@ -1,10 +1,14 @@
 """One episode: its scenario, the closed loop, the metrics, the requirements, a table row.
 
-:func:`run_episode` is what a Dask worker runs. It takes the campaign file's text (so a worker
-on another machine needs only pendulum_sim) and the episode id, and returns the episode's row;
-a failing episode's run is also written to ``failures/episode-NNNNNN.mcap`` under the output
-folder. A controller that raises, answers NaN or cannot run fails its episode with the reason;
-the campaign goes on.
+:func:`run_episode` runs one episode, :func:`run_episodes` a batch of a vectorised law; both
+take the campaign file's text (so a process on another machine needs only pendulum_sim) and
+return table rows. A failing episode's run is also written to ``failures/episode-NNNNNN.mcap``
+under the output folder; for a controller that raised or gave an answer that is not a finite
+number, the run up to that state. A controller that raises, answers NaN or cannot run fails
+its episode with the reason; the campaign goes on. The scene is read once per process
+(:func:`scene_base`). The campaign runs these in an episode process of its own
+(:mod:`~pendulum_sim.testing.campaign.sandbox`), which also fails an episode whose law exits,
+is killed, runs out of memory or does not answer (:func:`fault_row`).
 """
 from __future__ import annotations
 
@@ -16,12 +20,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ..errors import TestingError
-from ..loop import ClosedLoopRun, closed_loop
+from ..errors import ControllerFailed, TestingError
+from ..loop import ClosedLoopRun, closed_loop, run_in_process
 from ..metrics import METRIC_NAMES, StepMetrics
+from ..scene import Value, read_scene, with_overrides
+from ..target import bind_target
 from ..vector import is_vectorised
 from .scenarios import episode_scenario
 from .spec import CampaignSpec, load_controller, parse_spec
+from .watch import watched
 
 # Columns that say where and when an episode ran: not part of its result.
 RUN_COLUMNS = ('worker_host', 'worker_pid', 'wall_time_s')
@@ -33,14 +40,35 @@ def cached_spec(text: str) -> CampaignSpec:
     return parse_spec(text)
 
 
+@functools.lru_cache(maxsize=8)
+def _scene(scene: str) -> dict[str, Value] | TestingError:
+    try:
+        return read_scene(scene)
+    except TestingError as exc:
+        return exc
+
+
+def scene_base(scene: str) -> dict[str, Value]:
+    """Return the node's values of ``scene`` before overrides (read once per process)."""
+    base = _scene(scene)
+    if isinstance(base, TestingError):
+        raise base
+    return base
+
+
+def episode_values(spec: CampaignSpec, values: dict[str, Value]) -> dict[str, Value]:
+    """Return the node parameters of an episode drawn ``values`` (TestingError if unusable)."""
+    return with_overrides(scene_base(spec.scene), values)
+
+
 def failure_path(out: Path, episode: int) -> Path:
     """Return where the recording of failing episode ``episode`` is kept."""
     return out / 'failures' / f'episode-{episode:06d}.mcap'
 
 
-def verdict(spec: CampaignSpec, metrics: StepMetrics) -> str:
+def verdict(spec: CampaignSpec, metrics: StepMetrics | dict[str, float]) -> str:
     """Return why the metrics fail the requirements ('' when they meet them all)."""
-    values = metrics.as_dict()
+    values = metrics.as_dict() if isinstance(metrics, StepMetrics) else metrics
     reasons = [r.check(values[r.metric]) for r in spec.requirements]
     return '; '.join(r for r in reasons if r)
 
@@ -49,22 +77,37 @@ def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any], target: flo
            run: ClosedLoopRun | None, reason: str, started: float) -> dict[str, Any]:
     """Return the table row of an episode (a run of None failed before it had samples).
 
-    The metrics are measured towards the episode's ``target``.
+    The metrics are measured towards the episode's ``target``, over the run up to its fault
+    when ``reason`` says why it stopped early.
     """
     metrics: dict[str, float] = {name: math.nan for name in METRIC_NAMES}
-    if run is not None and not reason:
+    if run is not None:
         try:
             m = run.metrics(target)
         except TestingError as exc:
-            reason = str(exc)
+            reason = reason or str(exc)
         else:
             metrics = m.as_dict()
-            reason = (f'the simulation stopped: {run.failed}' if run.failed else
-                      verdict(spec, m))
+            reason = reason or (f'the simulation stopped: {run.failed}' if run.failed else
+                                verdict(spec, metrics))
     return {'episode': episode, **values, 'target': target, **metrics, 'passed': not reason,
             'reason': reason,
             'worker_host': socket.gethostname(), 'worker_pid': os.getpid(),
             'wall_time_s': time.perf_counter() - started}
+
+
+def fault_row(spec: CampaignSpec, episode: int, reason: str) -> dict[str, Any]:
+    """Return the row of an episode whose process ended without its row (the reason why)."""
+    drawn = episode_scenario(spec, episode)
+    row = row_of(spec, episode, drawn.values, drawn.target, None, reason, time.perf_counter())
+    row['wall_time_s'] = 0.0
+    return row
+
+
+def failed_run(exc: TestingError) -> ClosedLoopRun | None:
+    """Return the run up to the fault that ``exc`` carries (a controller's), or None."""
+    run = exc.run if isinstance(exc, ControllerFailed) else None
+    return run if isinstance(run, ClosedLoopRun) else None
 
 
 def _keep_failure(out: str | None, row: dict[str, Any], run: ClosedLoopRun | None) -> None:
@@ -86,19 +129,24 @@ def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
     campaign).
     """
     spec = cached_spec(text)
-    if not spec.is_command_line and is_vectorised(load_controller(str(spec.controller))):
+    if batched(spec):
         return run_episodes(text, [episode], out)[0]
     started = time.perf_counter()
     drawn = episode_scenario(spec, episode)
-    controller: Any = (list(spec.controller) if isinstance(spec.controller, tuple)
-                       else load_controller(spec.controller))
     run: ClosedLoopRun | None = None
     reason = ''
     try:
-        run = closed_loop(controller, scene=spec.scene, periods=spec.periods,
-                          overrides=drawn.values, target=drawn.target)
+        if isinstance(spec.controller, tuple):
+            run = closed_loop(list(spec.controller), scene=spec.scene, periods=spec.periods,
+                              overrides=drawn.values, target=drawn.target)
+        else:
+            law = watched(bind_target(load_controller(spec.controller), drawn.target))
+            run = run_in_process(law, episode_values(spec, drawn.values),
+                                 spec.periods).with_target(drawn.target)
     except TestingError as exc:
         reason = str(exc).splitlines()[0]
+        run = failed_run(exc)
+        run = None if run is None else run.with_target(drawn.target)
     row = row_of(spec, episode, drawn.values, drawn.target, run, reason, started)
     _keep_failure(out, row, run)
     return row
@@ -110,16 +158,15 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
     ``wall_time_s`` of each row is the batch's time divided by its size.
     """
     from ..batch import run_batch
-    from ..scene import scene_values
 
     started = time.perf_counter()
     spec = cached_spec(text)
-    law = load_controller(str(spec.controller))
+    law = watched(load_controller(str(spec.controller)))
     drawn = [episode_scenario(spec, i) for i in episodes]
     params: list[Any] = []
     for v in (d.values for d in drawn):
         try:
-            params.append(scene_values(spec.scene, v))
+            params.append(episode_values(spec, v))
         except TestingError as exc:
             params.append(exc)
     ok = [i for i, p in enumerate(params) if not isinstance(p, TestingError)]
@@ -130,7 +177,8 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
         results[i] = res
     rows = []
     for i, d, res in zip(episodes, drawn, results, strict=True):
-        run = res.with_target(d.target) if isinstance(res, ClosedLoopRun) else None
+        run = res if isinstance(res, ClosedLoopRun) else failed_run(res)
+        run = None if run is None else run.with_target(d.target)
         reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
         row = row_of(spec, i, d.values, d.target, run, reason, started)
         row['wall_time_s'] = (time.perf_counter() - started) / len(episodes)
@@ -140,8 +188,12 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
 
 
 def run_chunk(text: str, episodes: list[int], out: str | None) -> list[dict[str, Any]]:
-    """Run several episodes in one task (a batch for a vectorised law); return their rows."""
-    spec = cached_spec(text)
-    if not spec.is_command_line and is_vectorised(load_controller(str(spec.controller))):
+    """Run several episodes in this process (a batch for a vectorised law); return their rows."""
+    if batched(cached_spec(text)):
         return run_episodes(text, episodes, out)
     return [run_episode(text, i, out) for i in episodes]
+
+
+def batched(spec: CampaignSpec) -> bool:
+    """Return True when the campaign's law is declared vectorised (episodes run in batches)."""
+    return not spec.is_command_line and is_vectorised(load_controller(str(spec.controller)))

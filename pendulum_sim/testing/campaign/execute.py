@@ -1,17 +1,21 @@
-"""Run a campaign's pending episodes on Dask and store each row as it arrives.
+"""Run a campaign's pending episodes on Dask and store each task's rows as it arrives.
 
-By default a local Dask cluster (``LocalCluster``, one single-threaded worker process per core,
-or ``workers``); with ``scheduler`` an existing ``dask.distributed`` cluster
-(``Client('tcp://host:8786')``). Episodes are submitted in chunks (:func:`chunk_size`) with
-``Client.map`` and collected with ``as_completed``: each chunk's rows are written to the store
-the moment it arrives, so an interruption loses only the episodes still running. An episode
-depends on the campaign and its id only, so the table is the same whichever worker ran what,
-in whatever order; a worker that dies mid-chunk has the chunk rerun elsewhere by the scheduler.
+By default a local Dask cluster (:mod:`~pendulum_sim.testing.campaign.cluster`, one
+single-threaded worker process per core, or ``workers``); with ``scheduler`` an existing
+``dask.distributed`` cluster (``Client('tcp://host:8786')``). Episodes are submitted in chunks
+(:func:`chunk_size`), one task each, and collected with ``as_completed``: each task runs its
+episodes in its worker's episode process (:mod:`~pendulum_sim.testing.campaign.sandbox`), and
+its rows are committed to the store in one transaction the moment it ends, so an
+interruption loses only the tasks still running. An episode depends on the campaign and its
+id only, so the table is the same whichever worker ran what, in whatever order; a worker that
+dies mid-task has the task rerun elsewhere by the scheduler, and a task that fails as a whole
+is run again one episode per task.
 """
 from __future__ import annotations
 
 import hashlib
 import os
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -19,27 +23,14 @@ from pathlib import Path
 from typing import IO, Any
 
 from ..errors import CampaignError
-from ..vector import is_vectorised
-from .episode import run_chunk
-from .spec import CampaignSpec, load_controller
+from .episode import batched, fault_row
+from .sandbox import Fault, run_chunk
+from .spec import CampaignSpec, shown
 from .store import EpisodeStore
 
 MAX_BATCH = 10_000
 MAX_CHUNK = 25
 
-# Dask settings of the local cluster (``dask.config``, https://docs.dask.org/en/stable/
-# configuration.html; for ``dask scheduler`` and ``dask worker`` processes started by hand, the
-# same keys as environment variables, DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False and
-# DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL=200ms, or in a YAML file under ~/.config/dask/).
-# Both are periodic callbacks of the event loops that a campaign does not use and that take
-# the GIL from the pure-Python episode loop each time: the workers' statistical profiler,
-# which samples the running task's stack every 10 ms for the dashboard's profile page
-# (distributed's "Diagnosing Performance: Statistical Profiling"), and the event-loop health
-# check of every server (scheduler, nanny, worker), every 20 ms by default, which warns when
-# a loop was blocked for over ``distributed.admin.tick.limit`` (3 s); it still does at 200 ms.
-# bench/bench_testbench.py, part (d), runs this and Dask's default configuration.
-CLUSTER_CONFIG: dict[str, Any] = {'distributed.worker.profile.enabled': False,
-                                  'distributed.admin.tick.interval': '200ms'}
 
 
 class ProgressBar:
@@ -85,37 +76,64 @@ class ProgressBar:
 def make_client(scheduler: str | None, workers: int | None) -> Any:
     """Return a Dask client: to ``scheduler``, or to a new local cluster of ``workers``.
 
-    The local cluster runs with :data:`CLUSTER_CONFIG`; an existing cluster runs with the
-    configuration its processes were started with.
+    The local cluster (:func:`~pendulum_sim.testing.campaign.cluster.local_cluster`) runs with
+    :data:`~pendulum_sim.testing.campaign.cluster.CLUSTER_CONFIG`, without HTTP servers; an
+    existing cluster runs with the configuration its processes were started with.
+
+    Raises
+    ------
+    CampaignError
+        If Dask is missing, or ``scheduler`` is not an address or cannot be reached.
     """
     try:
-        from distributed import Client, LocalCluster
+        from distributed import Client
     except ImportError:
         raise CampaignError("campaigns need Dask: pip install 'dask[distributed]'") from None
     if scheduler is not None:
+        check_address(scheduler)
         try:
             return Client(scheduler, timeout='20s')
+        except ValueError:
+            raise CampaignError(f'--scheduler must be an address such as tcp://host:8786, got '
+                                f'{shown(scheduler)}') from None
         except (OSError, TimeoutError) as exc:
             raise CampaignError(f'cannot reach the Dask scheduler {scheduler}: {exc}') from None
-    import dask
+    from .cluster import local_cluster
 
-    n = workers or os.cpu_count() or 1
-    with dask.config.set(CLUSTER_CONFIG):   # each worker's nanny hands it this configuration
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=40)
-    return Client(cluster)
+    return Client(local_cluster(workers or os.cpu_count() or 1))
+
+
+_HOST = re.compile(r'^[A-Za-z0-9._\-]+$|^\[?[0-9A-Fa-f:.]+\]?$')
+
+
+def check_address(address: str) -> None:
+    """Refuse ``address`` unless it reads ``[scheme://]host[:port]`` (CampaignError)."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        host, _ = parse_host_port(location, 8786)
+    except ValueError:
+        host, scheme = '', ''
+    if scheme not in ('tcp', 'tls', 'ucx', 'ws', 'wss') or not _HOST.match(str(host)):
+        raise CampaignError(f'--scheduler must be an address such as tcp://host:8786, got '
+                            f'{shown(address)}')
 
 
 def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
                 progress: bool = True,
                 on_row: Callable[[dict[str, Any]], None] | None = None) -> int:
-    """Run the episodes without a stored row on ``client``; return how many ran."""
+    """Run the episodes without a stored row on ``client``; return how many ran.
+
+    Each task's rows are stored in one transaction when it ends. A task that fails as a whole
+    (its worker died, say) is run again one episode per task; an episode whose own task fails
+    so fails with the reason.
+    """
     from distributed import as_completed
 
     done = store.done()
     pending = [i for i in range(spec.episodes) if i not in done]
-    passed = sum(1 for i in done if store.read(i)['passed'])
-    bar = ProgressBar(spec.episodes, len(done), passed, enabled=progress)
+    bar = ProgressBar(spec.episodes, len(done), store.passed(), enabled=progress)
     if not pending:
         bar.close()
         return 0
@@ -123,23 +141,34 @@ def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
     tag = hashlib.sha1((spec.text + out).encode()).hexdigest()[:12]
     size = chunk_size(len(pending), _workers(client), batched(spec))
     chunks = [pending[a:a + size] for a in range(0, len(pending), size)]
-    futures = client.map(run_chunk, [spec.text] * len(chunks), chunks, [out] * len(chunks),
-                         key=[f'episodes-{c[0]}-{c[-1]}-{tag}' for c in chunks], pure=False)
+
+    def submit(chunk: list[int], again: str = '') -> Any:
+        return client.submit(run_chunk, spec.text, chunk, out, spec.episode_timeout,
+                             key=f'episodes-{chunk[0]}-{chunk[-1]}-{tag}{again}', pure=False)
+
+    futures = as_completed([submit(c) for c in chunks])
     try:
-        for future in as_completed(futures):
-            for row in future.result():
-                store.write(row)
+        for future in futures:
+            try:
+                results = future.result()
+            except Exception as exc:   # the task itself failed: its worker is gone
+                first, last = (int(x) for x in future.key.split('-')[1:3])
+                chunk = [i for i in pending if first <= i <= last]
+                if len(chunk) > 1:
+                    for i in chunk:
+                        futures.add(submit([i], '-alone'))
+                    continue
+                results = [Fault(chunk[0], f'worker killed: {type(exc).__name__}')]
+            rows = [fault_row(spec, r.episode, r.reason) if isinstance(r, Fault) else r
+                    for r in results]
+            store.write(rows)
+            for row in rows:
                 bar.update(bool(row['passed']))
                 if on_row is not None:
                     on_row(row)
     finally:
         bar.close()
     return len(pending)
-
-
-def batched(spec: CampaignSpec) -> bool:
-    """Return True when the campaign's law is declared vectorised (episodes run in batches)."""
-    return not spec.is_command_line and is_vectorised(load_controller(str(spec.controller)))
 
 
 def chunk_size(pending: int, workers: int, batch: bool) -> int:
@@ -165,16 +194,33 @@ def _workers(client: Any) -> int:
 def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None,
                  workers: int | None = None, resume: bool = False,
                  progress: bool = True) -> list[dict[str, Any]]:
-    """Run (or continue) the campaign into ``out``; return every row, by episode id."""
+    """Run (or continue) the campaign into ``out``; return every row, by episode id.
+
+    Nothing is written before the folder is checked and the cluster reached.
+    """
     store = EpisodeStore(out)
-    store.create(spec.text, resume)
-    if len(store.done()) < spec.episodes:
-        client = make_client(scheduler, workers)
-        try:
+    store.check(spec.text, resume)
+    client = make_client(scheduler, workers) if len(store.done()) < spec.episodes else None
+    try:
+        store.create(spec.text, resume)
+        if client is not None:
             run_pending(spec, store, client, progress)
-        finally:
-            cluster = client.cluster if scheduler is None else None
-            client.close()
-            if cluster is not None:
-                cluster.close()
-    return store.rows()
+        return store.rows()
+    finally:
+        store.close()
+        if client is not None:
+            close_client(client, scheduler is None)
+
+
+def close_client(client: Any, own_cluster: bool) -> None:
+    """Close ``client`` (and its local cluster when ``own_cluster``), quietly."""
+    import logging
+
+    logging.getLogger('distributed').setLevel(logging.CRITICAL)   # closing mid-task is normal
+    cluster = client.cluster if own_cluster else None
+    try:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    except Exception:   # a cluster already gone has nothing left to close
+        pass

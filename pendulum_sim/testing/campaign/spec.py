@@ -30,7 +30,7 @@ from ..scene import FORCED
 from ..target import PLACEHOLDER, has_placeholder, takes_target
 
 KEYS = ('controller', 'scene', 'episodes', 'seed', 'periods', 'target', 'parameters',
-        'requirements')
+        'requirements', 'episode_timeout')
 REQUIRED = ('controller', 'episodes', 'periods', 'target')
 DISTRIBUTIONS: dict[str, tuple[str, ...]] = {'uniform': ('low', 'high'),
                                              'normal': ('mean', 'std'),
@@ -39,9 +39,19 @@ OPERATORS: dict[str, Callable[[float, float], bool]] = {
     '<=': operator.le, '>=': operator.ge, '==': operator.eq, '!=': operator.ne,
     '<': operator.lt, '>': operator.gt}
 MAX_EPISODES = 10_000_000
+EPISODE_TIMEOUT = 60.0   # s a call of the law may take, unless the file says
+MAX_DEPTH = 32           # nesting of lists and mappings in a campaign file
+MAX_NODES = 10_000       # values in a campaign file, its aliases expanded
+SHOWN = 60               # characters of a value shown in a message
 _REQUIREMENT = re.compile(r'^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|==|!=|<|>)\s*(\S+)\s*$')
 
 Value = bool | int | float | str
+
+
+def shown(value: Any) -> str:
+    """Return ``repr(value)``, shortened to :data:`SHOWN` characters (for messages)."""
+    text = repr(value)
+    return text if len(text) <= SHOWN else text[:SHOWN - 3] + '...'
 
 
 @dataclass(frozen=True)
@@ -90,6 +100,7 @@ class CampaignSpec:
     parameters: tuple[tuple[str, Space], ...]
     requirements: tuple[Requirement, ...]
     text: str
+    episode_timeout: float = EPISODE_TIMEOUT
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -109,15 +120,15 @@ class CampaignSpec:
 
 def _number(where: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CampaignError(f'{where} must be a number, got {value!r}')
+        raise CampaignError(f'{where} must be a number, got {shown(value)}')
     if not math.isfinite(value):
-        raise CampaignError(f'{where} must be finite, got {value!r}')
+        raise CampaignError(f'{where} must be finite, got {shown(value)}')
     return float(value)
 
 
 def _integer(where: str, value: Any, low: int, high: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise CampaignError(f'{where} must be an integer in [{low}, {high}], got {value!r}')
+        raise CampaignError(f'{where} must be an integer in [{low}, {high}], got {shown(value)}')
     return value
 
 
@@ -126,16 +137,16 @@ def load_controller(name: str) -> Callable[..., Any]:
     module, _, attr = name.partition(':')
     if not module or not attr:
         raise CampaignError(f"controller must be 'module:function' or a command line (a "
-                            f'list), got {name!r}')
+                            f'list), got {shown(name)}')
     try:
         obj: Any = importlib.import_module(module)
         for part in attr.split('.'):
             obj = getattr(obj, part)
     except Exception as exc:
-        raise CampaignError(f'controller {name!r} cannot be imported: '
+        raise CampaignError(f'controller {shown(name)} cannot be imported: '
                             f'{type(exc).__name__}: {exc}') from None
     if not callable(obj):
-        raise CampaignError(f'controller {name!r} is not callable')
+        raise CampaignError(f'controller {shown(name)} is not callable')
     return obj  # type: ignore[no-any-return]
 
 
@@ -145,11 +156,11 @@ def _controller(value: Any) -> str | tuple[str, ...]:
         return value
     if isinstance(value, list) and value and all(isinstance(a, str) for a in value):
         if shutil.which(value[0]) is None and not Path(value[0]).is_file():
-            raise CampaignError(f'controller command {value[0]!r} cannot be started: no such '
+            raise CampaignError(f'controller command {shown(value[0])} cannot be started: no such '
                                 'executable')
         return tuple(value)
     raise CampaignError(f"controller must be 'module:function' or a command line (a list of "
-                        f'strings), got {value!r}')
+                        f'strings), got {shown(value)}')
 
 
 def varies(space: Space) -> bool:
@@ -173,7 +184,7 @@ def _space(where: str, value: Any) -> Space:
         kind = value.get('distribution')
         if kind not in DISTRIBUTIONS:
             raise CampaignError(f"{where}: distribution must be one of "
-                                f"{', '.join(DISTRIBUTIONS)}, got {kind!r}")
+                                f"{', '.join(DISTRIBUTIONS)}, got {shown(kind)}")
         keys = DISTRIBUTIONS[kind]
         extra = sorted(set(value) - {'distribution', *keys})
         missing = [k for k in keys if k not in value]
@@ -181,6 +192,9 @@ def _space(where: str, value: Any) -> Space:
             raise CampaignError(f'{where}: a {kind} distribution takes {", ".join(keys)}, got '
                                 f'{", ".join(k for k in value if k != "distribution")}')
         a, b = (_number(f'{where}.{k}', value[k]) for k in keys)
+        if not math.isfinite(b - a):
+            raise CampaignError(f'{where}: {kind} needs {keys[1]} - {keys[0]} finite, got '
+                                f'{keys[0]} = {a:g}, {keys[1]} = {b:g}')
         if kind == 'normal' and b < 0:
             raise CampaignError(f'{where}: normal needs std >= 0, got std = {b:g}')
         if kind != 'normal' and not a < b:
@@ -201,7 +215,7 @@ def _fixed(where: str, value: Any) -> Value:
         if isinstance(value, float) and math.isnan(value):
             raise CampaignError(f'{where} must not be nan')
         return value
-    raise CampaignError(f'{where} must be a value, a list or a distribution, got {value!r}')
+    raise CampaignError(f'{where} must be a value, a list or a distribution, got {shown(value)}')
 
 
 def _target(value: Any) -> TargetSpace:
@@ -224,51 +238,116 @@ def _receives_target(controller: str | tuple[str, ...], target: TargetSpace) -> 
                                 f'has no {PLACEHOLDER} placeholder to receive it (e.g. '
                                 f"'-p', 'target:={PLACEHOLDER}')")
     elif not takes_target(load_controller(controller)):
-        raise CampaignError(f'target varies per episode but controller {controller!r} takes '
+        raise CampaignError(f'target varies per episode but controller {shown(controller)} takes '
                             'no keyword argument target to receive it')
 
 
 def _requirement(text: Any) -> Requirement:
     if not isinstance(text, str):
         raise CampaignError(f"a requirement must be a string like 'settling_time < 3.0', got "
-                            f'{text!r}')
+                            f'{shown(text)}')
     found = _REQUIREMENT.match(text)
     if found is None:
-        raise CampaignError(f"requirement {text!r} must read 'metric op number' with op one "
+        raise CampaignError(f"requirement {shown(text)} must read 'metric op number' with op one "
                             f'of <, <=, >, >=, ==, !=')
     metric, op, bound = found.groups()
     if metric not in METRIC_NAMES:
-        raise CampaignError(f'requirement {text!r} names an unknown metric {metric!r}; '
+        raise CampaignError(f'requirement {shown(text)} names an unknown metric {shown(metric)}; '
                             f'metrics: {", ".join(METRIC_NAMES)}')
     try:
         value = float(bound)
     except ValueError:
-        raise CampaignError(f'requirement {text!r}: {bound!r} is not a number') from None
+        raise CampaignError(f'requirement {shown(text)}: {shown(bound)} is not a number') from None
+    if math.isnan(value):
+        raise CampaignError(f'requirement {shown(text)}: the bound must be a number, got nan')
     return Requirement(metric, op, value)
 
 
-def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
-    """Return the checked campaign of the YAML ``text``; CampaignError says what is wrong."""
+def load_yaml(text: str, label: str) -> Any:
+    """Return the YAML ``text`` as Python values, refusing what a campaign file never needs.
+
+    Refused, each with a one-line reason: invalid YAML; lists and mappings nested deeper than
+    :data:`MAX_DEPTH`; more than :data:`MAX_NODES` values once anchors and aliases are
+    expanded (a "billion laughs" file); a key given twice in one mapping (as rosbag2 and ROS
+    parameter files refuse it).
+    """
     try:
-        data = yaml.safe_load(text)
+        depth = 0
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+            if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    line = '' if event.start_mark is None else (
+                        f' (line {event.start_mark.line + 1})')
+                    raise CampaignError(f'{label}: lists and mappings are nested more than '
+                                        f'{MAX_DEPTH} deep{line}')
+            elif isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+                depth -= 1
+        loader = yaml.SafeLoader(text)
+        try:
+            node = loader.get_single_node()
+            if node is None:
+                return None
+            _check_nodes(node, label)
+            return loader.construct_document(node)
+        finally:
+            loader.dispose()
     except yaml.YAMLError as exc:
         mark = getattr(exc, 'problem_mark', None)
         at = f' at line {mark.line + 1}' if mark is not None else ''
         raise CampaignError(f'{label} is not valid YAML{at}') from None
+
+
+def _check_nodes(root: yaml.Node, label: str) -> None:
+    """Refuse a duplicated key, or more than MAX_NODES values with the aliases expanded."""
+    sizes: dict[int, int] = {}
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, children_done = stack.pop()
+        if id(node) in sizes:
+            continue
+        if isinstance(node, yaml.ScalarNode):
+            sizes[id(node)] = 1
+            continue
+        pairs = node.value if isinstance(node, yaml.MappingNode) else [(v, None) for v in
+                                                                       node.value]
+        kids = [n for pair in pairs for n in pair if n is not None]
+        if children_done:
+            sizes[id(node)] = 1 + sum(sizes[id(k)] for k in kids)
+            if sizes[id(node)] > MAX_NODES:
+                raise CampaignError(f'{label}: anchors and aliases expand to more than '
+                                    f'{MAX_NODES} values (line {node.start_mark.line + 1}); '
+                                    'write the values out')
+            continue
+        if isinstance(node, yaml.MappingNode):
+            seen: set[str] = set()
+            for key, _ in node.value:
+                if isinstance(key, yaml.ScalarNode):
+                    if key.value in seen:
+                        raise CampaignError(f'{label}: key {shown(key.value)} is given twice '
+                                            f'(line {key.start_mark.line + 1})')
+                    seen.add(key.value)
+        stack.append((node, True))
+        stack.extend((k, False) for k in kids if id(k) not in sizes)
+
+
+def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
+    """Return the checked campaign of the YAML ``text``; CampaignError says what is wrong."""
+    data = load_yaml(text, label)
     if not isinstance(data, dict):
         raise CampaignError(f'{label} must be a mapping of {", ".join(KEYS)}')
     unknown = sorted(set(data) - set(KEYS))
     if unknown:
-        raise CampaignError(f'{label}: unknown key {unknown[0]!r}; keys: {", ".join(KEYS)}')
+        raise CampaignError(f'{label}: unknown key {shown(unknown[0])}; keys: {", ".join(KEYS)}')
     missing = [k for k in REQUIRED if k not in data]
     if missing:
-        raise CampaignError(f'{label}: missing key {missing[0]!r}')
+        raise CampaignError(f'{label}: missing key {shown(missing[0])}')
     from pendulum_sim.node.errors import SceneError
     from pendulum_sim.node.scenes import find_scene, unknown_parameter
 
     scene = data.get('scene', 'controller_test')
     if not isinstance(scene, str):
-        raise CampaignError(f'scene must be a scene name or file, got {scene!r}')
+        raise CampaignError(f'scene must be a scene name or file, got {shown(scene)}')
     try:
         find_scene(scene)
     except SceneError as exc:
@@ -276,7 +355,7 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
     params = data.get('parameters') or {}
     if not isinstance(params, dict):
         raise CampaignError(f'parameters must map node parameter names to values, got '
-                            f'{params!r}')
+                            f'{shown(params)}')
     spaces: list[tuple[str, Space]] = []
     for name, value in params.items():
         reason = unknown_parameter(str(name), 'parameters')
@@ -287,17 +366,46 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
         spaces.append((str(name), _space(f'parameters.{name}', value)))
     reqs = data.get('requirements') or []
     if not isinstance(reqs, list):
-        raise CampaignError(f'requirements must be a list of strings, got {reqs!r}')
+        raise CampaignError(f'requirements must be a list of strings, got {shown(reqs)}')
     controller = _controller(data['controller'])
     target = _target(data['target'])
     _receives_target(controller, target)
-    return CampaignSpec(
+    timeout = _number('episode_timeout', data.get('episode_timeout', EPISODE_TIMEOUT))
+    if timeout <= 0.0:
+        raise CampaignError(f'episode_timeout must be > 0 s, got {timeout:g}')
+    spec = CampaignSpec(
         controller=controller, scene=scene,
         episodes=_integer('episodes', data['episodes'], 1, MAX_EPISODES),
         seed=_integer('seed', data.get('seed', 0), 0, 2**63 - 1),
         periods=_integer('periods', data['periods'], 1, 10_000_000),
         target=target, parameters=tuple(spaces),
-        requirements=tuple(_requirement(r) for r in reqs), text=text)
+        requirements=tuple(_requirement(r) for r in reqs), text=text, episode_timeout=timeout)
+    _check_values(spec)
+    return spec
+
+
+def _check_values(spec: CampaignSpec) -> None:
+    """Refuse, before any episode runs, a scene or parameter values no episode could run with.
+
+    The scene is read, and the node's checks run on episode 0's values and on episode 0 with
+    each entry of a list in its place: what would fail every episode fails here instead,
+    with the reason an episode would give.
+    """
+    from ..errors import TestingError
+    from ..scene import with_overrides
+    from .episode import scene_base  # read once per process, for the episodes too
+    from .scenarios import episode_scenario
+
+    try:
+        base = scene_base(spec.scene)
+        first = episode_scenario(spec, 0).values
+        with_overrides(base, first)
+        for name, space in spec.parameters:
+            if isinstance(space, tuple):
+                for value in space[:100]:
+                    with_overrides(base, {**first, name: value})
+    except TestingError as exc:
+        raise CampaignError(str(exc).splitlines()[0]) from None
 
 
 def read_spec(path: str | Path) -> CampaignSpec:

@@ -1,0 +1,282 @@
+"""Episodes in a process of their own, so that a law that exits, hangs or eats memory fails alone.
+
+A Dask task (:func:`run_chunk`) hands its episodes to an episode process, a child of the
+worker started once (``python -m pendulum_sim.testing.campaign.sandbox``) and kept for the
+next tasks, so the campaign file is parsed and the scene read once per worker. The child
+sends each finished episode's row as it ends (a batch of a vectorised law sends its rows
+together); the worker watches it meanwhile, with :class:`~pendulum_sim.testing.campaign.watch.
+LawClock` showing whether the law is in a call. When the child ends without the rows, the
+episode it was running fails with the reason and the child is started again for the rest:
+
+- ``law exited with C`` (``sys.exit(C)``, ``os._exit(C)`` in a call of the law; ``law killed
+  by SIGNAL`` for a signal), or ``episode process exited with C`` outside the law;
+- ``worker killed: memory``: the child's resident memory passed the worker's memory limit
+  (Dask's ``memory_limit``; none, no watch);
+- ``law did not answer within N s``: one call of the law took longer than the campaign's
+  ``episode_timeout``.
+
+A batch that ends so is run again one episode at a time, so only the faulty episodes fail.
+Messages are pickles with an 8-byte length, on the child's stdin and stdout.
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import select
+import signal
+import struct
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import IO, Any
+
+from .watch import CLOCK, SIZE, LawClock
+
+POLL_S = 0.02
+_HEADER = struct.Struct('<Q')
+
+
+@dataclass(frozen=True)
+class Fault:
+    """An episode whose process ended (or was ended) without its row, and why."""
+
+    episode: int
+    reason: str
+
+
+def send(stream: IO[bytes], message: Any) -> None:
+    """Write one message (a pickle with its length)."""
+    body = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(_HEADER.pack(len(body)) + body)
+    stream.flush()
+
+
+def _read_exactly(fd: int, n: int) -> bytes | None:
+    chunks = []
+    while n:
+        data = os.read(fd, min(n, 1 << 20))
+        if not data:
+            return None
+        chunks.append(data)
+        n -= len(data)
+    return b''.join(chunks)
+
+
+def receive(fd: int) -> Any:
+    """Return the next message on ``fd``; raise EOFError when the writer is gone."""
+    head = _read_exactly(fd, _HEADER.size)
+    body = None if head is None else _read_exactly(fd, _HEADER.unpack(head)[0])
+    if body is None:
+        raise EOFError
+    return pickle.loads(body)
+
+
+class Sandbox:
+    """One episode process and what the worker watches it with."""
+
+    def __init__(self, memory_limit: int | None) -> None:
+        self.memory_limit = memory_limit
+        self._fd = os.memfd_create('pendulum-law-clock')
+        os.ftruncate(self._fd, SIZE)
+        self.clock = LawClock(self._fd)
+        self.proc = subprocess.Popen(
+            [sys.executable, '-m', 'pendulum_sim.testing.campaign.sandbox', str(self._fd)],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, pass_fds=(self._fd,))
+        import psutil  # type: ignore[import-untyped]
+
+        self._ps = psutil.Process(self.proc.pid)
+
+    def close(self) -> None:
+        """End the episode process (it leaves when its input closes) and release the clock."""
+        if self.proc.poll() is None:
+            try:
+                assert self.proc.stdin is not None
+                self.proc.stdin.close()
+                self.proc.wait(5)
+            except (OSError, subprocess.TimeoutExpired):
+                self.proc.kill()
+                self.proc.wait()
+        self.clock.close()
+        os.close(self._fd)
+
+    def _kill(self) -> None:
+        self.proc.kill()
+        self.proc.wait()
+
+    def _why_ended(self, in_law: bool) -> str:
+        code = self.proc.wait()
+        who = 'law' if in_law else 'episode process'
+        if code < 0:
+            try:
+                name = signal.Signals(-code).name
+            except ValueError:
+                name = f'signal {-code}'
+            return f'{who} killed by {name}'
+        return f'{who} exited with {code}'
+
+    def next(self, timeout: float) -> Any:
+        """Return the child's next message, or the reason (a str) it ended without one."""
+        assert self.proc.stdout is not None
+        fd = self.proc.stdout.fileno()
+        while True:
+            ready, _, _ = select.select([fd], [], [], POLL_S)
+            if ready:
+                in_law = self.clock.since() > 0.0
+                try:
+                    return ('message', receive(fd))
+                except EOFError:
+                    return ('ended', self._why_ended(in_law or self.clock.since() > 0.0))
+            since = self.clock.since()
+            if since > 0.0 and time.monotonic() - since > timeout:
+                self._kill()
+                return ('ended', f'law did not answer within {timeout:g} s')
+            if self.memory_limit is not None:
+                try:
+                    rss = self._ps.memory_info().rss
+                except Exception:   # it has just ended: the next select says how
+                    continue
+                if rss > self.memory_limit:
+                    self._kill()
+                    return ('ended', f'worker killed: memory (the episode process passed the '
+                            f"worker's memory limit of {self.memory_limit / 2**20:.0f} MiB)")
+
+    def run(self, text: str, episodes: list[int], out: str | None,
+            timeout: float) -> tuple[list[dict[str, Any]], Fault | None]:
+        """Run ``episodes`` in the child; return the rows it sent and the fault that ended it.
+
+        After a fault the child is gone (:attr:`alive` is False); the rows before it are kept.
+        """
+        assert self.proc.stdin is not None
+        try:
+            send(self.proc.stdin, (text, episodes, out))
+        except OSError:
+            pass   # it is gone: the next message says why
+        rows: list[dict[str, Any]] = []
+        batch = False
+        while True:
+            kind, message = self.next(timeout)
+            if kind == 'ended':
+                left = [i for i in episodes if i not in {r['episode'] for r in rows}]
+                # In a batch every episode was in the law's call: which one is not known.
+                unknown = not left or (batch and len(left) > 1)
+                return rows, Fault(-1 if unknown else left[0], str(message))
+            if message is None:
+                return rows, None
+            if message == 'batch':
+                batch = True
+            else:
+                rows.extend(message)
+
+    @property
+    def alive(self) -> bool:
+        """Return True while the episode process runs."""
+        return self.proc.poll() is None
+
+
+_BOXES = threading.local()
+
+
+def sandbox(memory_limit: int | None) -> Sandbox:
+    """Return this thread's episode process, started (again) if it is not running."""
+    box: Sandbox | None = getattr(_BOXES, 'box', None)
+    if box is None or not box.alive or box.memory_limit != memory_limit:
+        if box is not None:
+            box.close()
+        box = Sandbox(memory_limit)
+        _BOXES.box = box
+    return box
+
+
+def worker_memory_limit() -> int | None:
+    """Return the memory limit (bytes) of the Dask worker this runs in (None: none, no worker)."""
+    try:
+        from distributed import get_worker
+
+        limit = get_worker().memory_manager.memory_limit
+    except (ImportError, ValueError, AttributeError):
+        return None
+    return int(limit) if limit else None
+
+
+def run_chunk(text: str, episodes: list[int], out: str | None, timeout: float,
+              memory_limit: int | None = None) -> list[dict[str, Any] | Fault]:
+    """Run ``episodes`` in this thread's episode process; return a row or a Fault for each.
+
+    A batch that faults is run again one episode at a time. ``memory_limit`` (bytes) is the
+    Dask worker's own when None and this runs in a worker.
+    """
+    limit = memory_limit if memory_limit is not None else worker_memory_limit()
+    rows, fault = sandbox(limit).run(text, episodes, out, timeout)
+    if fault is None:
+        return list(rows)
+    done = {r['episode'] for r in rows}
+    left = [i for i in episodes if i not in done]
+    results: list[dict[str, Any] | Fault] = list(rows)
+    if fault.episode < 0:   # a batch faulted: each episode alone says which one did
+        for i in left:
+            results.extend(run_chunk(text, [i], out, timeout, limit))
+        return results
+    results.append(fault)
+    rest = [i for i in left if i != fault.episode]
+    if rest:
+        results.extend(run_chunk(text, rest, out, timeout, limit))
+    return results
+
+
+def _orphan_guard(parent: int) -> None:
+    """End this process when the worker that started it is gone (a law may be stuck)."""
+    while True:
+        time.sleep(1.0)
+        if os.getppid() != parent:
+            os._exit(70)
+
+
+def main() -> None:
+    """Serve chunks until the worker is gone; leave without a word when it is."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the campaign's to handle
+    CLOCK.append(LawClock(int(sys.argv[1])))
+    threading.Thread(target=_orphan_guard, args=(os.getppid(),), daemon=True).start()
+    stdin = sys.stdin.buffer.fileno()
+    stdout = os.fdopen(os.dup(1), 'wb')   # the messages' own descriptor, and what a law
+    os.dup2(2, 1)                         # prints (print, C code) goes to stderr
+    sys.stdout = sys.stderr
+    try:
+        serve(stdin, stdout)
+    except (EOFError, OSError):   # the worker closed the pipes (it ends, or was killed)
+        pass
+    sys.stderr.flush()
+    os._exit(0)   # nothing left to flush into a pipe nobody reads
+
+
+def serve(stdin: int, stdout: IO[bytes]) -> None:
+    """Read (text, episodes, out), send each finished episode's rows, then None; repeat."""
+    from .episode import batched, cached_spec, fault_row, run_episode, run_episodes
+
+    while True:
+        text, episodes, out = receive(stdin)
+        spec = cached_spec(text)
+        if batched(spec):
+            send(stdout, 'batch')
+            try:
+                rows = run_episodes(text, episodes, out)
+            except Exception as exc:
+                if len(episodes) != 1:
+                    raise
+                rows = [fault_row(spec, episodes[0], f'the episode raised {type(exc).__name__}:'
+                                  f' {exc}'.splitlines()[0])]
+            send(stdout, rows)
+        else:
+            for i in episodes:
+                try:
+                    row = run_episode(text, i, out)
+                except Exception as exc:   # a defect outside the law: this episode's alone
+                    row = fault_row(spec, i, f'the episode raised {type(exc).__name__}: '
+                                    f'{exc}'.splitlines()[0])
+                send(stdout, [row])
+        send(stdout, None)
+
+
+if __name__ == '__main__':
+    main()
