@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ControllerFailed, TestingError
-from .run import ClosedLoopRun
+from .run import ClosedLoopRun, FloatArray
 from .scene import Value, epoch_ns, scene_values
 from .target import bind_target, substitute_target
 

@@ -102,6 +102,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.scheduler is not None and args.workers is not None:
             raise CampaignError('--workers sizes the local cluster; it cannot go with '
                                 '--scheduler')
+        from .check import check_values
         from .execute import check_address, run_campaign
         from .spec import read_spec
         from .summary import write_results
@@ -109,6 +110,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.scheduler is not None:
             check_address(args.scheduler)
         spec = read_spec(args.campaign)
+        check_values(spec)
         out = Path(args.out)
         rows = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers,
                             resume=args.resume, progress=not args.no_progress)

@@ -380,32 +380,7 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
         periods=_integer('periods', data['periods'], 1, 10_000_000),
         target=target, parameters=tuple(spaces),
         requirements=tuple(_requirement(r) for r in reqs), text=text, episode_timeout=timeout)
-    _check_values(spec)
     return spec
-
-
-def _check_values(spec: CampaignSpec) -> None:
-    """Refuse, before any episode runs, a scene or parameter values no episode could run with.
-
-    The scene is read, and the node's checks run on episode 0's values and on episode 0 with
-    each entry of a list in its place: what would fail every episode fails here instead,
-    with the reason an episode would give.
-    """
-    from ..errors import TestingError
-    from ..scene import with_overrides
-    from .episode import scene_base  # read once per process, for the episodes too
-    from .scenarios import episode_scenario
-
-    try:
-        base = scene_base(spec.scene)
-        first = episode_scenario(spec, 0).values
-        with_overrides(base, first)
-        for name, space in spec.parameters:
-            if isinstance(space, tuple):
-                for value in space[:100]:
-                    with_overrides(base, {**first, name: value})
-    except TestingError as exc:
-        raise CampaignError(str(exc).splitlines()[0]) from None
 
 
 def read_spec(path: str | Path) -> CampaignSpec:
