@@ -112,7 +112,9 @@ def _typed(name: str, value: Any, default: Value) -> Value:
 
 def epoch_ns(values: Mapping[str, Value]) -> int:
     """Return the stamp of step 0 in lockstep: ``start_time`` (s), 0 when negative."""
-    return round(max(float(values['start_time']), 0.0) * 1e9)
+    from pendulum_sim.node.parameters import start_epoch_ns
+
+    return start_epoch_ns(values, 0)   # the node's rule; no wall clock in a test bench run
 
 
 def finite_limit(values: Mapping[str, Value]) -> float:
