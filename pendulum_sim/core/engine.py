@@ -135,13 +135,8 @@ class Engine:
                                   self.atol, stats, budget)
 
     def check_ahead(self, v: float, h: float, ain: float, t: float) -> None:
-        """Refuse at once a step from t that is too long to work through and could only end
-        in the speed bound's refusal.
-
-        Too long: the fallback's work bound (``implicit.fallback_refused``: more than
-        MAX_FALLBACK_SUBSTEPS substeps of at most MAX_ANGLE); certain to end beyond the bound:
-        ``model.check_speed_ahead``. Every other step is taken, and checked after it.
-        """
+        """Refuse at once a step too long to work through (``implicit.fallback_refused``)
+        that must end beyond the speed bound (``model.check_speed_ahead``)."""
         if not self.unguarded and fallback_refused(v, h, ain, self.w2, self.omega0):
             check_speed_ahead(v, ain, h, self.gamma, self.n, self.w2, t)
 
