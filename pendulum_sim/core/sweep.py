@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .batched_careful import RANGE_MARGIN, batchable_law, graded_steps
 from .compiled_careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
 from .decisions import (
@@ -114,6 +115,10 @@ class SweepResult:
         Steps of the stretch taken by the careful path in Python (``Engine.careful``): every
         step the fast path refused on the numpy sweep; on the compiled sweep only those the
         compiled careful step declines (``compiled_careful.py``).
+    batched : int
+        Steps of the stretch the careful path took batched over arrays on the numpy sweep
+        (``batched_careful.py``: the graded steps next to a reversal, the same floats as
+        ``Engine.careful``); ``batched + handed_back`` steps took the careful path there.
     """
 
     phi: FloatArray
@@ -133,6 +138,7 @@ class SweepResult:
     t_end: float
     method: str
     handed_back: int
+    batched: int = 0
 
     @property
     def capped(self) -> int:
@@ -263,6 +269,8 @@ class _Group:
         # reach = 0 makes the near-reversal test false everywhere: the crossing test decides.
         self.graded = bool(self.reach.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
+        # The careful path's graded steps are batched (batched_careful.py) for these laws.
+        self.batch = batchable_law(self.n) and self.any_nonsmooth and self.graded
         size = self.sl.stop - self.sl.start
         self.check = np.zeros(size, dtype=bool)
         self.any_check = self.all_check = False
@@ -270,6 +278,7 @@ class _Group:
         self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self.batched = 0  # careful steps taken batched (batched_careful.py) this advance
         self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
         self.use_careful = False  # the compiled run takes the careful step (compiled_careful)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
@@ -451,6 +460,15 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     refused = np.flatnonzero(~ok)
+    batched = 0
+    if refused.size and grp.batch:
+        taken = _batched(grp, hh, meth, guard, refused, p1, v1, e1)
+        batched = int(taken.size)
+        if batched:
+            keep = np.ones(refused.size, dtype=bool)
+            keep[np.searchsorted(refused, taken)] = False
+            refused = refused[keep]
+    grp.batched += batched
     if refused.size:
         consts = [np.broadcast_to(c, p.shape)[refused] for c in (ain, w2, ga)]
         ps: list[float] = []
@@ -469,6 +487,34 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
             e1[refused] = specific_energy(v1[refused], sines, consts[1])
     grp.p, grp.v, grp.e = p1, v1, e1
     return int(refused.size)
+
+
+def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
+             p1: FloatArray, v1: FloatArray, e1: FloatArray) -> IntArray:
+    """Take the refused steps the batched careful path serves (``batched_careful.py``).
+
+    The candidates are those whose ``Engine.careful`` starts with one plain step: a kink at
+    rest, below the stiff-transient speed and, with the guard, inside its safe speed range by
+    RANGE_MARGIN (the guard's count is then 1). Writes their states (and E/I, with the scalar
+    sine) into ``p1``, ``v1``, ``e1``; returns the sorted indices it took.
+    """
+    p, vv = grp.p, grp.v
+    av = np.abs(vv[refused])
+    fit = grp.nonsmooth[refused] & (av <= grp.v_acc[refused])
+    if guard:
+        fit &= (grp.lo[refused] * (1.0 + RANGE_MARGIN) <= av)
+        fit &= av <= grp.hi[refused] * (1.0 - RANGE_MARGIN)
+    cand = refused[fit]
+    if not cand.size:
+        return cand
+    ain, w2, gam = (c[cand] for c in (grp.ain_col, grp.w2_col, grp.gamma_col))
+    done, pb, vb, eb = graded_steps(meth.tableau, p[cand], vv[cand], hh, ain, w2, gam, grp.n,
+                                    grp.reach[cand], grp.check[cand])
+    taken = cand[done]
+    p1[taken], v1[taken] = pb[done], vb[done]
+    if grp.any_check:
+        e1[taken] = eb[done]
+    return taken
 
 
 def _torque(torque: Any, size: int, params: Any) -> FloatArray:
@@ -607,6 +653,8 @@ class Sweep:
         self._energy = None  # the loop below writes into it
         stats: dict[int, GuardStats] = {}
         self._handed_back = 0
+        for grp in self._groups:
+            grp.batched = 0
         # What the compiled careful step did, per n-sorted pendulum (compiled_careful.COUNTERS).
         counts = np.zeros((self.size, len(COUNTERS)), dtype=np.int64)
         meth = METHODS[self.method]
@@ -736,6 +784,7 @@ class Sweep:
             reversals=counters['reversals'], sticks=counters['sticks'],
             energy_rejections=counters['energy_rejections'],
             projections=counters['projections'], handed_back=self._handed_back,
+            batched=sum(grp.batched for grp in self._groups),
             steps=total, h=self.h, t_end=t_end, method=self.method,
         )
 
