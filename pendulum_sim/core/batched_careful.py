@@ -57,9 +57,9 @@ def graded_meshes(x_a: FloatArray, x_b: FloatArray, h: float, n: Any, window: Fl
     """Return ``reversal.graded_mesh`` for arrays: (lengths, start, count).
 
     ``lengths[start[i]:start[i] + count[i]]`` is the mesh of
-    ``graded_mesh(x_a[i], x_b[i], h, n[i], window[i])``, the same floats (powers by ``numpy.float_power``, the C
-    library's pow, and the lengths summed in their order from 0), for exponents with
-    ``reversal.graded_law`` true.
+    ``graded_mesh(x_a[i], x_b[i], h, n[i], window[i])``, the same floats (powers by
+    ``numpy.float_power``, the C library's pow, and the lengths summed in their order from 0),
+    for exponents with ``reversal.graded_law`` true.
     """
     size = x_a.size
     length = x_b - x_a
@@ -132,8 +132,9 @@ def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: 
                  check: BoolArray) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray]:
     """Take the careful path's step of h for each pendulum where it is one plain or graded step.
 
-    Returns (done, φ₁, φ'₁, E₁/I): where ``done`` the scalar careful path's result for that pendulum
-    (``Engine.careful`` with the guard's count 1), elsewhere nothing (the scalar path takes it).
+    Returns (done, φ₁, φ'₁, E₁/I): where ``done`` the scalar careful path's result for that
+    pendulum (``Engine.careful`` with the guard's count 1), elsewhere nothing (the scalar path
+    takes it).
     ``n`` is the exponent, a float or one per pendulum (:func:`batchable_law` true for each),
     ``reach`` the grading window S (``Problem.reach``), ``check`` where the energy test applies.
     """
@@ -156,8 +157,8 @@ def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: 
         x_b = np.where(back, x, x + h)
         nn = n[near] if isinstance(n, np.ndarray) else n
         flat, start, count = graded_meshes(x_a, x_b, h, nn, reach[near])
-        pg, vg, wg = branch_runs(branch, p[near], vn, flat, start, count, back, ain[near], w2[near],
-                                 gamma[near], side, nn)
+        pg, vg, wg = branch_runs(branch, p[near], vn, flat, start, count, back, ain[near],
+                                 w2[near], gamma[near], side, nn)
         p1[near], v1[near], w[near] = pg, vg, wg
         done[near] &= vg * vn >= 0.0  # reached φ' = 0 after all: the split (scalar)
     done &= np.isfinite(p1) & np.isfinite(v1) & np.isfinite(w)
