@@ -49,11 +49,12 @@ from .decisions import (
 )
 from .engine import Engine, guard_for
 from .errors import IntegratorError, ModelError
-from .explicit import compile_step
+from .explicit import compile_step, compile_step_with_n
 from .guard import GuardStats, safe_speed_ranges
 from .jit import INSTALL_HINT
 from .jit import available as jit_available
 from .jit import compile_kernel as compile_jit_kernel
+from .law import WHOLE_MAX
 from .methods import METHODS
 from .model import (
     MAX_INPUT_ACCEL,
@@ -244,7 +245,10 @@ def _uniform(x: FloatArray) -> Any:
 
 @dataclass
 class _Group:
-    """Pendulums with one exponent n: a contiguous run of the n-sorted arrays.
+    """Pendulums of one damping text: a contiguous run of the sorted arrays.
+
+    One exponent n, or on the numpy sweep every exponent the law spells alike
+    (``law.power_source``: not 0, 0.5 or whole), the exponent then a column ``nn``.
 
     What the pendulums fix (the step, the reversal and stiffness constants) is set once; what
     the torque fixes (the guard's speed range, the energy check, the input) is set by
@@ -256,6 +260,8 @@ class _Group:
     sl: slice
     n: float
     step: Any
+    nn: Any  # the exponent: ``n`` itself, or a column where the group's exponents differ
+    batchable: BoolArray  # the careful path's graded steps batched (batched_careful.py)
     nonsmooth: BoolArray
     coulomb: BoolArray
     damped: BoolArray
@@ -270,7 +276,7 @@ class _Group:
         self.graded = bool(self.reach.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
         # The careful path's graded steps are batched (batched_careful.py) for these laws.
-        self.batch = batchable_law(self.n) and self.any_nonsmooth and self.graded
+        self.batch = bool(self.batchable.any()) and self.any_nonsmooth and self.graded
         size = self.sl.stop - self.sl.start
         self.check = np.zeros(size, dtype=bool)
         self.any_check = self.all_check = False
@@ -308,15 +314,16 @@ class _Group:
         bound = bounds[sl]
         old = self.ranges.get(hh)
         if old is None:
-            lo, hi = safe_speed_ranges(guard, om2[sl], gam[sl], self.n, hh, bound)
+            lo, hi = _ranges(guard, om2[sl], gam[sl], self.nn, hh, bound)
             if len(self.ranges) > 8:
                 self.ranges.clear()
         else:
             lo, hi = old[1], old[2]
             moved = np.flatnonzero(old[0] != bound)
             if moved.size:
-                lo[moved], hi[moved] = safe_speed_ranges(
-                    guard, om2[sl][moved], gam[sl][moved], self.n, hh, bound[moved])
+                nn = self.nn[moved] if isinstance(self.nn, np.ndarray) else self.nn
+                lo[moved], hi[moved] = _ranges(guard, om2[sl][moved], gam[sl][moved], nn, hh,
+                                               bound[moved])
         self.ranges[hh] = (bound, lo, hi)
         self.lo, self.hi = lo, hi
         self.any_lo = bool(lo.any())
@@ -338,6 +345,26 @@ class _Group:
         """Write the group's state back into the n-sorted arrays."""
         sl = self.sl
         phi[sl], v[sl], energy[sl] = self.p, self.v, self.e
+
+
+def _ranges(guard: Any, om2: FloatArray, gam: FloatArray, nn: Any, hh: float,
+            bound: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Return ``guard.safe_speed_ranges`` where the exponent ``nn`` may be a column."""
+    if not isinstance(nn, np.ndarray):
+        return safe_speed_ranges(guard, om2, gam, nn, hh, bound)
+    lo, hi = np.empty(nn.size), np.empty(nn.size)
+    values, inv = np.unique(nn, return_inverse=True)
+    for k, val in enumerate(values.tolist()):
+        at = np.flatnonzero(inv == k)
+        lo[at], hi[at] = safe_speed_ranges(guard, om2[at], gam[at], val, hh, bound[at])
+    return lo, hi
+
+
+def general_law(n: FloatArray) -> BoolArray:
+    """Return where the law's text serves every such exponent (``law.power_source``'s rule)."""
+    special: BoolArray = (n == 0.0) | (n == 0.5) | ((n == np.floor(n)) & (n >= 1.0)
+                                                   & (n <= WHOLE_MAX))
+    return ~special
 
 
 def _on_unique(fn: Any, *cols: FloatArray) -> FloatArray:
@@ -372,19 +399,36 @@ def _flags(w2: float, gamma: float, n: float, guard: bool) -> tuple[float, ...]:
 
 
 def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard: bool,
-            block: int = BLOCK) -> list[_Group]:
-    """Split the n-sorted pendulums into groups of one n (blocks of at most ``block``)."""
+            block: int = BLOCK, merge: bool = False) -> list[_Group]:
+    """Split the sorted pendulums into groups of one n (blocks of at most ``block``).
+
+    With ``merge`` the exponents of one text (:func:`general_law`, sorted after the others by
+    the sweep) form one group, the exponent a column of it (the numpy sweep).
+    """
     tab = METHODS[method].tableau
     out = []
-    vals, starts = np.unique(nn, return_index=True)
+    # The runs of one n in the sorted order.
+    starts = np.flatnonzero(np.r_[True, nn[1:] != nn[:-1]])
     ends = [*starts[1:].tolist(), nn.size]
-    pieces = [(val, a0, min(a0 + block, b)) for val, a, b in
-              zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, block)]
+    runs = list(zip(nn[starts].tolist(), starts.tolist(), ends, strict=True))
+    if merge:
+        general = general_law(nn[starts])
+        if general.any():
+            first = int(np.flatnonzero(general)[0])  # sorted last: one run from here
+            runs = [*runs[:first], (runs[first][0], runs[first][1], nn.size)]
+    pieces = [(val, a0, min(a0 + block, b)) for val, a, b in runs for a0 in range(a, b, block)]
     for val, a, b in pieces:
         sl = slice(a, b)
-        flags = _on_unique(functools.partial(_flags, n=val, guard=guard), om2[sl], gam[sl])
+        col = _uniform(nn[sl])
+        if isinstance(col, float):
+            flags = _on_unique(functools.partial(_flags, n=val, guard=guard), om2[sl], gam[sl])
+            step = compile_step(tab, val, vector=True)
+        else:
+            flags = _on_unique(functools.partial(_flags, guard=guard), om2[sl], gam[sl], col)
+            step = functools.partial(compile_step_with_n(tab, val, vector=True), n=col)
         damped, coulomb, nonsmooth = (flags[:, k] != 0.0 for k in range(3))
-        out.append(_Group(sl=sl, n=val, step=compile_step(tab, val, vector=True),
+        out.append(_Group(sl=sl, n=val, step=step, nn=col,
+                          batchable=_each(batchable_law, nn[sl]) != 0.0,
                           nonsmooth=nonsmooth, coulomb=coulomb, damped=damped,
                           reach=flags[:, 3].copy(), v_acc=flags[:, 4].copy()))
     return out
@@ -419,7 +463,8 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
             # test calls stiff (and, within 1e-9, a few more, which the careful path, deciding
             # on floats as the Stepper does, then takes as the plain step).
             gq = (ga if isinstance(ga, float) else ga[q]) * STIFF_MARGIN
-            ok[q] &= ~stiff_transient(vv[q], a0[q], gq, grp.n, grp.v_acc[q])
+            nq = grp.nn[q] if isinstance(grp.nn, np.ndarray) else grp.nn
+            ok[q] &= ~stiff_transient(vv[q], a0[q], gq, nq, grp.v_acc[q], text=grp.n)
     if grp.any_check:
         e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
         rose = energy_rose(grp.e, e1, w2)
@@ -436,7 +481,7 @@ def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float,
                  stats: dict[int, GuardStats], meth: Any, guard: bool,
                  energy_check: bool) -> tuple[float, float]:
     """Take the step of the group's pendulum ``j`` on the engine's careful path; return it."""
-    n = grp.n
+    n = float(grp.nn[j]) if isinstance(grp.nn, np.ndarray) else grp.n
     # Pendulums with the same (ω0², γ, n) share an Engine; a zero's sign is kept apart.
     key = (w2, gamma, n) if w2 and gamma else (
         w2, gamma, n, math.copysign(1.0, w2), math.copysign(1.0, gamma))
@@ -500,7 +545,7 @@ def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
     """
     p, vv = grp.p, grp.v
     av = np.abs(vv[refused])
-    fit = grp.nonsmooth[refused] & (av <= grp.v_acc[refused])
+    fit = grp.batchable[refused] & grp.nonsmooth[refused] & (av <= grp.v_acc[refused])
     if guard:
         fit &= (grp.lo[refused] * (1.0 + RANGE_MARGIN) <= av)
         fit &= av <= grp.hi[refused] * (1.0 - RANGE_MARGIN)
@@ -508,7 +553,8 @@ def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
     if not cand.size:
         return cand
     ain, w2, gam = (c[cand] for c in (grp.ain_col, grp.w2_col, grp.gamma_col))
-    done, pb, vb, eb = graded_steps(meth.tableau, p[cand], vv[cand], hh, ain, w2, gam, grp.n,
+    nn = grp.nn[cand] if isinstance(grp.nn, np.ndarray) else grp.nn
+    done, pb, vb, eb = graded_steps(meth.tableau, p[cand], vv[cand], hh, ain, w2, gam, nn,
                                     grp.reach[cand], grp.check[cand])
     taken = cand[done]
     p1[taken], v1[taken] = pb[done], vb[done]
@@ -572,7 +618,9 @@ class Sweep:
         for w2 in np.unique(om2).tolist():
             check_step(self.h, PendulumParams.from_omega0_sq(w2, 0.0, 1.0))
         self.max_steps = check_count('max_steps', max_steps)
-        order = self._order = np.argsort(nn, kind='stable')
+        # Sorted by n; on numpy the exponents of one text (general_law) last, one group.
+        order = self._order = (np.argsort(nn, kind='stable') if self.jit
+                               else np.lexsort((nn, general_law(nn))))
         self._inv = np.empty_like(order)
         self._inv[order] = np.arange(order.size)
         self._om2, self._gam, self._nn = om2[order], gam[order], nn[order]
@@ -584,7 +632,7 @@ class Sweep:
         # numpy takes a group in cache-sized blocks; a compiled run keeps each state in
         # registers over its steps, so it takes each exponent's pendulums in one run.
         self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard,
-                               order.size if self.jit else BLOCK)
+                               order.size if self.jit else BLOCK, merge=not self.jit)
         if self.jit:
             tab = METHODS[method].tableau
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
