@@ -9,11 +9,12 @@ and non-integer n in one call agrees with the Stepper pendulum by pendulum.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
 
-from pendulum_sim.core import METHODS, PendulumParams, Stepper
+from pendulum_sim.core import METHODS, IntegratorError, PendulumParams, Stepper
 from pendulum_sim.core.batched_careful import (
     RANGE_MARGIN,
     batchable_law,
@@ -24,8 +25,9 @@ from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.guard import GuardStats, safe_speed_range
 from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.reversal import graded_mesh
-from pendulum_sim.core.sweep import sweep
+from pendulum_sim.core.sweep import Sweep, sweep
 from pendulum_sim.core.tableaus import RK4
+from pendulum_sim.core.warm_up import warm_up
 
 
 def test_batchable_laws_are_the_graded_ones_that_cannot_creep() -> None:
@@ -128,3 +130,20 @@ def test_distinct_and_non_integer_n_in_one_sweep_agree_with_the_stepper() -> Non
         scale = 1.0 + abs(s.phi) + abs(s.dphi)
         assert abs(res.phi[i] - s.phi) <= 1e-12 * scale, i
         assert abs(res.dphi[i] - s.dphi) <= 1e-12 * scale, i
+
+
+def test_distinct_exponents_of_one_text_are_one_group_on_numpy() -> None:
+    rng = np.random.default_rng(9)
+    n = np.concatenate([rng.uniform(1.0, 3.0, 50), [2.0] * 5, [0.5] * 3, [1.0] * 2])
+    prepared = Sweep(9.8, 0.5, n, 1.0, 0.0, 1e-3)
+    # n = 0.5, 1 and 2 each their own group; the 50 distinct others one, n a column of it.
+    assert [grp.sl.stop - grp.sl.start for grp in prepared._groups] == [3, 2, 5, 50]
+    merged = prepared._groups[-1]
+    assert isinstance(merged.nn, np.ndarray)
+    assert np.array_equal(np.sort(merged.nn), np.sort(n[:50]))
+
+
+def test_warm_up_refuses_a_method_the_sweep_has_not() -> None:
+    msg = "warm_up supports the sweep methods euler, midpoint, rk4, got 'dopri5'"
+    with pytest.raises(IntegratorError, match=re.escape(msg)):
+        warm_up(method='dopri5')
