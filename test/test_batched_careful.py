@@ -22,6 +22,7 @@ from pendulum_sim.core.batched_careful import (
     graded_steps,
 )
 from pendulum_sim.core.engine import Engine, guard_for
+from pendulum_sim.core.explicit import compile_step_with_n
 from pendulum_sim.core.guard import GuardStats, safe_speed_range
 from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.reversal import graded_mesh
@@ -57,8 +58,9 @@ def test_meshes_are_the_scalar_meshes() -> None:
     assert longest > 10  # the meshes next to a reversal were covered
 
 
+@pytest.mark.parametrize('hint', [False, True])
 @pytest.mark.parametrize('n', [1.5, 2.5, None])
-def test_graded_steps_are_engine_careful(n: float | None) -> None:
+def test_graded_steps_are_engine_careful(n: float | None, hint: bool) -> None:
     rng = np.random.default_rng(7)
     size = 3000
     h = 1e-3
@@ -70,8 +72,10 @@ def test_graded_steps_are_engine_careful(n: float | None) -> None:
     ain = np.where(rng.uniform(size=size) < 0.3, rng.uniform(-5.0, 5.0, size), 0.0)
     reach = np.array([Problem(a, g, m).reach for a, g, m in zip(w2, gamma, nn, strict=True)])
     check = rng.uniform(size=size) < 0.8
+    # With the hint, the fast path's φ'₁ (numpy's power, as the sweep passes it).
+    fast = compile_step_with_n(RK4, 1.5, False, vector=True)(p, v, h, ain, w2, gamma, 1.0, nn)[1]
     done, p1, v1, _ = graded_steps(RK4, p, v, h, ain, w2, gamma, nn if n is None else n, reach,
-                                   check)
+                                   check, fast if hint else None)
     assert done.sum() > size // 2
     meth = METHODS['rk4']
     graded = 0

@@ -22,14 +22,16 @@ near-Coulomb (n > 1), below the stiff-transient speed, and inside the guard's sa
 """
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from .codegen import define
 from .decisions import energy_rose, reversal_suspect, specific_energy
-from .explicit import compile_step_with_n
-from .law import ExactExponent, whole
+from .explicit import compile_step_with_n, step_source_with_n
+from .law import VECTOR_ENV, ExactExponent, whole
 from .tableaus import Tableau
 
 FloatArray = npt.NDArray[np.float64]
@@ -127,9 +129,29 @@ def branch_runs(branch: Any, p: FloatArray, v: FloatArray, flat: FloatArray, sta
     return out_p, out_v, out_w
 
 
+SIGN_MARGIN = 1e-9
+"""Where a plain step's φ'₁ by numpy's power (the fast path's) is above this relative size of
+the step's speed scale, its sign is the C library's step's: the two differ by the last bits of
+a few powers (some 1e-15 relative), far below it; so the reversal test needs no second step."""
+
+
+@functools.lru_cache(maxsize=64)
+def first_stage(tableau: Tableau, n: float) -> Any:
+    """Return the plain step's φ''₀ alone: its text's first-stage lines, over arrays.
+
+    ``a0(p0, v0, h, ain, w2, gamma, s, n)`` (``n`` a ``law.ExactExponent``) is the very float
+    the step's ``a_0`` is, without the step's other stages.
+    """
+    lines = step_source_with_n(tableau, n, False, 'a0').splitlines()
+    body = [x for x in lines[1:] if x.startswith(('    d_0 =', '    a_0 ='))]
+    return define('\n'.join([lines[0], *body, '    return a_0']) + '\n', 'a0',
+                  dict(VECTOR_ENV), f'<{tableau.name} first stage>')
+
+
 def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: FloatArray,
                  w2: FloatArray, gamma: FloatArray, n: Any, reach: FloatArray,
-                 check: BoolArray) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray]:
+                 check: BoolArray, v1_fast: FloatArray | None = None
+                 ) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray]:
     """Take the careful path's step of h for each pendulum where it is one plain or graded step.
 
     Returns (done, φ₁, φ'₁, E₁/I): where ``done`` the scalar careful path's result for that
@@ -137,17 +159,43 @@ def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: 
     takes it).
     ``n`` is the exponent, a float or one per pendulum (:func:`batchable_law` true for each),
     ``reach`` the grading window S (``Problem.reach``), ``check`` where the energy test applies.
+    ``v1_fast``, the fast path's φ'₁ of the same plain step (numpy's power), spares the C
+    library's plain step where its sign decides the reversal test (:data:`SIGN_MARGIN`) and
+    the step is graded (its result is then the branch run's).
     """
     key = float(n) if np.ndim(n) == 0 else 1.5  # a non-special exponent: one text for all
     plain = compile_step_with_n(tableau, key, False, vector=True)
     branch = compile_step_with_n(tableau, key, True, vector=True)
     nx = ExactExponent(n)
-    p1, v1, w, a0 = plain(p, v, h, ain, w2, gamma, 1.0, nx)
-    done = np.isfinite(p1) & np.isfinite(v1) & np.isfinite(a0)
-    sus = reversal_suspect(v, v1, a0, h, reach)
-    cross = (v1 * v < 0.0) | ((a0 * v < 0.0) & (np.abs(v) <= h * np.abs(a0)))
+    size = p.size
+    p1, v1, w = np.empty(size), np.empty(size), np.empty(size)
+    stepped = np.zeros(size, dtype=bool)  # where p1, v1, w are the plain step's
+
+    def step_at(rows: IntArray) -> None:
+        rows = rows[~stepped[rows]]
+        if rows.size:
+            out = plain(p[rows], v[rows], h, ain[rows], w2[rows], gamma[rows], 1.0,
+                        ExactExponent(n[rows] if isinstance(n, np.ndarray) else n))
+            p1[rows], v1[rows], w[rows] = out[0], out[1], out[2]
+            stepped[rows] = True
+
+    if v1_fast is None:
+        p1, v1, w, a0 = plain(p, v, h, ain, w2, gamma, 1.0, nx)
+        stepped[:] = True
+        v1s = v1
+    else:
+        a0 = first_stage(tableau, key)(p, v, h, ain, w2, gamma, 1.0, nx)
+        scale = np.abs(v) + 2.0 * h * (np.abs(a0) + np.abs(ain) + w2)
+        sure = np.abs(v1_fast) > SIGN_MARGIN * scale
+        step_at(np.flatnonzero(~sure))
+        v1s = np.where(sure, v1_fast, v1)  # its sign is the C library's step's
+    done = np.isfinite(a0) & np.isfinite(v1s)
+    sus = reversal_suspect(v, v1s, a0, h, reach)
+    cross = (v1s * v < 0.0) | ((a0 * v < 0.0) & (np.abs(v) <= h * np.abs(a0)))
     done &= ~(sus & cross)
-    near = np.flatnonzero(done & sus & ~cross & (reach > 0.0) & (a0 != 0.0))
+    graded = done & sus & ~cross & (reach > 0.0) & (a0 != 0.0)
+    step_at(np.flatnonzero(done & ~graded))  # the plain step is the result
+    near = np.flatnonzero(graded)
     if near.size:
         vn, an = v[near], a0[near]
         side = np.where((vn > 0.0) | ((vn == 0.0) & (an > 0.0)), 1.0, -1.0)
@@ -161,7 +209,8 @@ def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: 
                                  w2[near], gamma[near], side, nn)
         p1[near], v1[near], w[near] = pg, vg, wg
         done[near] &= vg * vn >= 0.0  # reached φ' = 0 after all: the split (scalar)
-    done &= np.isfinite(p1) & np.isfinite(v1) & np.isfinite(w)
+    with np.errstate(invalid='ignore'):
+        done &= np.isfinite(p1) & np.isfinite(v1) & np.isfinite(w)
     e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
     rows = np.flatnonzero(done & check & (ain == 0.0))
     if rows.size:
@@ -170,4 +219,5 @@ def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: 
     return done, p1, v1, e1
 
 
-__all__ = ['RANGE_MARGIN', 'batchable_law', 'branch_runs', 'graded_meshes', 'graded_steps']
+__all__ = ['RANGE_MARGIN', 'SIGN_MARGIN', 'batchable_law', 'branch_runs', 'first_stage',
+           'graded_meshes', 'graded_steps']

@@ -555,7 +555,7 @@ def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
     ain, w2, gam = (c[cand] for c in (grp.ain_col, grp.w2_col, grp.gamma_col))
     nn = grp.nn[cand] if isinstance(grp.nn, np.ndarray) else grp.nn
     done, pb, vb, eb = graded_steps(meth.tableau, p[cand], vv[cand], hh, ain, w2, gam, nn,
-                                    grp.reach[cand], grp.check[cand])
+                                    grp.reach[cand], grp.check[cand], v1[cand])
     taken = cand[done]
     p1[taken], v1[taken] = pb[done], vb[done]
     if grp.any_check:
