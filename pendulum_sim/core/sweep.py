@@ -580,6 +580,24 @@ def _torque(torque: Any, size: int, params: Any) -> FloatArray:
     return tau
 
 
+def _sort_order(nn: FloatArray, jit: bool) -> IntArray:
+    """Return the pendulums' order: by n; on numpy the exponents of one text (general_law) last.
+
+    Those then form one group (``_groups`` with ``merge``), the exponent a column of it.
+    """
+    if jit:
+        return np.argsort(nn, kind='stable')
+    return np.lexsort((nn, general_law(nn)))
+
+
+def _take_batched(groups: list[_Group]) -> int:
+    """Return the careful steps the groups took batched since the last call, and zero them."""
+    total = sum(grp.batched for grp in groups)
+    for grp in groups:
+        grp.batched = 0
+    return total
+
+
 class Sweep:
     """N pendulums prepared once and advanced many times, each step as :func:`sweep` takes it.
 
@@ -618,14 +636,10 @@ class Sweep:
         for w2 in np.unique(om2).tolist():
             check_step(self.h, PendulumParams.from_omega0_sq(w2, 0.0, 1.0))
         self.max_steps = check_count('max_steps', max_steps)
-        # Sorted by n; on numpy the exponents of one text (general_law) last, one group.
-        order = self._order = (np.argsort(nn, kind='stable') if self.jit
-                               else np.lexsort((nn, general_law(nn))))
-        self._inv = np.empty_like(order)
-        self._inv[order] = np.arange(order.size)
+        order = self._order = _sort_order(nn, self.jit)
+        self._inv = np.argsort(order)  # the inverse permutation
         self._om2, self._gam, self._nn = om2[order], gam[order], nn[order]
-        self._phi, self._v = p0[order].copy(), v0[order].copy()
-        self._tau = tau[order]
+        self._phi, self._v, self._tau = p0[order].copy(), v0[order].copy(), tau[order]
         # The state bound, held along the run where the guard is on (as in the Stepper).
         self._vmax = (_each(run_speed_limit, self._gam, self._nn, self._om2) if self.guard
                       else np.full(order.size, np.inf))
@@ -701,8 +715,7 @@ class Sweep:
         self._energy = None  # the loop below writes into it
         stats: dict[int, GuardStats] = {}
         self._handed_back = 0
-        for grp in self._groups:
-            grp.batched = 0
+        _take_batched(self._groups)  # the batched count starts at 0 as well
         # What the compiled careful step did, per n-sorted pendulum (compiled_careful.COUNTERS).
         counts = np.zeros((self.size, len(COUNTERS)), dtype=np.int64)
         meth = METHODS[self.method]
@@ -759,9 +772,8 @@ class Sweep:
 
     def _params(self, i: int) -> PendulumParams:
         """Return the parameters of pendulum ``i`` (in the order given)."""
-        j = int(self._inv[i])
-        cols = {'omega0_sq': self._om2, 'gamma': self._gam, 'n': self._nn}
-        return _params(cols, j)
+        return _params({'omega0_sq': self._om2, 'gamma': self._gam, 'n': self._nn},
+                       int(self._inv[i]))
 
     def _run_compiled(self, hh: float, count: int, base: int, total: int, t_end: float,
                       every: int, records: list[tuple[FloatArray, FloatArray]],
@@ -832,7 +844,7 @@ class Sweep:
             reversals=counters['reversals'], sticks=counters['sticks'],
             energy_rejections=counters['energy_rejections'],
             projections=counters['projections'], handed_back=self._handed_back,
-            batched=sum(grp.batched for grp in self._groups),
+            batched=_take_batched(self._groups),
             steps=total, h=self.h, t_end=t_end, method=self.method,
         )
 
