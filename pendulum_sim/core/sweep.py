@@ -54,7 +54,7 @@ from .guard import GuardStats, safe_speed_ranges
 from .jit import INSTALL_HINT
 from .jit import available as jit_available
 from .jit import compile_kernel as compile_jit_kernel
-from .law import WHOLE_MAX
+from .law import damping_expression
 from .methods import METHODS
 from .model import (
     MAX_INPUT_ACCEL,
@@ -361,10 +361,16 @@ def _ranges(guard: Any, om2: FloatArray, gam: FloatArray, nn: Any, hh: float,
 
 
 def general_law(n: FloatArray) -> BoolArray:
-    """Return where the law's text serves every such exponent (``law.power_source``'s rule)."""
-    special: BoolArray = (n == 0.0) | (n == 0.5) | ((n == np.floor(n)) & (n >= 1.0)
-                                                   & (n <= WHOLE_MAX))
-    return ~special
+    """Return where the damping law's text is the one every non-special exponent shares.
+
+    The text of ``law.damping_expression`` (its power by ``law.power_source``: 0, 0.5 and each
+    whole n up to 8 spelled apart, every other exponent ``abs(v) ** n``), compared as text.
+    """
+    values, inv = np.unique(n, return_inverse=True)
+    shared = damping_expression(1.5)
+    out: BoolArray = np.array([damping_expression(x) == shared for x in values.tolist()],
+                              dtype=bool)[inv.ravel()]
+    return out
 
 
 def _on_unique(fn: Any, *cols: FloatArray) -> FloatArray:
