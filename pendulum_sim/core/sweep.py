@@ -405,11 +405,11 @@ def _flags(w2: float, gamma: float, n: float, guard: bool) -> tuple[float, ...]:
 
 
 def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard: bool,
-            block: int = BLOCK, merge: bool = False) -> list[_Group]:
+            block: int = BLOCK) -> list[_Group]:
     """Split the sorted pendulums into groups of one n (blocks of at most ``block``).
 
-    With ``merge`` the exponents of one text (:func:`general_law`, sorted after the others by
-    the sweep) form one group, the exponent a column of it (the numpy sweep).
+    The exponents of one text (:func:`general_law`, sorted after the others by the sweep) form
+    one group, the exponent a column of it.
     """
     tab = METHODS[method].tableau
     out = []
@@ -417,11 +417,10 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard
     starts = np.flatnonzero(np.r_[True, nn[1:] != nn[:-1]])
     ends = [*starts[1:].tolist(), nn.size]
     runs = list(zip(nn[starts].tolist(), starts.tolist(), ends, strict=True))
-    if merge:
-        general = general_law(nn[starts])
-        if general.any():
-            first = int(np.flatnonzero(general)[0])  # sorted last: one run from here
-            runs = [*runs[:first], (runs[first][0], runs[first][1], nn.size)]
+    general = general_law(nn[starts])
+    if general.any():
+        first = int(np.flatnonzero(general)[0])  # sorted last: one run from here
+        runs = [*runs[:first], (runs[first][0], runs[first][1], nn.size)]
     pieces = [(val, a0, min(a0 + block, b)) for val, a, b in runs for a0 in range(a, b, block)]
     for val, a, b in pieces:
         sl = slice(a, b)
@@ -586,14 +585,13 @@ def _torque(torque: Any, size: int, params: Any) -> FloatArray:
     return tau
 
 
-def _sort_order(nn: FloatArray, jit: bool) -> IntArray:
-    """Return the pendulums' order: by n; on numpy the exponents of one text (general_law) last.
+def _sort_order(nn: FloatArray) -> IntArray:
+    """Return the pendulums' order: by n, the exponents of one text (general_law) last.
 
-    Those then form one group (``_groups`` with ``merge``), the exponent a column of it.
+    Those then form one group (``_groups``), the exponent a column of it.
     """
-    if jit:
-        return np.argsort(nn, kind='stable')
-    return np.lexsort((nn, general_law(nn)))
+    order: IntArray = np.lexsort((nn, general_law(nn)))
+    return order
 
 
 def _take_batched(groups: list[_Group]) -> int:
@@ -642,7 +640,7 @@ class Sweep:
         for w2 in np.unique(om2).tolist():
             check_step(self.h, PendulumParams.from_omega0_sq(w2, 0.0, 1.0))
         self.max_steps = check_count('max_steps', max_steps)
-        order = self._order = _sort_order(nn, self.jit)
+        order = self._order = _sort_order(nn)
         self._inv = np.argsort(order)  # the inverse permutation
         self._om2, self._gam, self._nn = om2[order], gam[order], nn[order]
         self._phi, self._v, self._tau = p0[order].copy(), v0[order].copy(), tau[order]
@@ -652,7 +650,7 @@ class Sweep:
         # numpy takes a group in cache-sized blocks; a compiled run keeps each state in
         # registers over its steps, so it takes each exponent's pendulums in one run.
         self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard,
-                               order.size if self.jit else BLOCK, merge=not self.jit)
+                               order.size if self.jit else BLOCK)
         if self.jit:
             tab = METHODS[method].tableau
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
