@@ -446,7 +446,7 @@ def test_distinct_exponents_share_their_generated_code() -> None:
     before = codegen._code.cache_info().misses
     kernels = len(jit._KERNELS)
     prepared = Sweep(W2, 0.5, n, 1.0, 0.0, 1e-3, jit=True)
-    assert len(prepared._groups) == n.size
+    assert len(prepared._groups) == 1  # one group, the exponent a column of it (issue 30)
     assert codegen._code.cache_info().misses - before <= 3
     assert len(jit._KERNELS) - kernels <= 1
     assert len({id(grp.kernel[0]) for grp in prepared._groups}) == 1
@@ -631,3 +631,16 @@ def test_a_function_argument_is_first_class_of_its_one_signature() -> None:
            'has 2')
     with pytest.raises(IntegratorError, match=re.escape(msg)):
         caller(both, 3.0)
+
+
+def test_warm_up_compiles_the_runs_a_sweep_then_finds() -> None:
+    from pendulum_sim.core.warm_up import warm_up
+
+    seconds = warm_up((2.0, 1.5, 2.5))
+    assert seconds > 0.0
+    tab = METHODS['rk4'].tableau
+    for n in (2.0, 1.5, 2.5):
+        fn = compile_kernel(tab, n, careful_step)
+        assert fn.__code__ in jit._KERNELS  # compiled: a sweep of this law compiles nothing
+    assert compile_kernel(tab, 1.5, careful_step).__code__ is compile_kernel(
+        tab, 2.5, careful_step).__code__  # one spelling served both

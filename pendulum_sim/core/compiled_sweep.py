@@ -87,7 +87,8 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
         for grp, a, b in zip(grps, offs[:-1], offs[1:], strict=True):
             grp.p, grp.v, grp.e = P[a:b], V[a:b], E[a:b]
     cols = [joint(name) for name in ('ain_col', 'w2_col', 'gamma_col')]
-    nn = np.concatenate([np.full(size, grp.n) for grp, size in zip(grps, sizes, strict=True)])
+    nn = np.concatenate([np.broadcast_to(grp.nn, (size,))
+                         for grp, size in zip(grps, sizes, strict=True)])
     decide = [joint(name) for name in
               ('lo', 'hi', 'reach', 'v_acc', 'check', 'nonsmooth', 'coulomb')]
     vm = np.concatenate([vmax[grp.sl] for grp in grps])

@@ -127,14 +127,17 @@ def _stiff(n: float, vector: bool) -> Any:
                   '<decision>')
 
 
-def stiff_transient(v: Any, a0: Any, gamma: Any, n: float, v_acc: Any) -> Any:
+def stiff_transient(v: Any, a0: Any, gamma: Any, n: Any, v_acc: Any,
+                    text: float | None = None) -> Any:
     """Return where a step starts in a damping-dominated transient too fast for a plain step.
 
     Above :func:`accuracy_speed` and with the net acceleration at least half the damping
     γ|φ'|^n (the damping is not balanced by gravity and input, as it is in a creep;
-    :func:`stiff_source`). ``v`` a float or a numpy array, the others alike or floats.
+    :func:`stiff_source`). ``v`` a float or a numpy array, the others alike or floats; ``n``
+    an array of exponents that share one text needs ``text``, one of them (whose text it is).
     """
-    return _stiff(n, isinstance(v, np.ndarray))(v, a0, gamma, n, v_acc)
+    return _stiff(n if text is None else text, isinstance(v, np.ndarray))(v, a0, gamma, n,
+                                                                         v_acc)
 
 
 def specific_energy(v: Any, sin_half: Any, w2: Any) -> Any:

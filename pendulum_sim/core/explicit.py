@@ -138,7 +138,13 @@ def step_source_with_n(tableau: Tableau, n: float, branch: bool, name: str,
 
 @functools.lru_cache(maxsize=512)
 def compile_step_with_n(tableau: Tableau, n: float, branch: bool = False,
-                        with_error: bool = False) -> Any:
-    """Return :func:`step_source_with_n`'s step for ``n`` (scalar, ``math``)."""
+                        with_error: bool = False, vector: bool = False) -> Any:
+    """Return :func:`step_source_with_n`'s step for ``n`` (scalar, ``math``).
+
+    ``vector`` defines the same text with numpy: passed ``n`` as a ``law.ExactExponent`` it
+    takes the scalar step's floats over arrays (the careful path batched,
+    ``batched_careful.py``).
+    """
     src = step_source_with_n(tableau, n, branch, 'step', with_error)
-    return define(src, 'step', dict(SCALAR_ENV), f'<{tableau.name} step n>')
+    env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV)
+    return define(src, 'step', env, f'<{tableau.name} step n>')

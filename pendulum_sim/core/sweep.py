@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .batched_careful import RANGE_MARGIN, batchable_law, graded_steps
 from .compiled_careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
 from .decisions import (
@@ -48,11 +49,12 @@ from .decisions import (
 )
 from .engine import Engine, guard_for
 from .errors import IntegratorError, ModelError
-from .explicit import compile_step
+from .explicit import compile_step, compile_step_with_n
 from .guard import GuardStats, safe_speed_ranges
 from .jit import INSTALL_HINT
 from .jit import available as jit_available
 from .jit import compile_kernel as compile_jit_kernel
+from .law import damping_expression
 from .methods import METHODS
 from .model import (
     MAX_INPUT_ACCEL,
@@ -114,6 +116,10 @@ class SweepResult:
         Steps of the stretch taken by the careful path in Python (``Engine.careful``): every
         step the fast path refused on the numpy sweep; on the compiled sweep only those the
         compiled careful step declines (``compiled_careful.py``).
+    batched : int
+        Steps of the stretch the careful path took batched over arrays on the numpy sweep
+        (``batched_careful.py``: the graded steps next to a reversal, the same floats as
+        ``Engine.careful``); ``batched + handed_back`` steps took the careful path there.
     """
 
     phi: FloatArray
@@ -133,6 +139,7 @@ class SweepResult:
     t_end: float
     method: str
     handed_back: int
+    batched: int = 0
 
     @property
     def capped(self) -> int:
@@ -238,7 +245,10 @@ def _uniform(x: FloatArray) -> Any:
 
 @dataclass
 class _Group:
-    """Pendulums with one exponent n: a contiguous run of the n-sorted arrays.
+    """Pendulums of one damping text: a contiguous run of the sorted arrays.
+
+    One exponent n, or on the numpy sweep every exponent the law spells alike
+    (``law.power_source``: not 0, 0.5 or whole), the exponent then a column ``nn``.
 
     What the pendulums fix (the step, the reversal and stiffness constants) is set once; what
     the torque fixes (the guard's speed range, the energy check, the input) is set by
@@ -250,6 +260,8 @@ class _Group:
     sl: slice
     n: float
     step: Any
+    nn: Any  # the exponent: ``n`` itself, or a column where the group's exponents differ
+    batchable: BoolArray  # the careful path's graded steps batched (batched_careful.py)
     nonsmooth: BoolArray
     coulomb: BoolArray
     damped: BoolArray
@@ -263,6 +275,8 @@ class _Group:
         # reach = 0 makes the near-reversal test false everywhere: the crossing test decides.
         self.graded = bool(self.reach.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
+        # The careful path's graded steps are batched (batched_careful.py) for these laws.
+        self.batch = bool(self.batchable.any()) and self.any_nonsmooth and self.graded
         size = self.sl.stop - self.sl.start
         self.check = np.zeros(size, dtype=bool)
         self.any_check = self.all_check = False
@@ -270,6 +284,7 @@ class _Group:
         self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self.batched = 0  # careful steps taken batched (batched_careful.py) this advance
         self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
         self.use_careful = False  # the compiled run takes the careful step (compiled_careful)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
@@ -299,15 +314,16 @@ class _Group:
         bound = bounds[sl]
         old = self.ranges.get(hh)
         if old is None:
-            lo, hi = safe_speed_ranges(guard, om2[sl], gam[sl], self.n, hh, bound)
+            lo, hi = _ranges(guard, om2[sl], gam[sl], self.nn, hh, bound)
             if len(self.ranges) > 8:
                 self.ranges.clear()
         else:
             lo, hi = old[1], old[2]
             moved = np.flatnonzero(old[0] != bound)
             if moved.size:
-                lo[moved], hi[moved] = safe_speed_ranges(
-                    guard, om2[sl][moved], gam[sl][moved], self.n, hh, bound[moved])
+                nn = self.nn[moved] if isinstance(self.nn, np.ndarray) else self.nn
+                lo[moved], hi[moved] = _ranges(guard, om2[sl][moved], gam[sl][moved], nn, hh,
+                                               bound[moved])
         self.ranges[hh] = (bound, lo, hi)
         self.lo, self.hi = lo, hi
         self.any_lo = bool(lo.any())
@@ -329,6 +345,32 @@ class _Group:
         """Write the group's state back into the n-sorted arrays."""
         sl = self.sl
         phi[sl], v[sl], energy[sl] = self.p, self.v, self.e
+
+
+def _ranges(guard: Any, om2: FloatArray, gam: FloatArray, nn: Any, hh: float,
+            bound: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Return ``guard.safe_speed_ranges`` where the exponent ``nn`` may be a column."""
+    if not isinstance(nn, np.ndarray):
+        return safe_speed_ranges(guard, om2, gam, nn, hh, bound)
+    lo, hi = np.empty(nn.size), np.empty(nn.size)
+    values, inv = np.unique(nn, return_inverse=True)
+    for k, val in enumerate(values.tolist()):
+        at = np.flatnonzero(inv == k)
+        lo[at], hi[at] = safe_speed_ranges(guard, om2[at], gam[at], val, hh, bound[at])
+    return lo, hi
+
+
+def general_law(n: FloatArray) -> BoolArray:
+    """Return where the damping law's text is the one every non-special exponent shares.
+
+    The text of ``law.damping_expression`` (its power by ``law.power_source``: 0, 0.5 and each
+    whole n up to 8 spelled apart, every other exponent ``abs(v) ** n``), compared as text.
+    """
+    values, inv = np.unique(n, return_inverse=True)
+    shared = damping_expression(1.5)
+    out: BoolArray = np.array([damping_expression(x) == shared for x in values.tolist()],
+                              dtype=bool)[inv.ravel()]
+    return out
 
 
 def _on_unique(fn: Any, *cols: FloatArray) -> FloatArray:
@@ -364,18 +406,34 @@ def _flags(w2: float, gamma: float, n: float, guard: bool) -> tuple[float, ...]:
 
 def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard: bool,
             block: int = BLOCK) -> list[_Group]:
-    """Split the n-sorted pendulums into groups of one n (blocks of at most ``block``)."""
+    """Split the sorted pendulums into groups of one n (blocks of at most ``block``).
+
+    The exponents of one text (:func:`general_law`, sorted after the others by the sweep) form
+    one group, the exponent a column of it.
+    """
     tab = METHODS[method].tableau
     out = []
-    vals, starts = np.unique(nn, return_index=True)
+    # The runs of one n in the sorted order.
+    starts = np.flatnonzero(np.r_[True, nn[1:] != nn[:-1]])
     ends = [*starts[1:].tolist(), nn.size]
-    pieces = [(val, a0, min(a0 + block, b)) for val, a, b in
-              zip(vals.tolist(), starts.tolist(), ends, strict=True) for a0 in range(a, b, block)]
+    runs = list(zip(nn[starts].tolist(), starts.tolist(), ends, strict=True))
+    general = general_law(nn[starts])
+    if general.any():
+        first = int(np.flatnonzero(general)[0])  # sorted last: one run from here
+        runs = [*runs[:first], (runs[first][0], runs[first][1], nn.size)]
+    pieces = [(val, a0, min(a0 + block, b)) for val, a, b in runs for a0 in range(a, b, block)]
     for val, a, b in pieces:
         sl = slice(a, b)
-        flags = _on_unique(functools.partial(_flags, n=val, guard=guard), om2[sl], gam[sl])
+        col = _uniform(nn[sl])
+        if isinstance(col, float):
+            flags = _on_unique(functools.partial(_flags, n=val, guard=guard), om2[sl], gam[sl])
+            step = compile_step(tab, val, vector=True)
+        else:
+            flags = _on_unique(functools.partial(_flags, guard=guard), om2[sl], gam[sl], col)
+            step = functools.partial(compile_step_with_n(tab, val, vector=True), n=col)
         damped, coulomb, nonsmooth = (flags[:, k] != 0.0 for k in range(3))
-        out.append(_Group(sl=sl, n=val, step=compile_step(tab, val, vector=True),
+        out.append(_Group(sl=sl, n=val, step=step, nn=col,
+                          batchable=_each(batchable_law, nn[sl]) != 0.0,
                           nonsmooth=nonsmooth, coulomb=coulomb, damped=damped,
                           reach=flags[:, 3].copy(), v_acc=flags[:, 4].copy()))
     return out
@@ -410,7 +468,8 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
             # test calls stiff (and, within 1e-9, a few more, which the careful path, deciding
             # on floats as the Stepper does, then takes as the plain step).
             gq = (ga if isinstance(ga, float) else ga[q]) * STIFF_MARGIN
-            ok[q] &= ~stiff_transient(vv[q], a0[q], gq, grp.n, grp.v_acc[q])
+            nq = grp.nn[q] if isinstance(grp.nn, np.ndarray) else grp.nn
+            ok[q] &= ~stiff_transient(vv[q], a0[q], gq, nq, grp.v_acc[q], text=grp.n)
     if grp.any_check:
         e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
         rose = energy_rose(grp.e, e1, w2)
@@ -427,7 +486,7 @@ def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float,
                  stats: dict[int, GuardStats], meth: Any, guard: bool,
                  energy_check: bool) -> tuple[float, float]:
     """Take the step of the group's pendulum ``j`` on the engine's careful path; return it."""
-    n = grp.n
+    n = float(grp.nn[j]) if isinstance(grp.nn, np.ndarray) else grp.n
     # Pendulums with the same (ω0², γ, n) share an Engine; a zero's sign is kept apart.
     key = (w2, gamma, n) if w2 and gamma else (
         w2, gamma, n, math.copysign(1.0, w2), math.copysign(1.0, gamma))
@@ -451,6 +510,15 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     refused = np.flatnonzero(~ok)
+    batched = 0
+    if refused.size and grp.batch:
+        taken = _batched(grp, hh, meth, guard, refused, p1, v1, e1)
+        batched = int(taken.size)
+        if batched:
+            keep = np.ones(refused.size, dtype=bool)
+            keep[np.searchsorted(refused, taken)] = False
+            refused = refused[keep]
+    grp.batched += batched
     if refused.size:
         consts = [np.broadcast_to(c, p.shape)[refused] for c in (ain, w2, ga)]
         ps: list[float] = []
@@ -471,6 +539,35 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     return int(refused.size)
 
 
+def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
+             p1: FloatArray, v1: FloatArray, e1: FloatArray) -> IntArray:
+    """Take the refused steps the batched careful path serves (``batched_careful.py``).
+
+    The candidates are those whose ``Engine.careful`` starts with one plain step: a kink at
+    rest, below the stiff-transient speed and, with the guard, inside its safe speed range by
+    RANGE_MARGIN (the guard's count is then 1). Writes their states (and E/I, with the scalar
+    sine) into ``p1``, ``v1``, ``e1``; returns the sorted indices it took.
+    """
+    p, vv = grp.p, grp.v
+    av = np.abs(vv[refused])
+    fit = grp.batchable[refused] & grp.nonsmooth[refused] & (av <= grp.v_acc[refused])
+    if guard:
+        fit &= (grp.lo[refused] * (1.0 + RANGE_MARGIN) <= av)
+        fit &= av <= grp.hi[refused] * (1.0 - RANGE_MARGIN)
+    cand = refused[fit]
+    if not cand.size:
+        return cand
+    ain, w2, gam = (c[cand] for c in (grp.ain_col, grp.w2_col, grp.gamma_col))
+    nn = grp.nn[cand] if isinstance(grp.nn, np.ndarray) else grp.nn
+    done, pb, vb, eb = graded_steps(meth.tableau, p[cand], vv[cand], hh, ain, w2, gam, nn,
+                                    grp.reach[cand], grp.check[cand], v1[cand])
+    taken = cand[done]
+    p1[taken], v1[taken] = pb[done], vb[done]
+    if grp.any_check:
+        e1[taken] = eb[done]
+    return taken
+
+
 def _torque(torque: Any, size: int, params: Any) -> FloatArray:
     """Validate a new torque for N = ``size`` pendulums as :func:`_validate` does.
 
@@ -486,6 +583,23 @@ def _torque(torque: Any, size: int, params: Any) -> FloatArray:
         i = int(np.flatnonzero(bad)[0])
         _one({'torque': arr}, i, lambda: check_torque(tau[i], params(i)))
     return tau
+
+
+def _sort_order(nn: FloatArray) -> IntArray:
+    """Return the pendulums' order: by n, the exponents of one text (general_law) last.
+
+    Those then form one group (``_groups``), the exponent a column of it.
+    """
+    order: IntArray = np.lexsort((nn, general_law(nn)))
+    return order
+
+
+def _take_batched(groups: list[_Group]) -> int:
+    """Return the careful steps the groups took batched since the last call, and zero them."""
+    total = sum(grp.batched for grp in groups)
+    for grp in groups:
+        grp.batched = 0
+    return total
 
 
 class Sweep:
@@ -526,12 +640,10 @@ class Sweep:
         for w2 in np.unique(om2).tolist():
             check_step(self.h, PendulumParams.from_omega0_sq(w2, 0.0, 1.0))
         self.max_steps = check_count('max_steps', max_steps)
-        order = self._order = np.argsort(nn, kind='stable')
-        self._inv = np.empty_like(order)
-        self._inv[order] = np.arange(order.size)
+        order = self._order = _sort_order(nn)
+        self._inv = np.argsort(order)  # the inverse permutation
         self._om2, self._gam, self._nn = om2[order], gam[order], nn[order]
-        self._phi, self._v = p0[order].copy(), v0[order].copy()
-        self._tau = tau[order]
+        self._phi, self._v, self._tau = p0[order].copy(), v0[order].copy(), tau[order]
         # The state bound, held along the run where the guard is on (as in the Stepper).
         self._vmax = (_each(run_speed_limit, self._gam, self._nn, self._om2) if self.guard
                       else np.full(order.size, np.inf))
@@ -607,6 +719,7 @@ class Sweep:
         self._energy = None  # the loop below writes into it
         stats: dict[int, GuardStats] = {}
         self._handed_back = 0
+        _take_batched(self._groups)  # the batched count starts at 0 as well
         # What the compiled careful step did, per n-sorted pendulum (compiled_careful.COUNTERS).
         counts = np.zeros((self.size, len(COUNTERS)), dtype=np.int64)
         meth = METHODS[self.method]
@@ -663,9 +776,8 @@ class Sweep:
 
     def _params(self, i: int) -> PendulumParams:
         """Return the parameters of pendulum ``i`` (in the order given)."""
-        j = int(self._inv[i])
-        cols = {'omega0_sq': self._om2, 'gamma': self._gam, 'n': self._nn}
-        return _params(cols, j)
+        return _params({'omega0_sq': self._om2, 'gamma': self._gam, 'n': self._nn},
+                       int(self._inv[i]))
 
     def _run_compiled(self, hh: float, count: int, base: int, total: int, t_end: float,
                       every: int, records: list[tuple[FloatArray, FloatArray]],
@@ -736,6 +848,7 @@ class Sweep:
             reversals=counters['reversals'], sticks=counters['sticks'],
             energy_rejections=counters['energy_rejections'],
             projections=counters['projections'], handed_back=self._handed_back,
+            batched=_take_batched(self._groups),
             steps=total, h=self.h, t_end=t_end, method=self.method,
         )
 
