@@ -29,7 +29,8 @@ FloatArray = npt.NDArray[np.float64]
 Value = float | None
 
 STEPS_PER_PERIOD = 64
-"""Simulation steps per guessed period (RK4; the output is interpolated to the samples)."""
+"""Simulation steps per guessed period, at least (RK4; the output is interpolated to the
+samples)."""
 MIN_SAMPLES = 10
 N_UNDETERMINED = 1.0
 """n is reported as not determined when its 95 % interval is wider than ± this (it then
@@ -200,14 +201,18 @@ def _starts(law: Law, rec: Record, known: dict[str, float]) -> list[dict[str, fl
 def _problem(law: Law, rec: Record, start: dict[str, float], known: dict[str, float]
              ) -> Problem:
     om = start['omega0']
-    h = min(2.0 * math.pi / om / STEPS_PER_PERIOD, float(rec.t[-1]) / 4.0)
+    # A power of two at or below a 64th of the period, and the end rounded up to 64 steps:
+    # records alike share one grid (one sweep), and a record's grid depends only on itself.
+    h = 2.0 ** math.floor(math.log2(min(2.0 * math.pi / om / STEPS_PER_PERIOD,
+                                        float(rec.t[-1]) / 4.0)))
+    t_end = math.ceil(float(rec.t[-1]) / (STEPS_PER_PERIOD * h)) * STEPS_PER_PERIOD * h
     free = tuple(k for k in ('omega0', 'gamma', 'n', 'phi_offset', 'phi0', 'dphi0')
                  if k not in known and not (k == 'n' and law.n is not None))
     fixed = {k: v for k, v in start.items() if k not in free}
     amp = float(np.max(np.abs(rec.y - start['phi_offset'])))
     typical = {'omega0': om, 'gamma': max(start['gamma'], 1e-3), 'n': 1.0, 'phi_offset': amp,
                'phi0': amp, 'dphi0': amp * om}
-    return Problem(t=rec.t, y=rec.y, h=h, t_end=float(rec.t[-1]), free=free, fixed=fixed,
+    return Problem(t=rec.t, y=rec.y, h=h, t_end=t_end, free=free, fixed=fixed,
                    theta=np.array([start[k] for k in free]),
                    scale=np.array([typical[k] for k in free]))
 

@@ -33,8 +33,9 @@ BOUNDS = {'omega0': (1e-3, 1e3), 'gamma': (0.0, 1e3), 'n': (0.0, 6.0),
 RELATIVE_STEP = 1e-6
 """Forward-difference step of the Jacobian, relative to the parameter's size."""
 MAX_ITERATIONS = 80
-TOLERANCE = 1e-10
-"""Stop when an accepted step lowers the sum of squares by less than this fraction."""
+TOLERANCE = 1e-8
+"""Stop when an accepted step lowers the sum of squares by less than this fraction, or the next
+step is predicted to (far below what moves an estimate within its standard error)."""
 
 
 @dataclass
@@ -150,8 +151,11 @@ def _with_steps(p: Problem, theta: FloatArray) -> tuple[FloatArray, FloatArray]:
     return rows, steps
 
 
-def _lm_step(p: Problem) -> FloatArray:
-    """Return the Levenberg–Marquardt candidate from the current θ, J and residual."""
+def _lm_step(p: Problem) -> tuple[FloatArray, float]:
+    """Return the Levenberg–Marquardt candidate from the current θ, J and residual.
+
+    And the decrease of the sum of squares the linearised model predicts for it.
+    """
     assert p.jac is not None and p.residual is not None
     d = np.linalg.norm(p.jac, axis=0)
     d = np.where(d > 0, d, 1.0)
@@ -162,7 +166,11 @@ def _lm_step(p: Problem) -> FloatArray:
         delta = -np.linalg.solve(a, g) / d
     except np.linalg.LinAlgError:
         delta = -np.linalg.lstsq(a, g, rcond=None)[0] / d
-    return p.clip(p.theta + delta)
+    candidate = p.clip(p.theta + delta)
+    step = candidate - p.theta
+    jd = p.jac @ step
+    predicted = -float(p.residual @ jd) - 0.5 * float(jd @ jd)
+    return candidate, predicted
 
 
 def solve(problems: Sequence[Problem], *, jit: bool,
@@ -197,8 +205,8 @@ def solve(problems: Sequence[Problem], *, jit: bool,
                 if p.lam > 1e12:
                     p.done = True
             if not p.done:
-                candidates[i] = _lm_step(p)
-                if np.array_equal(candidates[i], p.theta):
+                candidates[i], predicted = _lm_step(p)
+                if np.array_equal(candidates[i], p.theta) or predicted < TOLERANCE * p.cost:
                     p.done = True
         if progress is not None:
             progress(it + 1, sum(p.done for p in problems))
