@@ -44,6 +44,7 @@ setup(
             # Property tests of the fast path's sound pre-tests.
             'hypothesis>=6.100',
         ],
+        'identify': ['scipy>=1.10', 'matplotlib>=3.7'],
         'campaign': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'matplotlib>=3.7'],
     },
     zip_safe=True,
@@ -59,6 +60,7 @@ setup(
             'pendulum_report = pendulum_sim.reports.cli:main',
             'pendulum_demo = pendulum_sim.demo:main',
             'pendulum_campaign = pendulum_sim.testing.campaign.cli:main',
+            'pendulum_identify = pendulum_sim.identify.cli:main',
         ],
         'pytest11': ['pendulum_sim = pendulum_sim.testing.pytest_plugin'],
     },

@@ -16,14 +16,14 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy.stats import t as student_t
+from scipy.stats import t as student_t  # type: ignore[import-untyped]
 
 from pendulum_sim.core.jit import available as jit_available
 
 from .errors import IdentifyError
 from .guess import Guess, best_exponent, envelope_gamma, first_look
 from .laws import LAWS, MODELS, Law, get_law
-from .solver import BOUNDS, Problem, solve
+from .solver import Problem, solve
 
 FloatArray = npt.NDArray[np.float64]
 Value = float | None
@@ -278,8 +278,8 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
         if 'inertia' in known and gam is not None:
             inertia = known['inertia']
             params['friction'] = gam * inertia
-            e = stderr['gamma']
-            stderr['friction'] = None if e is None else e * inertia
+            gam_se = stderr['gamma']
+            stderr['friction'] = None if gam_se is None else gam_se * inertia
             c = ci['gamma']
             ci['friction'] = None if c is None else (c[0] * inertia, c[1] * inertia)
         else:
@@ -346,7 +346,7 @@ def fit_records(records: Sequence[Record], *, model: str = 'power',
     for i, rec in enumerate(records):
         if out[i] is not None:
             continue
-        mine = [p for p, o in zip(problems, owner) if o == i]
+        mine = [p for p, o in zip(problems, owner, strict=True) if o == i]
         best = min(mine, key=lambda p: p.cost)
         if best.jac is None:
             out[i] = _unfitted(law, rec, fixed, 'the core cannot simulate the first guess')

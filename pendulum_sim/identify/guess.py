@@ -9,12 +9,13 @@ transformed; the law whose transformed envelope is straightest is the best first
 """
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.special import ellipk
+from scipy.special import ellipk  # type: ignore[import-untyped]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -66,7 +67,7 @@ def _extrema(t: FloatArray, z: FloatArray, cross: FloatArray) -> tuple[FloatArra
     """Return the extremum of |z| in each half swing (from the start to each crossing)."""
     edges = np.concatenate(([t[0] - 1.0], cross))
     pt, pa = [], []
-    for a, b in zip(edges[:-1], edges[1:]):
+    for a, b in itertools.pairwise(edges):
         inside = np.flatnonzero((t > a) & (t < b))
         if inside.size == 0:
             continue
@@ -81,7 +82,7 @@ def first_look(t: FloatArray, y: FloatArray) -> Guess:
     offset = float(np.median(y))
     cross = _crossings(t, y - offset)
     for _ in range(3):   # the midpoints of successive extrema: the swing's centre
-        signed_t, signed = _signed_extrema(t, y - offset, cross)
+        _, signed = _signed_extrema(t, y - offset, cross)
         if signed.size < 2:
             break
         offset += float(np.mean(0.5 * (signed[:-1] + signed[1:])))
@@ -108,7 +109,7 @@ def _signed_extrema(t: FloatArray, z: FloatArray, cross: FloatArray
                     ) -> tuple[FloatArray, FloatArray]:
     edges = np.concatenate(([t[0] - 1.0], cross, [t[-1] + 1.0]))
     pt, pz = [], []
-    for a, b in zip(edges[1:-2], edges[2:-1]):   # whole half swings only
+    for a, b in itertools.pairwise(edges[1:-1]):   # whole half swings only
         inside = np.flatnonzero((t > a) & (t < b))
         if inside.size == 0:
             continue

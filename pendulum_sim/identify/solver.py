@@ -61,7 +61,7 @@ class Problem:
     def full(self, theta: FloatArray) -> dict[str, float]:
         """Return every parameter for the free values ``theta``."""
         values = dict(self.fixed)
-        values.update(zip(self.free, (float(v) for v in theta)))
+        values.update(zip(self.free, (float(v) for v in theta), strict=True))
         return values
 
     def clip(self, theta: FloatArray) -> FloatArray:
@@ -74,7 +74,7 @@ class Problem:
 def _hermite(problem: Problem) -> tuple[npt.NDArray[np.int64], FloatArray]:
     """Return the grid interval of each sample and its four cubic Hermite weights."""
     if problem.weights is None:
-        steps = max(1, int(round(problem.t_end / problem.h)))
+        steps = max(1, round(problem.t_end / problem.h))
         grid = np.minimum(np.arange(steps + 1) * problem.h, problem.t_end)
         grid[-1] = problem.t_end
         k = np.clip(np.searchsorted(grid, problem.t, side='right') - 1, 0, steps - 1)
@@ -131,10 +131,10 @@ def _run(problems: Sequence[Problem], thetas: Sequence[FloatArray], members: lis
     at = 0
     for i in members:
         rows = np.atleast_2d(thetas[i]).shape[0]
-        k, w = _hermite(problems[i])
+        idx, w = _hermite(problems[i])
         sl = slice(at, at + rows)
-        pred = (w[0][:, None] * phi[k, sl] + w[1][:, None] * dphi[k, sl]
-                + w[2][:, None] * phi[k + 1, sl] + w[3][:, None] * dphi[k + 1, sl])
+        pred = (w[0][:, None] * phi[idx, sl] + w[1][:, None] * dphi[idx, sl]
+                + w[2][:, None] * phi[idx + 1, sl] + w[3][:, None] * dphi[idx + 1, sl])
         pred = (pred + offsets[sl]).T
         out[i] = pred if np.all(np.isfinite(pred)) else None
         at += rows
@@ -182,9 +182,9 @@ def solve(problems: Sequence[Problem], *, jit: bool,
         if not active:
             break
         batch = [problems[i] for i in active]
-        rows = [_with_steps(p, candidates[i]) for i, p in zip(active, batch)]
+        rows = [_with_steps(p, candidates[i]) for i, p in zip(active, batch, strict=True)]
         preds = simulate_columns(batch, [r for r, _ in rows], jit=jit)
-        for i, p, (_, steps), pred in zip(active, batch, rows, preds):
+        for i, p, (_, steps), pred in zip(active, batch, rows, preds, strict=True):
             p.iterations = it
             cost = math.inf
             if pred is not None:
