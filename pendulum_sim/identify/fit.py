@@ -143,8 +143,9 @@ def prepare(t: Any, position: Any, velocity: Any = None, effort: Any = None) -> 
     bad = np.flatnonzero(steps <= 0)
     if bad.size:
         i = int(bad[0])
-        raise IdentifyError(f't must increase strictly: t[{i + 1}] = {tt[i + 1]!r} s follows '
-                            f't[{i}] = {tt[i]!r} s; sort the samples and drop repeated stamps')
+        raise IdentifyError(f't must increase strictly: t[{i + 1}] = {float(tt[i + 1])!r} s '
+                            f'follows t[{i}] = {float(tt[i])!r} s; sort the samples and drop '
+                            'repeated stamps')
     y = np.unwrap(y)   # an encoder's wrap at ±π: a jump of more than π between samples
     guess = first_look(tt - tt[0], y)
     span = float(np.ptp(y))
@@ -334,7 +335,7 @@ def fit_records(records: Sequence[Record], *, model: str = 'power',
     for i, rec in enumerate(records):
         g = rec.guess
         if g.omega0 is None and 'omega0' not in fixed:
-            why = ('no oscillation: the angle never crosses its centre' if g.crossings == 0
+            why = ('no oscillation: the angle never crosses its centre' if not g.oscillates
                    else f'the record is shorter than one period ({g.crossings} zero '
                         f'crossing{"s" if g.crossings != 1 else ""}, a period needs 3)')
             out[i] = _unfitted(law, rec, fixed, why)

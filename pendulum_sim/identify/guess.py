@@ -29,7 +29,8 @@ class Guess:
 
     ``crossings`` counts the zero crossings (around the guessed zero offset); ``peaks_t`` and
     ``peaks_a`` are the swing's extrema (time, amplitude about the offset). ``omega0`` is None
-    when the record has fewer than three crossings (no whole period to time).
+    when the record has fewer than three crossings (no whole period to time); ``oscillates`` is
+    False when the angle never turns back after crossing (an overdamped creep, or none).
     """
 
     offset: float
@@ -40,6 +41,7 @@ class Guess:
     phi0: float
     dphi0: float
     noise: float
+    oscillates: bool
 
 
 def c_n(n: float) -> float:
@@ -79,7 +81,7 @@ def _extrema(t: FloatArray, z: FloatArray, cross: FloatArray) -> tuple[FloatArra
 
 def first_look(t: FloatArray, y: FloatArray) -> Guess:
     """Return the offset, crossings, period-based ω0, extrema and initial state of a record."""
-    offset = float(np.median(y))
+    offset = 0.5 * float(np.max(y) + np.min(y))   # the first swing's midpoint, nearly
     cross = _crossings(t, y - offset)
     for _ in range(3):   # the midpoints of successive extrema: the swing's centre
         _, signed = _signed_extrema(t, y - offset, cross)
@@ -101,8 +103,14 @@ def first_look(t: FloatArray, y: FloatArray) -> Guess:
         phi0, dphi0 = float(c[2]) - offset, float(c[1])
     else:
         phi0, dphi0 = float(y[0]) - offset, 0.0
+    oscillates = cross.size >= 2
+    if cross.size == 1:   # it turns back if its furthest point past the crossing is not the end
+        after = np.flatnonzero(t > cross[0])
+        far = after[np.argmax(np.abs(y[after] - offset))]
+        oscillates = bool(far < t.size - max(2, t.size // 20))
     return Guess(offset=offset, crossings=int(cross.size), omega0=omega0, peaks_t=peaks_t,
-                 peaks_a=peaks_a, phi0=phi0, dphi0=dphi0, noise=noise_level(y))
+                 peaks_a=peaks_a, phi0=phi0, dphi0=dphi0, noise=noise_level(y),
+                 oscillates=oscillates)
 
 
 def _signed_extrema(t: FloatArray, z: FloatArray, cross: FloatArray
