@@ -42,8 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--inertia', type=float, default=None, metavar='KG_M2',
                         help="the joint's inertia, if known: turns the Coulomb deceleration "
                              'into a friction torque and goes into fit.yaml')
-    parser.add_argument('--length', type=float, default=1.0, metavar='M',
-                        help='pivot to centre of mass for fit.yaml (default 1.0)')
+    parser.add_argument('--length', type=float, default=None, metavar='M',
+                        help='pivot to centre of mass for fit.yaml (default: the equivalent '
+                             'simple pendulum, g / omega0^2)')
     parser.add_argument('--g', type=float, default=9.8, metavar='M_S2',
                         help='gravitational acceleration for fit.yaml (default 9.8)')
     parser.add_argument('--no-jit', action='store_true',
@@ -110,6 +111,12 @@ def run(args: argparse.Namespace) -> str:
         raise IdentifyError(f'the record determines no law: {reasons}')
     body = Body(inertia=args.inertia if args.inertia is not None else 0.2, length=args.length,
                 g=args.g, inertia_known=args.inertia is not None)
+    omega0 = best.params['omega0']
+    assert omega0 is not None
+    if args.length is not None and args.length > args.g / omega0 ** 2:
+        raise IdentifyError(f'--length {args.length!r} m is longer than g / omega0^2 = '
+                            f'{args.g / omega0 ** 2:.6g} m: no rigid body swings at omega0 = '
+                            f'{omega0:.6g} rad/s with it; pass a shorter one or none')
     # Written to a temporary folder beside --out and moved there whole: nothing on failure.
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent, prefix='.identify-') as tmp:

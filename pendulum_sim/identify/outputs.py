@@ -23,16 +23,35 @@ CORRELATED = 0.5
 
 @dataclass(frozen=True)
 class Body:
-    """What turns ω0 into node parameters: ω0² = m g l / I, m following from the others."""
+    """What turns ω0 into node parameters: ω0² = m g l / I (eq 11).
+
+    A free swing fixes only ω0. Where the length is not given it is the equivalent simple
+    pendulum's, l = g / ω0² (a point mass, I = m l²); given, m follows from it, which needs
+    l <= g / ω0² (the node requires I >= m l², the parallel-axis theorem).
+    """
 
     inertia: float
-    length: float
+    length: float | None
     g: float
     inertia_known: bool
 
+    def arm(self, omega0: float) -> float:
+        """Return l in m for ``omega0``."""
+        return self.g / omega0 ** 2 if self.length is None else self.length
+
     def mass(self, omega0: float) -> float:
         """Return the mass in kg that gives ``omega0`` (m = I ω0² / (g l))."""
-        return self.inertia * omega0 ** 2 / (self.g * self.length)
+        length = self.arm(omega0)
+        m = self.inertia * omega0 ** 2 / (self.g * length)
+        while m * length ** 2 > self.inertia:   # the last bit of a point mass
+            m = math.nextafter(m, 0.0)
+        return m
+
+    def mass_stderr(self, omega0: float, stderr: float) -> float:
+        """Return the standard error of the mass that ω0's standard error makes."""
+        if self.length is None:   # m = I ω0⁴ / g²
+            return 4.0 * self.inertia * omega0 ** 3 * stderr / self.g ** 2
+        return 2.0 * self.inertia * omega0 * stderr / (self.g * self.length)
 
 
 def usable(fits: Sequence[Fit]) -> Fit | None:
@@ -63,10 +82,12 @@ def write_scene(path: Path, f: Fit, body: Body, source: str) -> None:
     """Write ``fit.yaml``: the fitted joint as a scene."""
     p = f.params
     assert p['omega0'] is not None and p['gamma'] is not None and p['n'] is not None
-    inertia_note = ('# The inertia is the one given; m follows from omega0 (omega0^2 = m g l / I).'
-                    if body.inertia_known else
-                    '# The inertia is not identified (a free swing fixes only omega0^2 = m g l / '
-                    'I):\n# the default is kept and m follows from omega0.')
+    held = ('# The inertia is the one given' if body.inertia_known else
+            '# The inertia is not identified (a free swing fixes only omega0^2 = m g l / I): '
+            'the\n# default is kept')
+    arm = ("l is the equivalent simple pendulum's, g / omega0^2" if body.length is None else
+           'l is the one given')
+    inertia_note = f'{held}; {arm}; m follows from omega0.'
     lines = [
         f'# fit: {_law(f)} (BIC {f.bic:.1f}, RMS residual {f.rms_residual:.3g} rad),',
         f'# fitted by pendulum_identify to {source}.',
@@ -76,7 +97,7 @@ def write_scene(path: Path, f: Fit, body: Body, source: str) -> None:
         '/**:',
         '  ros__parameters:',
         f'    m: {_num(body.mass(p["omega0"]))}',
-        f'    l: {_num(body.length)}',
+        f'    l: {_num(body.arm(p["omega0"]))}',
         f'    inertia: {_num(body.inertia)}',
         f'    g: {_num(body.g)}',
         f'    gamma: {_num(p["gamma"])}',
@@ -93,15 +114,15 @@ def write_campaign(path: Path, f: Fit, body: Body) -> None:
     assert p['omega0'] is not None and se['omega0'] is not None
     lines = [f'# pendulum_identify: {_law(f)}; each fitted parameter a normal space (estimate, '
              'standard error).',
-             '# m carries omega0 (m = inertia omega0^2 / (g l), with l, g and the inertia of '
-             'fit.yaml).']
+             '# m carries omega0 (omega0^2 = m g l / I, with l, g and the inertia of fit.yaml '
+             'held).']
     strong = [(k, r) for k, r in f.correlation.items() if abs(r) >= CORRELATED]
     if strong:
         lines.append('# Correlated estimates (drawn independently here, so the spread is wider '
                      'than the fit allows):')
         lines += [f'#   {k.replace("/", " and ")}: r = {r:+.2f}' for k, r in strong]
     lines.append('parameters:')
-    m_std = 2.0 * body.inertia * p['omega0'] * se['omega0'] / (body.g * body.length)
+    m_std = body.mass_stderr(p['omega0'], se['omega0'])
     lines.append(f'  m: {{distribution: normal, mean: {_num(body.mass(p["omega0"]))}, '
                  f'std: {_num(m_std)}}}')
     for k in ('gamma', 'n'):
