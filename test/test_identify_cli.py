@@ -105,9 +105,10 @@ def test_a_csv_in_degrees_gives_a_scene_a_table_a_figure_and_a_campaign_block(tm
     block = (out / 'campaign_parameters.yaml').read_text()
     spec = parse_spec('controller: pendulum_sim.testing.examples:pd\nepisodes: 4\nseed: 1\n'
                       'periods: 50\ntarget: 0.5\nrequirements: []\n' + block)
-    assert {'m', 'gamma', 'n', 'inertia'} <= set(spec.parameter_names)
+    assert {'g', 'gamma', 'n'} == set(spec.parameter_names)
     params = yaml.safe_load(block)['parameters']
     assert params['gamma']['distribution'] == 'normal' and params['n'] == 2.0
+    assert params['g']['mean'] == pytest.approx(scene['g'], rel=1e-12)
     assert (out / 'fit.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 

@@ -4,7 +4,8 @@
 ``closed_loop(scene=...)`` read): the fitted ω0 is written as ``m`` with ``l``, ``g`` and the
 inertia given (ω0² = m g l / I, eq 11), with γ, n and the state at the first sample.
 ``campaign_parameters.yaml`` is a ``parameters:`` block for ``pendulum_campaign``: each fitted
-parameter a ``normal`` space from its estimate and standard error.
+parameter a ``normal`` space from its estimate and standard error, ω0's as g (m, l and I of the
+scene held).
 """
 from __future__ import annotations
 
@@ -47,11 +48,15 @@ class Body:
             m = math.nextafter(m, 0.0)
         return m
 
-    def mass_stderr(self, omega0: float, stderr: float) -> float:
-        """Return the standard error of the mass that ω0's standard error makes."""
-        if self.length is None:   # m = I ω0⁴ / g²
-            return 4.0 * self.inertia * omega0 ** 3 * stderr / self.g ** 2
-        return 2.0 * self.inertia * omega0 * stderr / (self.g * self.length)
+    def gravity(self, omega0: float) -> tuple[float, float]:
+        """Return g and dg/dω0 with m, l and I of the scene held (g = ω0² I / (m l)).
+
+        The campaign varies ω0 through g: the gravity torque m g l sin φ is what ω0 measures,
+        and g, unlike m, l or I, meets no rigid-body bound (I >= m l²) as it varies.
+        """
+        m, length = self.mass(omega0), self.arm(omega0)
+        scale = self.inertia / (m * length)
+        return omega0 ** 2 * scale, 2.0 * omega0 * scale
 
 
 def usable(fits: Sequence[Fit]) -> Fit | None:
@@ -114,7 +119,7 @@ def write_campaign(path: Path, f: Fit, body: Body) -> None:
     assert p['omega0'] is not None and se['omega0'] is not None
     lines = [f'# pendulum_identify: {_law(f)}; each fitted parameter a normal space (estimate, '
              'standard error).',
-             '# m carries omega0 (omega0^2 = m g l / I, with l, g and the inertia of fit.yaml '
+             '# g carries omega0 (omega0^2 = m g l / I, with m, l and the inertia of fit.yaml '
              'held).']
     strong = [(k, r) for k, r in f.correlation.items() if abs(r) >= CORRELATED]
     if strong:
@@ -122,9 +127,9 @@ def write_campaign(path: Path, f: Fit, body: Body) -> None:
                      'than the fit allows):')
         lines += [f'#   {k.replace("/", " and ")}: r = {r:+.2f}' for k, r in strong]
     lines.append('parameters:')
-    m_std = body.mass_stderr(p['omega0'], se['omega0'])
-    lines.append(f'  m: {{distribution: normal, mean: {_num(body.mass(p["omega0"]))}, '
-                 f'std: {_num(m_std)}}}')
+    g, slope = body.gravity(p['omega0'])
+    lines.append(f'  g: {{distribution: normal, mean: {_num(g)}, std: '
+                 f'{_num(slope * se["omega0"])}}}')
     for k in ('gamma', 'n'):
         v, e = p[k], se[k]
         if v is None or e is None:
@@ -133,7 +138,6 @@ def write_campaign(path: Path, f: Fit, body: Body) -> None:
             lines.append(f'  {k}: {_num(v)}   # fixed by the {f.model} law')
         else:
             lines.append(f'  {k}: {{distribution: normal, mean: {_num(v)}, std: {_num(e)}}}')
-    lines.append(f'  inertia: {_num(body.inertia)}')
     path.write_text('\n'.join(lines) + '\n')
 
 
