@@ -78,6 +78,14 @@ def test_a_record_shorter_than_a_period_reports_no_law() -> None:
     assert f.stderr['omega0'] is None and f.ci95['gamma'] is None and f.bic == math.inf
 
 
+def test_a_known_omega0_lets_a_short_record_be_fitted() -> None:
+    t, y = swing(1.0, 0.3, 1.5)
+    f = fit(t, y, model='viscous', known={'omega0': math.sqrt(9.8)}, jit=False)
+    assert f.params['omega0'] == math.sqrt(9.8) and 'omega0' in f.fixed
+    lo, hi = f.ci95['gamma']   # type: ignore[misc]
+    assert lo <= 0.3 <= hi
+
+
 def test_an_overdamped_record_reports_no_oscillation() -> None:
     t, y = swing(1.0, 20.0, 5.0)
     f = fit(t, y, model='viscous', jit=False)

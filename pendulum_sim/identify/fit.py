@@ -179,8 +179,8 @@ def _check_known(known: Mapping[str, float] | None) -> dict[str, float]:
 def _starts(law: Law, rec: Record, known: dict[str, float]) -> list[dict[str, float]]:
     """Return the starting points of ``law`` for ``rec``: the guess and its variants."""
     g = rec.guess
-    assert g.omega0 is not None
     om = known.get('omega0', g.omega0)
+    assert om is not None
     base = {'omega0': om, 'phi_offset': known.get('phi_offset', g.offset), 'phi0': g.phi0,
             'dphi0': g.dphi0}
     if law.n is not None:
