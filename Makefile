@@ -21,7 +21,7 @@ setup: $(VENV)/.installed
 $(VENV)/.installed: setup.py setup.cfg package.xml constraints.txt
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -c constraints.txt -e '.[ros,plots,peers,jit,test,docs]'
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[ros,plots,peers,jit,identify,test,docs]'
 	touch $@
 
 run: setup

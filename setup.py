@@ -48,6 +48,7 @@ setup(
             # The Gymnasium environments, their checker and Pendulum-v1 (the benchmark's peer).
             'gymnasium>=1.0',
         ],
+        'identify': ['scipy>=1.10', 'matplotlib>=3.7'],
         'campaign': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'matplotlib>=3.7'],
     },
     zip_safe=True,
@@ -63,6 +64,7 @@ setup(
             'pendulum_report = pendulum_sim.reports.cli:main',
             'pendulum_demo = pendulum_sim.demo:main',
             'pendulum_campaign = pendulum_sim.testing.campaign.cli:main',
+            'pendulum_identify = pendulum_sim.identify.cli:main',
         ],
         'pytest11': ['pendulum_sim = pendulum_sim.testing.pytest_plugin'],
         # Gymnasium's plugin group before 1.0 (1.x registers on `import pendulum_sim.gym`).

@@ -27,6 +27,9 @@ CASES = {
                    'import pendulum_sim.testing.campaign.cli, '
                    'pendulum_sim.testing.campaign.execute',
                    (*ROS, 'matplotlib', 'dask', 'distributed')),
+    'identify': ('import pendulum_sim.identify as i; i.fit; i.compare; '
+                 'import pendulum_sim.identify.cli, pendulum_sim.identify.outputs',
+                 (*ROS, 'matplotlib')),
 }
 
 

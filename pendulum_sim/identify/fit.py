@@ -1,0 +1,420 @@
+"""Fit a damping law to a record of a free swing: ``fit``, ``compare`` and the ``Fit`` they return.
+
+Output-error least squares (``solver.py``): the core simulates each candidate, the residual is
+the measured angle minus the simulated one. Several starts from a physically reasoned first
+guess (``guess.py``) run in one batch; the best is kept. The covariance is the Gauss–Newton
+one, s² (JᵀJ)⁻¹ with s² the residual variance, and the 95 % intervals are Student-t intervals
+with m − p degrees of freedom. ``aic`` and ``bic`` are those of Gaussian errors of unknown
+variance: m ln(RSS/m) + 2p and m ln(RSS/m) + p ln m.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from scipy.stats import t as student_t  # type: ignore[import-untyped]
+
+from pendulum_sim.core.jit import available as jit_available
+
+from .errors import IdentifyError
+from .guess import Guess, best_exponent, envelope_gamma, first_look
+from .laws import LAWS, MODELS, Law, get_law
+from .solver import Problem, solve
+
+FloatArray = npt.NDArray[np.float64]
+Value = float | None
+
+STEPS_PER_PERIOD = 64
+"""Simulation steps per guessed period, at least (RK4; the output is interpolated to the
+samples)."""
+MIN_SAMPLES = 10
+N_UNDETERMINED = 1.0
+"""n is reported as not determined when its 95 % interval is wider than ± this (it then
+cannot tell viscous from quadratic damping)."""
+KNOWN = ('omega0', 'gamma', 'n', 'phi_offset', 'inertia')
+"""What ``known`` may fix."""
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted law: the estimates, their uncertainty and how well the law fits.
+
+    Attributes
+    ----------
+    params : dict
+        ``omega0`` (rad/s), ``gamma`` (s^(n−2); for ``coulomb`` the friction deceleration in
+        rad/s²), ``n``, ``friction`` (Coulomb torque in N m: γ I for ``coulomb`` where the
+        inertia is known, 0 for laws without friction), ``phi_offset`` (rad, the sensor's zero:
+        measured = φ + phi_offset), ``phi0``, ``dphi0`` (the state at the first sample), and
+        ``inertia`` (kg m²) where ``known`` gives it. A value that the record does not determine
+        is None, and ``reasons`` says why.
+    stderr, ci95 : dict
+        Standard error and 95 % interval (low, high) of each parameter; 0 and (v, v) for one
+        the model or ``known`` fixes, None where the value is None.
+    rms_residual : float
+        RMS of measured minus fitted angle, rad.
+    aic, bic : float
+        Akaike and Bayesian information criteria (lower is better; inf when nothing was fitted).
+    model : str
+        The law: ``viscous``, ``quadratic``, ``coulomb`` or ``power``.
+    samples : int
+        Samples fitted.
+    fixed : tuple of str
+        Parameters the model or ``known`` fixed.
+    reasons : dict
+        Why each None parameter is not determined.
+    correlation : dict
+        Correlation coefficients between pairs of fitted parameters, keyed ``'a/b'``.
+    t, position, fitted : ndarray
+        The record's times (s), its angle (rad, unwrapped) and the fitted angle there.
+    iterations, starts : int
+        Iterations of the best start, and how many starts were run.
+    """
+
+    params: dict[str, Value]
+    stderr: dict[str, Value]
+    ci95: dict[str, tuple[float, float] | None]
+    rms_residual: float
+    aic: float
+    bic: float
+    model: str
+    samples: int
+    fixed: tuple[str, ...]
+    reasons: dict[str, str]
+    correlation: dict[str, float]
+    t: FloatArray
+    position: FloatArray
+    fitted: FloatArray
+    iterations: int
+    starts: int
+
+    @property
+    def residual(self) -> FloatArray:
+        """Return measured minus fitted angle at each sample, rad."""
+        return self.position - self.fitted
+
+
+@dataclass(frozen=True)
+class Record:
+    """A record ready to fit: times from its first sample, the unwrapped angle, the guess."""
+
+    t0: float
+    t: FloatArray
+    y: FloatArray
+    guess: Guess
+
+
+def _array(name: str, value: Any, size: int | None) -> FloatArray:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise IdentifyError(f'{name} must be a 1-D array of numbers, got {type(value).__name__}'
+                            ) from None
+    if arr.ndim != 1:
+        raise IdentifyError(f'{name} must be a 1-D array, got shape {arr.shape}')
+    if size is not None and arr.size != size:
+        raise IdentifyError(f'{name} has {arr.size} samples but t has {size}')
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise IdentifyError(f'{name} has {bad.size} samples that are NaN or infinite (the first '
+                            f'at index {bad[0]}); drop them before fitting')
+    return arr
+
+
+def prepare(t: Any, position: Any, velocity: Any = None, effort: Any = None) -> Record:
+    """Check a record and return it ready to fit (angle unwrapped, times from the first)."""
+    tt = _array('t', t, None)
+    if tt.size < MIN_SAMPLES:
+        raise IdentifyError(f'a record needs at least {MIN_SAMPLES} samples, got {tt.size}')
+    y = _array('position', position, tt.size)
+    if velocity is not None:
+        _array('velocity', velocity, tt.size)
+    if effort is not None:
+        e = _array('effort', effort, tt.size)
+        if np.any(e != 0.0):
+            raise IdentifyError(
+                f'effort is not zero (up to {np.abs(e).max():.3g} N m): fitting a driven joint '
+                'is not supported yet; fit a stretch of free swing (effort 0)')
+    steps = np.diff(tt)
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        i = int(bad[0])
+        raise IdentifyError(f't must increase strictly: t[{i + 1}] = {float(tt[i + 1])!r} s '
+                            f'follows t[{i}] = {float(tt[i])!r} s; sort the samples and drop '
+                            'repeated stamps')
+    y = np.unwrap(y)   # an encoder's wrap at ±π: a jump of more than π between samples
+    guess = first_look(tt - tt[0], y)
+    span = float(np.ptp(y))
+    if span <= max(10.0 * guess.noise, 1e-9):
+        raise IdentifyError(f'the joint is at rest: its position spans {span:.3g} rad over the '
+                            f'record, within its noise; record a free swing from a release '
+                            f'angle')
+    return Record(t0=float(tt[0]), t=tt - tt[0], y=y, guess=guess)
+
+
+def _check_known(known: Mapping[str, float] | None) -> dict[str, float]:
+    if known is None:
+        return {}
+    if not isinstance(known, Mapping):
+        raise IdentifyError(f'known must be a dict of parameter values, got {known!r}')
+    out = {}
+    for key, value in known.items():
+        if key not in KNOWN:
+            raise IdentifyError(f'known may fix {", ".join(KNOWN)}; got {key!r}')
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
+                value):
+            raise IdentifyError(f'known[{key!r}] must be a finite number, got {value!r}')
+        if key in ('omega0', 'inertia') and value <= 0:
+            raise IdentifyError(f'known[{key!r}] must be > 0, got {value!r}')
+        if key in ('gamma', 'n') and value < 0:
+            raise IdentifyError(f'known[{key!r}] must be >= 0, got {value!r}')
+        out[key] = float(value)
+    return out
+
+
+def _starts(law: Law, rec: Record, known: dict[str, float]) -> list[dict[str, float]]:
+    """Return the starting points of ``law`` for ``rec``: the guess and its variants."""
+    g = rec.guess
+    om = known.get('omega0', g.omega0)
+    assert om is not None
+    base = {'omega0': om, 'phi_offset': known.get('phi_offset', g.offset), 'phi0': g.phi0,
+            'dphi0': g.dphi0}
+    if law.n is not None:
+        ns = [known.get('n', law.n)]
+    elif 'n' in known:
+        ns = [known['n']]
+    else:
+        ns = list(dict.fromkeys([best_exponent(om, g.peaks_t, g.peaks_a), 1.0, 2.0]))
+    out = []
+    for n in ns:
+        gam = envelope_gamma(n, om, g.peaks_t, g.peaks_a)[0]
+        gam = known.get('gamma', max(gam, 1e-4))
+        scales = (1.0,) if 'gamma' in known else ((1.0, 0.5, 2.0) if len(ns) == 1 else (1.0,))
+        for s in scales:
+            out.append({**base, 'n': n, 'gamma': gam * s})
+    return out
+
+
+def _problem(law: Law, rec: Record, start: dict[str, float], known: dict[str, float]
+             ) -> Problem:
+    om = start['omega0']
+    # A power of two at or below a 64th of the period, and the end rounded up to 64 steps:
+    # records alike share one grid (one sweep), and a record's grid depends only on itself.
+    h = 2.0 ** math.floor(math.log2(min(2.0 * math.pi / om / STEPS_PER_PERIOD,
+                                        float(rec.t[-1]) / 4.0)))
+    t_end = math.ceil(float(rec.t[-1]) / (STEPS_PER_PERIOD * h)) * STEPS_PER_PERIOD * h
+    free = tuple(k for k in ('omega0', 'gamma', 'n', 'phi_offset', 'phi0', 'dphi0')
+                 if k not in known and not (k == 'n' and law.n is not None))
+    fixed = {k: v for k, v in start.items() if k not in free}
+    amp = float(np.max(np.abs(rec.y - start['phi_offset'])))
+    typical = {'omega0': om, 'gamma': max(start['gamma'], 1e-3), 'n': 1.0, 'phi_offset': amp,
+               'phi0': amp, 'dphi0': amp * om}
+    return Problem(t=rec.t, y=rec.y, h=h, t_end=t_end, free=free, fixed=fixed,
+                   theta=np.array([start[k] for k in free]),
+                   scale=np.array([typical[k] for k in free]))
+
+
+def _unfitted(law: Law, rec: Record, known: dict[str, float], why: str) -> Fit:
+    names = ('omega0', 'gamma', 'n', 'friction', 'phi_offset', 'phi0', 'dphi0')
+    params: dict[str, Value] = dict.fromkeys(names)
+    params['phi_offset'] = rec.guess.offset
+    reasons = {k: why for k in names if k != 'phi_offset'}
+    if 'inertia' in known:
+        params['inertia'] = known['inertia']
+    fitted = np.full_like(rec.y, rec.guess.offset)
+    return Fit(params=params, stderr=dict.fromkeys(params), ci95=dict.fromkeys(params),
+               rms_residual=float(np.sqrt(np.mean((rec.y - fitted) ** 2))), aic=math.inf,
+               bic=math.inf, model=law.name, samples=int(rec.y.size), fixed=(),
+               reasons=reasons, correlation={}, t=rec.t + rec.t0, position=rec.y,
+               fitted=fitted, iterations=0, starts=0)
+
+
+def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, float]
+            ) -> Fit:
+    assert best.jac is not None and best.residual is not None
+    m, p = rec.y.size, len(best.free)
+    rss = 2.0 * best.cost
+    values = best.full(best.theta)
+    s2 = rss / max(m - p, 1)
+    reasons: dict[str, str] = {}
+    try:
+        cov = s2 * np.linalg.inv(best.jac.T @ best.jac)
+        se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except np.linalg.LinAlgError:
+        cov = np.full((p, p), np.nan)
+        se = np.full(p, np.nan)
+    q = float(student_t.ppf(0.975, max(m - p, 1)))
+    params: dict[str, Value] = {k: values[k] for k in ('omega0', 'gamma', 'n', 'phi_offset',
+                                                       'phi0', 'dphi0')}
+    stderr: dict[str, Value] = {}
+    ci: dict[str, tuple[float, float] | None] = {}
+    for k, v in list(params.items()):
+        if k in best.free:
+            e = float(se[best.free.index(k)])
+            if not math.isfinite(e):
+                params[k], stderr[k], ci[k] = None, None, None
+                reasons[k] = f'{k} is not determined by the record (the fit is singular in it)'
+                continue
+            stderr[k], ci[k] = e, (float(v) - q * e, float(v) + q * e)   # type: ignore[arg-type]
+        else:
+            stderr[k], ci[k] = 0.0, (float(v), float(v))   # type: ignore[arg-type]
+    if law.n is None and 'n' in best.free and stderr['n'] is not None and (
+            q * stderr['n'] > N_UNDETERMINED):
+        swing = rec.guess.peaks_a
+        decay = (1.0 - swing[-1] / swing[0]) * 100.0 if swing.size >= 2 else 0.0
+        why = (f'n is not determined: its 95 % interval is ±{q * stderr["n"]:.2g} wide (the '
+               f'amplitude falls by only {decay:.1f} % over the record); record a longer or '
+               f'more damped swing, or fit a fixed law')
+        reasons['n'] = why
+        reasons['gamma'] = 'gamma is in s^(n-2) and n is not determined: ' + why
+        for k in ('n', 'gamma'):
+            params[k], stderr[k], ci[k] = None, None, None
+    # Friction: the Coulomb law's deceleration γ is a torque γ I.
+    if law.name == 'coulomb':
+        gam = params['gamma']
+        if 'inertia' in known and gam is not None:
+            inertia = known['inertia']
+            params['friction'] = gam * inertia
+            gam_se = stderr['gamma']
+            stderr['friction'] = None if gam_se is None else gam_se * inertia
+            c = ci['gamma']
+            ci['friction'] = None if c is None else (c[0] * inertia, c[1] * inertia)
+        else:
+            params['friction'], stderr['friction'], ci['friction'] = None, None, None
+            reasons['friction'] = ('friction = gamma * inertia (N m) needs the inertia: pass '
+                                   "known={'inertia': ...}; gamma is the friction deceleration "
+                                   'in rad/s^2')
+    else:
+        params['friction'], stderr['friction'], ci['friction'] = 0.0, 0.0, (0.0, 0.0)
+    fixed = tuple(k for k in ('omega0', 'gamma', 'n', 'phi_offset') if k not in best.free)
+    fixed = (*fixed, 'friction') if law.name != 'coulomb' else fixed
+    if 'inertia' in known:
+        params['inertia'], stderr['inertia'] = known['inertia'], 0.0
+        ci['inertia'] = (known['inertia'], known['inertia'])
+        fixed = (*fixed, 'inertia')
+    corr: dict[str, float] = {}
+    d = np.sqrt(np.diag(cov))
+    for i in range(p):
+        for j in range(i + 1, p):
+            if d[i] > 0 and d[j] > 0:
+                corr[f'{best.free[i]}/{best.free[j]}'] = float(cov[i, j] / (d[i] * d[j]))
+    fitted = rec.y + best.residual
+    loglik = m * math.log(max(rss, 1e-300) / m)
+    return Fit(params=params, stderr=stderr, ci95=ci,
+               rms_residual=float(math.sqrt(rss / m)), aic=loglik + 2 * p,
+               bic=loglik + p * math.log(m), model=law.name, samples=int(m), fixed=fixed,
+               reasons=reasons, correlation=corr, t=rec.t + rec.t0, position=rec.y,
+               fitted=fitted, iterations=best.iterations, starts=starts)
+
+
+def _use_jit(jit: bool | None) -> bool:
+    if jit is None:
+        return jit_available()
+    if not isinstance(jit, bool):
+        raise IdentifyError(f'jit must be True, False or None, got {jit!r}')
+    return jit
+
+
+Progress = Callable[[int, int], None]
+
+
+def fit_records(records: Sequence[Record], *, model: str = 'power',
+                known: Mapping[str, float] | None = None, jit: bool | None = None,
+                progress: Progress | None = None) -> list[Fit]:
+    """Fit ``model`` to each prepared record, all starts of all records in one lockstep."""
+    law = get_law(model)
+    fixed = _check_known(known)
+    use_jit = _use_jit(jit)
+    out: list[Fit | None] = [None] * len(records)
+    problems: list[Problem] = []
+    owner: list[int] = []
+    for i, rec in enumerate(records):
+        g = rec.guess
+        if g.omega0 is None and 'omega0' not in fixed:
+            why = ('no oscillation: the angle never crosses its centre' if not g.oscillates
+                   else f'the record is shorter than one period ({g.crossings} zero '
+                        f'crossing{"s" if g.crossings != 1 else ""}, a period needs 3)')
+            out[i] = _unfitted(law, rec, fixed, why)
+            continue
+        for start in _starts(law, rec, fixed):
+            problems.append(_problem(law, rec, start, fixed))
+            owner.append(i)
+    solve(problems, jit=use_jit, progress=progress)
+    for i, rec in enumerate(records):
+        if out[i] is not None:
+            continue
+        mine = [p for p, o in zip(problems, owner, strict=True) if o == i]
+        best = min(mine, key=lambda p: p.cost)
+        if best.jac is None:
+            out[i] = _unfitted(law, rec, fixed, 'the core cannot simulate the first guess')
+        else:
+            out[i] = _result(law, rec, best, len(mine), fixed)
+    return [f for f in out if f is not None]
+
+
+def fit(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
+        model: str = 'power', known: Mapping[str, float] | None = None,
+        jit: bool | None = None, progress: Progress | None = None) -> Fit:
+    """Fit a damping law to a record of a free swing.
+
+    Parameters
+    ----------
+    t : array_like, shape (m,)
+        Sample times in s, strictly increasing (irregular spacing is fine).
+    position : array_like, shape (m,)
+        Measured angle in rad (an encoder's wrap at ±π is undone; a zero offset is fitted).
+    velocity, effort : array_like, shape (m,), optional
+        Measured velocity (checked, used for nothing else yet) and effort (N m; must be zero:
+        a free swing).
+    model : str
+        ``'viscous'``, ``'quadratic'``, ``'coulomb'`` or ``'power'`` (``'power+coulomb'``
+        needs the core's friction term and is refused).
+    known : dict, optional
+        Values to hold fixed: ``omega0``, ``gamma``, ``n``, ``phi_offset``, and ``inertia``
+        (kg m², which turns the Coulomb deceleration into a friction torque).
+    jit : bool or None
+        Simulate with the core's compiled sweep (None: where numba is installed).
+    progress : callable, optional
+        Called as ``progress(iteration, starts_done)`` after each iteration.
+
+    Returns
+    -------
+    Fit
+    """
+    rec = prepare(t, position, velocity, effort)
+    return fit_records([rec], model=model, known=known, jit=jit, progress=progress)[0]
+
+
+def compare_records(records: Sequence[Record], *, models: Sequence[str] | None = None,
+                    known: Mapping[str, float] | None = None, jit: bool | None = None,
+                    progress: Callable[[str], None] | None = None) -> list[list[Fit]]:
+    """Fit each model to each prepared record; return each record's fits ranked by BIC."""
+    names = list(LAWS) if models is None else list(models)
+    for name in names:
+        get_law(name)
+    per: list[list[Fit]] = [[] for _ in records]
+    for name in names:
+        if progress is not None:
+            progress(name)
+        for i, f in enumerate(fit_records(records, model=name, known=known, jit=jit)):
+            per[i].append(f)
+    return [sorted(fits, key=lambda f: f.bic) for fits in per]
+
+
+def compare(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
+            models: Sequence[str] | None = None, known: Mapping[str, float] | None = None,
+            jit: bool | None = None, progress: Callable[[str], None] | None = None
+            ) -> list[Fit]:
+    """Fit each model (default: viscous, quadratic, coulomb, power) and rank them by BIC.
+
+    ``power+coulomb`` is not among the defaults: it needs the core's friction term.
+    """
+    rec = prepare(t, position, velocity, effort)
+    return compare_records([rec], models=models, known=known, jit=jit, progress=progress)[0]
+
+
+__all__ = ['MODELS', 'Fit', 'compare', 'fit']

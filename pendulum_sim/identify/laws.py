@@ -1,0 +1,49 @@
+"""The damping laws a record can be fitted with, and what each one fixes.
+
+Each model is the core's law (Quiroga and Ospina-Henao 2017, eq 15-16)::
+
+    φ'' = −ω0² sin φ − γ φ'|φ'|^(n−1) + τ/I
+
+with the exponent fixed (``viscous`` n = 1, ``quadratic`` n = 2, ``coulomb`` n = 0: dry friction
+of constant deceleration γ, i.e. a friction torque γ I) or free (``power``). ``power+coulomb``
+needs a friction torque beside the power law, which the core does not have yet.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .errors import IdentifyError
+
+
+@dataclass(frozen=True)
+class Law:
+    """A model of ``fit``: its name and the exponent it fixes (None: n is fitted)."""
+
+    name: str
+    n: float | None
+    description: str
+
+
+LAWS: dict[str, Law] = {
+    'viscous': Law('viscous', 1.0, 'viscous damping, n = 1'),
+    'quadratic': Law('quadratic', 2.0, 'quadratic drag, n = 2'),
+    'coulomb': Law('coulomb', 0.0, 'Coulomb friction only, n = 0'),
+    'power': Law('power', None, 'power-law damping, n free (real >= 0)'),
+}
+"""The models ``fit`` takes, by name."""
+
+MODELS = (*LAWS, 'power+coulomb')
+"""Every model name the issue defines, in the order ``compare`` fits them."""
+
+MISSING_FRICTION = ("model 'power+coulomb' needs a Coulomb friction torque beside the power law, "
+                    "which the core (pendulum_sim.core) does not have yet; fit 'power' or "
+                    "'coulomb', or compare them with compare()")
+
+
+def get_law(model: object) -> Law:
+    """Return the law of ``model`` or say which models exist."""
+    if model == 'power+coulomb':
+        raise IdentifyError(MISSING_FRICTION)
+    if not isinstance(model, str) or model not in LAWS:
+        raise IdentifyError(f'model must be one of {", ".join(LAWS)}, got {model!r}')
+    return LAWS[model]

@@ -1,0 +1,212 @@
+"""Output-error least squares, many problems in lockstep, every trajectory simulated by the core.
+
+A problem is one record and one start: the free parameters θ (some of ``omega0``, ``gamma``,
+``n``, ``phi_offset``, ``phi0``, ``dphi0``), the rest fixed. The model's output at the record's
+times is the core's trajectory (:func:`pendulum_sim.core.sweep.sweep`, RK4 on a uniform grid
+from the first sample, the guard, reversal split and Coulomb sticking included) interpolated
+by cubic Hermite from the recorded angle and velocity, plus the sensor's zero offset.
+
+Levenberg–Marquardt, each iteration one ``sweep`` for every problem still going: its candidate
+θ and the candidate shifted along each free parameter (the forward-difference Jacobian of the
+simulation, not of the data), all in one batch of pendulums. A candidate that lowers the sum of
+squares is taken (and its Jacobian with it), otherwise the damping λ grows.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from pendulum_sim.core.errors import PendulumError
+from pendulum_sim.core.sweep import sweep
+
+FloatArray = npt.NDArray[np.float64]
+
+PARAMETERS = ('omega0', 'gamma', 'n', 'phi_offset', 'phi0', 'dphi0')
+"""Everything a trajectory depends on, in θ order."""
+BOUNDS = {'omega0': (1e-3, 1e3), 'gamma': (0.0, 1e3), 'n': (0.0, 6.0),
+          'phi_offset': (-1e3, 1e3), 'phi0': (-1e3, 1e3), 'dphi0': (-100.0, 100.0)}
+"""Where the search stays: the core's input limits, tightened to physical joints."""
+RELATIVE_STEP = 1e-6
+"""Forward-difference step of the Jacobian, relative to the parameter's size."""
+MAX_ITERATIONS = 80
+TOLERANCE = 1e-8
+"""Stop when an accepted step lowers the sum of squares by less than this fraction, or the next
+step is predicted to (far below what moves an estimate within its standard error)."""
+
+
+@dataclass
+class Problem:
+    """One record and one start: data, grid, free parameters and the solver's state."""
+
+    t: FloatArray            # s since the first sample
+    y: FloatArray            # measured angle, rad
+    h: float
+    t_end: float
+    free: tuple[str, ...]
+    fixed: dict[str, float]
+    theta: FloatArray
+    scale: FloatArray        # typical size of each free parameter (Jacobian steps)
+    cost: float = math.inf
+    jac: FloatArray | None = None
+    residual: FloatArray | None = None
+    lam: float = 1e-3
+    iterations: int = 0
+    done: bool = False
+    weights: tuple[npt.NDArray[np.int64], FloatArray] | None = field(default=None, repr=False)
+
+    def full(self, theta: FloatArray) -> dict[str, float]:
+        """Return every parameter for the free values ``theta``."""
+        values = dict(self.fixed)
+        values.update(zip(self.free, (float(v) for v in theta), strict=True))
+        return values
+
+    def clip(self, theta: FloatArray) -> FloatArray:
+        """Return ``theta`` inside the search bounds."""
+        lo = np.array([BOUNDS[k][0] for k in self.free])
+        hi = np.array([BOUNDS[k][1] for k in self.free])
+        return np.clip(theta, lo, hi)
+
+
+def _hermite(problem: Problem) -> tuple[npt.NDArray[np.int64], FloatArray]:
+    """Return the grid interval of each sample and its four cubic Hermite weights."""
+    if problem.weights is None:
+        steps = max(1, round(problem.t_end / problem.h))
+        grid = np.minimum(np.arange(steps + 1) * problem.h, problem.t_end)
+        grid[-1] = problem.t_end
+        k = np.clip(np.searchsorted(grid, problem.t, side='right') - 1, 0, steps - 1)
+        dt = grid[k + 1] - grid[k]
+        s = (problem.t - grid[k]) / dt
+        w = np.stack([2 * s**3 - 3 * s**2 + 1, (s**3 - 2 * s**2 + s) * dt,
+                      -2 * s**3 + 3 * s**2, (s**3 - s**2) * dt])
+        problem.weights = (k, w)
+    return problem.weights
+
+
+def simulate_columns(problems: Sequence[Problem], thetas: Sequence[FloatArray], *,
+                     jit: bool) -> list[FloatArray | None]:
+    """Return the model output of each problem's parameter sets (rows of ``thetas[i]``).
+
+    Problems on the same grid run as one sweep; a batch the core refuses is retried problem by
+    problem, and a problem whose candidates it refuses gets None.
+    """
+    out: list[FloatArray | None] = [None] * len(problems)
+    groups: dict[tuple[float, float], list[int]] = {}
+    for i, p in enumerate(problems):
+        groups.setdefault((p.h, p.t_end), []).append(i)
+    for (h, t_end), members in groups.items():
+        try:
+            results = _run(problems, thetas, members, h, t_end, jit)
+        except (PendulumError, FloatingPointError, OverflowError):
+            results = {}
+            for i in members:
+                try:
+                    results.update(_run(problems, thetas, [i], h, t_end, jit))
+                except (PendulumError, FloatingPointError, OverflowError):
+                    results[i] = None
+        for i, r in results.items():
+            out[i] = r
+    return out
+
+
+def _run(problems: Sequence[Problem], thetas: Sequence[FloatArray], members: list[int],
+         h: float, t_end: float, jit: bool) -> dict[int, FloatArray | None]:
+    cols: dict[str, list[float]] = {k: [] for k in PARAMETERS}
+    for i in members:
+        for row in np.atleast_2d(thetas[i]):
+            values = problems[i].full(row)
+            for k in PARAMETERS:
+                cols[k].append(values[k])
+    om = np.asarray(cols['omega0'])
+    result = sweep(om * om, np.asarray(cols['gamma']), np.asarray(cols['n']),
+                   np.asarray(cols['phi0']), np.asarray(cols['dphi0']), t_end, h,
+                   record_every=1, jit=jit)
+    assert result.phi_record is not None and result.dphi_record is not None
+    phi, dphi = result.phi_record, result.dphi_record
+    offsets = np.asarray(cols['phi_offset'])
+    out: dict[int, FloatArray | None] = {}
+    at = 0
+    for i in members:
+        rows = np.atleast_2d(thetas[i]).shape[0]
+        idx, w = _hermite(problems[i])
+        sl = slice(at, at + rows)
+        pred = (w[0][:, None] * phi[idx, sl] + w[1][:, None] * dphi[idx, sl]
+                + w[2][:, None] * phi[idx + 1, sl] + w[3][:, None] * dphi[idx + 1, sl])
+        pred = (pred + offsets[sl]).T
+        out[i] = pred if np.all(np.isfinite(pred)) else None
+        at += rows
+    return out
+
+
+def _with_steps(p: Problem, theta: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Return θ and θ shifted along each free parameter (rows), and the shifts."""
+    steps = RELATIVE_STEP * np.maximum(np.abs(theta), p.scale)
+    hi = np.array([BOUNDS[k][1] for k in p.free])
+    steps = np.where(theta + steps > hi, -steps, steps)
+    rows = np.repeat(theta[None, :], len(p.free) + 1, axis=0)
+    rows[1:] += np.diag(steps)
+    return rows, steps
+
+
+def _lm_step(p: Problem) -> tuple[FloatArray, float]:
+    """Return the Levenberg–Marquardt candidate from the current θ, J and residual.
+
+    And the decrease of the sum of squares the linearised model predicts for it.
+    """
+    assert p.jac is not None and p.residual is not None
+    d = np.linalg.norm(p.jac, axis=0)
+    d = np.where(d > 0, d, 1.0)
+    js = p.jac / d
+    a = js.T @ js + p.lam * np.eye(js.shape[1])
+    g = js.T @ p.residual
+    try:
+        delta = -np.linalg.solve(a, g) / d
+    except np.linalg.LinAlgError:
+        delta = -np.linalg.lstsq(a, g, rcond=None)[0] / d
+    candidate = p.clip(p.theta + delta)
+    step = candidate - p.theta
+    jd = p.jac @ step
+    predicted = -float(p.residual @ jd) - 0.5 * float(jd @ jd)
+    return candidate, predicted
+
+
+def solve(problems: Sequence[Problem], *, jit: bool,
+          progress: Callable[[int, int], None] | None = None) -> None:
+    """Fit every problem in lockstep (each problem's state is updated in place)."""
+    candidates = [p.clip(p.theta) for p in problems]
+    for it in range(MAX_ITERATIONS + 1):
+        active = [i for i, p in enumerate(problems) if not p.done]
+        if not active:
+            break
+        batch = [problems[i] for i in active]
+        rows = [_with_steps(p, candidates[i]) for i, p in zip(active, batch, strict=True)]
+        preds = simulate_columns(batch, [r for r, _ in rows], jit=jit)
+        for i, p, (_, steps), pred in zip(active, batch, rows, preds, strict=True):
+            p.iterations = it
+            cost = math.inf
+            if pred is not None:
+                res = pred[0] - p.y
+                cost = 0.5 * float(res @ res)
+            if cost < p.cost:
+                gain = (p.cost - cost) / cost if math.isfinite(p.cost) and cost > 0 else math.inf
+                assert pred is not None
+                p.theta, p.cost, p.residual = candidates[i], cost, res
+                p.jac = ((pred[1:] - pred[0]) / steps[:, None]).T
+                p.lam = max(p.lam / 3.0, 1e-12)
+                if gain < TOLERANCE:
+                    p.done = True
+            elif p.jac is None:
+                p.done = True          # the start itself cannot be simulated
+            else:
+                p.lam *= 4.0
+                if p.lam > 1e12:
+                    p.done = True
+            if not p.done:
+                candidates[i], predicted = _lm_step(p)
+                if np.array_equal(candidates[i], p.theta) or predicted < TOLERANCE * p.cost:
+                    p.done = True
+        if progress is not None:
+            progress(it + 1, sum(p.done for p in problems))
