@@ -31,6 +31,7 @@ from . import diagnostics as diag
 from .drivers import WAKE_BUDGET_NS, Driver, RealTimeDriver, SyncDriver
 from .errors import ParameterError
 from .exchange import Gate, StepError, SyncExchange
+from .foxglove import LiveView
 from .joint import SimulatedJoint
 from .outputs import Recording, StateOutputs
 from .parameters import (
@@ -111,6 +112,13 @@ class PendulumNode(Node):
             self.create_service(Trigger, '~/step', self._on_step_one, qos_profile=SERVICE_QOS)
             self.create_subscription(UInt32, '~/step_periods', self._on_step_periods,
                                      STEP_QOS)
+        # The live view before the recording: a port in use stops the start with nothing open.
+        self._live = None if not v['foxglove_port'] else LiveView(
+            str(v['foxglove_host']), int(v['foxglove_port']), joint_name=self._joint_name,
+            interface=self._interface, urdf=self._urdf(), parameters=v, topics={
+                'joint_states': self._js_pub.topic_name,
+                'energy': self.resolve_topic_name('energy'),
+                'robot_description': self.resolve_topic_name('robot_description')})
         self._recording = Recording(None, self.get_logger().error, self.get_logger().info)
         if v['recording.path']:
             channels: list[tuple[str, Any, Any]] = [
@@ -129,7 +137,7 @@ class PendulumNode(Node):
         self._joint = joint = SimulatedJoint(joint_config(v, epoch_ns))
         self._gate = gate = Gate(bool(v['start_paused']))
         self._outputs = StateOutputs(joint, self._joint_name, self._js_pub, clock, energy,
-                                     terms, self._recording)
+                                     terms, self._recording, self._live)
         now = time.monotonic_ns()
         rtf = float(v['real_time_factor'])
         self._driver: Driver
@@ -142,6 +150,7 @@ class PendulumNode(Node):
                 f'synchronous: waiting for a controller (a subscriber on {self._js_pub.topic_name}'
                 f" and a reliable publisher on {', '.join(self._topics.values())})",
                 remind=self._outputs.remind, remind_state=set(self._topics) == {'joint_commands'})
+            self._outputs.live_counters = lambda: {**vars(joint.counters), **exchange.stats}
         else:
             period = LOCKSTEP_PERIOD if lockstep else 1.0 / float(v['publish_rate'])
             self._driver = RealTimeDriver(joint, gate, self._outputs, self._log, now, rtf,
@@ -158,6 +167,9 @@ class PendulumNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self.get_logger().info(self._telemetry.start_text(v))
+        if self._live is not None:
+            self.get_logger().info(f'foxglove: serving the joint on '
+                                   f'ws://{self._live.host}:{self._live.port}')
 
     @property
     def stop_requested(self) -> bool:
@@ -172,6 +184,8 @@ class PendulumNode(Node):
             logger.warning(text)
         else:
             logger.info(text)
+        if self._live is not None:
+            self._live.log(self._joint.stamp_ns(), level, text)
 
     def _urdf(self) -> str:
         """Return the URDF of this joint, its ros2_control block naming this node's topics."""
@@ -325,6 +339,8 @@ class PendulumNode(Node):
                 self._values[p.name] = p.value
         self._driver.take_parameters(self._values, names)   # applied by the next wake, once
         self._telemetry.rtf_target = float(self._values['real_time_factor'])
+        if self._live is not None:
+            self._live.parameters(self._values)
         if self._recording.recorder is not None:
             stamp = self._joint.stamp_ns()
             event = ParameterEvent(node=self.get_fully_qualified_name(), stamp=_stamp(stamp))
@@ -358,3 +374,5 @@ class PendulumNode(Node):
         except Exception as exc:  # the summary must never hide the shutdown
             print(f'pendulum_node: no summary ({type(exc).__name__}: {exc})', file=sys.stderr)
         self._recording.close()
+        if self._live is not None:
+            self._live.close()
