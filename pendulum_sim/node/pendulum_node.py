@@ -160,6 +160,7 @@ class PendulumNode(Node):
         self._wakes = WakeStats(0 if asap or self._sync else self._period_ns)
         self._telemetry = Telemetry(joint, self._driver, gate, self._drops, self._wakes,
                                     self._incompatible, rtf)
+        self._telemetry.live = self._live
         self._next_report_ns = now + DIAGNOSTICS_PERIOD_NS
         self._status = status if v['status_line'] else None
         self._timer = self.create_timer(period, self._on_wake,

@@ -15,6 +15,7 @@ from .commands import Drops
 from .drivers import Driver, SyncDriver
 from .errors import JointError
 from .exchange import Gate
+from .foxglove import LiveView
 from .joint import SimulatedJoint
 from .realtime import WakeStats
 from .status import status_text
@@ -47,6 +48,7 @@ class Telemetry:
         self.rtf_target = rtf_target
         self._last_error = math.nan
         self._max_error = 0.0
+        self.live: LiveView | None = None   # the node sets its live view, if it has one
 
     def start_text(self, values: Mapping[str, object]) -> str:
         """Return the line logged at start: mode, step, integrator, period, commands, joint."""
@@ -145,6 +147,8 @@ class Telemetry:
         }
         if isinstance(self.driver, SyncDriver):
             values.update({f'sync_{k}': n for k, n in self.driver.exchange.stats.items()})
+        if self.live is not None:
+            values.update(self.live.stats())
         for topic, n in self.incompatible.items():
             values[f'incompatible_qos[{topic}]'] = n
         return values
