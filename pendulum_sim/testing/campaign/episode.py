@@ -77,7 +77,8 @@ def _keep_failure(out: str | None, row: dict[str, Any], run: ClosedLoopRun | Non
         write_run(run, path)
 
 
-def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
+def run_episode(text: str, episode: int, out: str | None,
+                foxglove_port: int = 0) -> dict[str, Any]:
     """Run episode ``episode`` of the campaign ``text``; return its row.
 
     When ``out`` is given, a failing episode's run is written to
@@ -96,7 +97,8 @@ def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
     reason = ''
     try:
         run = closed_loop(controller, scene=spec.scene, periods=spec.periods,
-                          overrides=drawn.values, target=drawn.target)
+                          overrides=drawn.values, target=drawn.target,
+                          foxglove_port=foxglove_port)
     except TestingError as exc:
         reason = str(exc).splitlines()[0]
     row = row_of(spec, episode, drawn.values, drawn.target, run, reason, started)
@@ -139,9 +141,11 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
     return rows
 
 
-def run_chunk(text: str, episodes: list[int], out: str | None) -> list[dict[str, Any]]:
-    """Run several episodes in one task (a batch for a vectorised law); return their rows."""
+def run_chunk(text: str, episodes: list[int], out: str | None,
+              foxglove_port: int = 0) -> list[dict[str, Any]]:
+    """Run several episodes in one task (a batch for a vectorised law); return their rows.
+    Episodes run one by one are served live on ``foxglove_port`` (0 = off); a batch is not."""
     spec = cached_spec(text)
     if not spec.is_command_line and is_vectorised(load_controller(str(spec.controller))):
         return run_episodes(text, episodes, out)
-    return [run_episode(text, i, out) for i in episodes]
+    return [run_episode(text, i, out, foxglove_port) for i in episodes]

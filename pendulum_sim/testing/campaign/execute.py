@@ -108,8 +108,10 @@ def make_client(scheduler: str | None, workers: int | None) -> Any:
 
 def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
                 progress: bool = True,
-                on_row: Callable[[dict[str, Any]], None] | None = None) -> int:
-    """Run the episodes without a stored row on ``client``; return how many ran."""
+                on_row: Callable[[dict[str, Any]], None] | None = None,
+                foxglove_port: int = 0) -> int:
+    """Run the episodes without a stored row on ``client``; return how many ran (each served
+    live on ``foxglove_port`` while it runs, if not 0)."""
     from distributed import as_completed
 
     done = store.done()
@@ -124,6 +126,7 @@ def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
     size = chunk_size(len(pending), _workers(client), batched(spec))
     chunks = [pending[a:a + size] for a in range(0, len(pending), size)]
     futures = client.map(run_chunk, [spec.text] * len(chunks), chunks, [out] * len(chunks),
+                         [foxglove_port] * len(chunks),
                          key=[f'episodes-{c[0]}-{c[-1]}-{tag}' for c in chunks], pure=False)
     try:
         for future in as_completed(futures):
@@ -164,14 +167,14 @@ def _workers(client: Any) -> int:
 
 def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None,
                  workers: int | None = None, resume: bool = False,
-                 progress: bool = True) -> list[dict[str, Any]]:
+                 progress: bool = True, foxglove_port: int = 0) -> list[dict[str, Any]]:
     """Run (or continue) the campaign into ``out``; return every row, by episode id."""
     store = EpisodeStore(out)
     store.create(spec.text, resume)
     if len(store.done()) < spec.episodes:
         client = make_client(scheduler, workers)
         try:
-            run_pending(spec, store, client, progress)
+            run_pending(spec, store, client, progress, foxglove_port=foxglove_port)
         finally:
             cluster = client.cluster if scheduler is None else None
             client.close()
