@@ -417,4 +417,5 @@ def compare(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
     return compare_records([rec], models=models, known=known, jit=jit, progress=progress)[0]
 
 
-__all__ = ['MODELS', 'Fit', 'compare', 'fit']
+__all__ = ['MODELS', 'Fit', 'Record', 'compare', 'compare_records', 'fit', 'fit_records',
+           'prepare']

@@ -77,7 +77,7 @@ def make_client(scheduler: str | None, workers: int | None) -> Any:
     """Return a Dask client: to ``scheduler``, or to a new local cluster of ``workers``.
 
     The local cluster (:func:`~pendulum_sim.testing.campaign.cluster.local_cluster`) runs with
-    :data:`~pendulum_sim.testing.campaign.cluster.CLUSTER_CONFIG`, without HTTP servers; an
+    ``cluster.CLUSTER_CONFIG``, without HTTP servers; an
     existing cluster runs with the configuration its processes were started with.
 
     Raises

@@ -4,9 +4,10 @@ A Dask task (:func:`run_chunk`) hands its episodes to an episode process, a chil
 worker started once (``python -m pendulum_sim.testing.campaign.sandbox``) and kept for the
 next tasks, so the campaign file is parsed and the scene read once per worker. The child
 sends each finished episode's row as it ends (a batch of a vectorised law sends its rows
-together); the worker watches it meanwhile, with :class:`~pendulum_sim.testing.campaign.watch.
-LawClock` showing whether the law is in a call. When the child ends without the rows, the
-episode it was running fails with the reason and the child is started again for the rest:
+together); the worker watches it meanwhile, with
+:class:`~pendulum_sim.testing.campaign.watch.LawClock` showing whether the law is in a call.
+When the child ends without the rows, the episode it was running fails with the reason and
+the child is started again for the rest:
 
 - ``law exited with C`` (``sys.exit(C)``, ``os._exit(C)`` in a call of the law; ``law killed
   by SIGNAL`` for a signal), or ``episode process exited with C`` outside the law;
