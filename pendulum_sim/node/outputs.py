@@ -7,10 +7,11 @@ recorder is reported once and never stops the joint.
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from .errors import JointError
+from .foxglove import LiveView, snapshot
 from .joint import SimulatedJoint
 from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 
@@ -106,11 +107,17 @@ class StateOutputs:
         energy_terms/{kinetic, potential, dissipated_power, residual}, or empty.
     recording : Recording
         Where every publication (but /clock and the terms) is also written.
+    live : LiveView, optional
+        The Foxglove server, handed a snapshot of each state sent while a client watches;
+        ``live_counters`` returns the counters it shows.
     """
 
     def __init__(self, joint: SimulatedJoint, joint_name: str, states: Any, clock: Any,
-                 energy: Any, terms: list[Any], recording: Recording) -> None:
+                 energy: Any, terms: list[Any], recording: Recording,
+                 live: LiveView | None = None) -> None:
         self.joint = joint
+        self.live = live
+        self.live_counters: Callable[[], Mapping[str, int]] = lambda: vars(joint.counters)
         self._states = states
         self._clock = clock
         self._energy = energy
@@ -161,6 +168,9 @@ class StateOutputs:
             self.last_states = data
             if record:
                 self._recording.write(self._states_topic, data, stamp_ns)
+        live = self.live
+        if live is not None and live.watching and sample is not None:
+            live.offer(snapshot(joint, sample, self.live_counters()))
         # /clock after the state: a controller manager woken by /clock (ros2_control_node on
         # use_sim_time) finds the state of that time already sent when it reads.
         if with_clock and self._to_clock:

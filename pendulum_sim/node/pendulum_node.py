@@ -28,9 +28,10 @@ from pendulum_sim import __version__
 
 from . import commands, replies
 from . import diagnostics as diag
-from .drivers import WAKE_BUDGET_NS, make_driver, wake_period
+from .drivers import WAKE_BUDGET_NS, SyncDriver, make_driver, wake_period
 from .errors import ParameterError
 from .exchange import Gate, StepError
+from .foxglove import LiveView
 from .joint import SimulatedJoint
 from .outputs import Recording, StateOutputs
 from .parameters import (
@@ -109,6 +110,13 @@ class PendulumNode(Node):
             self.create_service(Trigger, '~/step', self._on_step_one, qos_profile=SERVICE_QOS)
             self.create_subscription(UInt32, '~/step_periods', self._on_step_periods,
                                      STEP_QOS)
+        # The live view before the recording: a port in use stops the start with nothing open.
+        self._live = None if not v['foxglove_port'] else LiveView(
+            str(v['foxglove_host']), int(v['foxglove_port']), joint_name=self._joint_name,
+            interface=self._interface, urdf=self._urdf(), parameters=v, topics={
+                'joint_states': self._js_pub.topic_name,
+                'energy': self.resolve_topic_name('energy'),
+                'robot_description': self.resolve_topic_name('robot_description')})
         self._recording = Recording(None, self.get_logger().error, self.get_logger().info)
         if v['recording.path']:
             channels: list[tuple[str, Any, Any]] = [
@@ -125,13 +133,16 @@ class PendulumNode(Node):
         self._joint = joint = SimulatedJoint(joint_config(v, start_epoch_ns(v, time.time_ns())))
         self._gate = gate = Gate(bool(v['start_paused']))
         self._outputs = StateOutputs(joint, self._joint_name, self._js_pub, clock, energy,
-                                     terms, self._recording)
+                                     terms, self._recording, self._live)
         now = time.monotonic_ns()
         self._driver = make_driver(
             v, joint, gate, self._outputs, self._log, now, self._ready,
             f'synchronous: waiting for a controller (a subscriber on {self._js_pub.topic_name}'
             f" and a reliable publisher on {', '.join(self._topics.values())})",
             remind=self._outputs.remind, remind_state=set(self._topics) == {'joint_commands'})
+        if isinstance(self._driver, SyncDriver):
+            exchange = self._driver.exchange
+            self._outputs.live_counters = lambda: {**vars(joint.counters), **exchange.stats}
         period, scheduled = wake_period(v)
         self._period_ns = round(period * 1e9)
         self._wakes = WakeStats(self._period_ns if scheduled else 0)
@@ -143,6 +154,9 @@ class PendulumNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self.get_logger().info(self._telemetry.start_text(v))
+        if self._live is not None:
+            self.get_logger().info(f'foxglove: serving the joint on '
+                                   f'ws://{self._live.host}:{self._live.port}')
 
     @property
     def stop_requested(self) -> bool:
@@ -157,6 +171,8 @@ class PendulumNode(Node):
             logger.warning(text)
         else:
             logger.info(text)
+        if self._live is not None:
+            self._live.log(self._joint.stamp_ns(), level, text)
 
     def _urdf(self) -> str:
         """Return the URDF of this joint, its ros2_control block naming this node's topics."""
@@ -308,6 +324,8 @@ class PendulumNode(Node):
                 self._values[p.name] = p.value
         self._driver.take_parameters(self._values, names)   # applied by the next wake, once
         self._telemetry.rtf_target = float(self._values['real_time_factor'])
+        if self._live is not None:
+            self._live.parameters(self._values)
         if self._recording.recorder is not None:
             stamp = self._joint.stamp_ns()
             event = ParameterEvent(node=self.get_fully_qualified_name(), stamp=_stamp(stamp))
@@ -341,3 +359,5 @@ class PendulumNode(Node):
         except Exception as exc:  # the summary must never hide the shutdown
             print(f'pendulum_node: no summary ({type(exc).__name__}: {exc})', file=sys.stderr)
         self._recording.close()
+        if self._live is not None:
+            self._live.close()
