@@ -10,6 +10,7 @@ messages this client uses (serverInfo, advertise, subscribe, binary message data
 from __future__ import annotations
 
 import json
+import socket
 import struct
 import time
 from typing import Any
@@ -20,13 +21,22 @@ SUBPROTOCOLS = ('foxglove.websocket.v1', 'foxglove.sdk.v1')
 MESSAGE_DATA = 0x01
 
 
+def free_port() -> int:
+    """Return a TCP port free on 127.0.0.1 now (the kernel's pick, >= 1024)."""
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return int(s.getsockname()[1])
+
+
 class FoxgloveClient:
     """Connect, read the advertised channels, subscribe by topic, read messages."""
 
     def __init__(self, port: int, host: str = '127.0.0.1', timeout: float = 10.0) -> None:
         self.ws: ClientConnection = connect(
             f'ws://{host}:{port}', subprotocols=[*SUBPROTOCOLS],  # type: ignore[list-item]
-            open_timeout=timeout, max_size=None, proxy=None)
+            open_timeout=timeout, max_size=None, proxy=None,
+            max_queue=None,   # read on while nobody reads: a close is answered at once
+            legacy=True)      # the connection itself (this class closes it)
         self.timeout = timeout
         self.server_info: dict[str, Any] = {}
         self.channels: dict[str, dict[str, Any]] = {}     # topic -> advertised channel

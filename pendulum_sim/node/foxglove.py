@@ -239,6 +239,13 @@ class LiveView:
         self._parameters = self._jsonable(values)
         self._resend('parameters')
 
+    def stats(self) -> dict[str, int]:
+        """Return the live view's counters (the node's diagnostics)."""
+        with self._lock:
+            subscriptions = sum(self._subscriptions.values())
+        return {'foxglove_subscriptions': subscriptions, 'foxglove_sent': self.sent,
+                'foxglove_dropped': self.dropped}
+
     # ------------------------------------------------------------------ the server's side
     def _subscribed(self, topic: str, change: int) -> None:
         with self._lock:

@@ -148,6 +148,7 @@ class PendulumNode(Node):
         self._wakes = WakeStats(self._period_ns if scheduled else 0)
         self._telemetry = Telemetry(joint, self._driver, gate, self._drops, self._wakes,
                                     self._incompatible, float(v['real_time_factor']), now)
+        self._telemetry.live = self._live
         self._status = status if v['status_line'] else None
         self._timer = self.create_timer(period, self._on_wake,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
