@@ -59,6 +59,7 @@ SCHEMAS: dict[str, tuple[str, dict[str, Any]]] = {
         name=_array({'type': 'string'}), position=_array(_NUMBER), velocity=_array(_NUMBER),
         effort=_array(_NUMBER))),
     'energy': ('std_msgs/msg/Float64', _object(data=_NUMBER)),
+    'target': ('std_msgs/msg/Float64', _object(data=_NUMBER)),
     'energy_terms': ('pendulum_sim/EnergyTerms', _object(
         energy=_NUMBER, kinetic=_NUMBER, potential=_NUMBER, dissipated=_NUMBER,
         dissipated_power=_NUMBER, input=_NUMBER, residual=_NUMBER)),
@@ -77,7 +78,7 @@ SCHEMAS: dict[str, tuple[str, dict[str, Any]]] = {
         name={'type': 'string'}, file={'type': 'string'}, line={'type': 'integer'})),
 }
 # The topic of each channel when the owner names none (the node passes its resolved names).
-TOPICS = {'joint_states': '/joint_states', 'energy': '/energy',
+TOPICS = {'joint_states': '/joint_states', 'energy': '/energy', 'target': '/target',
           'energy_terms': '/energy_terms', 'command': '/command', 'physics': '/physics',
           'counters': '/counters', 'parameters': '/parameters',
           'robot_description': '/robot_description', 'tf': '/tf', 'log': '/log'}
@@ -137,6 +138,30 @@ def _finite(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
+class DropOldest:
+    """A bounded queue for one producer and one consumer: a put into a full queue drops the
+    oldest item and counts it (the recorder's rule: the newest state matters most)."""
+
+    def __init__(self, size: int) -> None:
+        self._items: deque[Any] = deque(maxlen=size)
+        self.dropped = 0
+
+    def put(self, item: Any) -> None:
+        """Append ``item``, dropping (and counting) the oldest if the queue is full."""
+        items = self._items
+        if len(items) == items.maxlen:
+            self.dropped += 1
+        items.append(item)
+
+    def take(self) -> list[Any]:
+        """Remove and return every item, oldest first."""
+        out = []
+        items = self._items
+        while items:
+            out.append(items.popleft())
+        return out
+
+
 class _Listener:
     """The server's callbacks: count subscriptions, ask for latched messages again (the
     other callbacks of ``foxglove.websocket.ServerListener`` are optional)."""
@@ -168,6 +193,8 @@ class LiveView:
         The parameter set sent on ``parameters`` (:meth:`parameters` replaces it).
     topics : mapping, optional
         Topic names replacing those of :data:`TOPICS` (the node's resolved names).
+    target : float, optional
+        The reference of a closed-loop run (rad), sent on ``target`` with each state.
     queue_size : int
         Snapshots the queue holds before the oldest is dropped (counted in :attr:`dropped`).
 
@@ -179,21 +206,21 @@ class LiveView:
 
     def __init__(self, host: str, port: int, *, joint_name: str, interface: str, urdf: str,
                  parameters: Mapping[str, object], topics: Mapping[str, str] | None = None,
-                 queue_size: int = QUEUE_SIZE) -> None:
+                 target: float | None = None, queue_size: int = QUEUE_SIZE) -> None:
         try:
             import foxglove
         except ImportError as exc:
             raise LiveError(f'foxglove_port {port} needs the foxglove-sdk package ({exc}); '
                             "install pendulum_sim with the 'foxglove' extra") from None
         self.watching = False       # a client is subscribed to some channel: snapshots wanted
-        self.dropped = 0            # snapshots dropped from a full queue (the oldest)
         self.sent = 0               # snapshots turned into messages
         self._joint = joint_name
+        self._target = target
         self._interface = interface
         self._urdf = urdf
         self._parameters = self._jsonable(parameters)
         self._topics = {**TOPICS, **(topics or {})}
-        self._queue: deque[Snapshot] = deque(maxlen=queue_size)
+        self._queue = DropOldest(queue_size)
         self._lock = threading.Lock()
         self._subscriptions: dict[str, int] = {}
         self._latched: set[str] = set()
@@ -219,13 +246,15 @@ class LiveView:
         self._thread = threading.Thread(target=self._run, name='foxglove', daemon=True)
         self._thread.start()
 
+    @property
+    def dropped(self) -> int:
+        """Return how many snapshots a full queue dropped (the oldest first)."""
+        return self._queue.dropped
+
     # ------------------------------------------------------------------ the tick's side
     def offer(self, snapshot: Snapshot) -> None:
         """Queue a snapshot for the sender (the caller looked at :attr:`watching`); cheap."""
-        queue = self._queue
-        if len(queue) == queue.maxlen:
-            self.dropped += 1
-        queue.append(snapshot)
+        self._queue.put(snapshot)
         self._wake.set()
 
     def log(self, stamp_ns: int, level: str, text: str) -> None:
@@ -272,8 +301,7 @@ class LiveView:
         while True:
             self._wake.wait()
             self._wake.clear()
-            if self._stopping:
-                return
+            stopping = self._stopping   # what was queued before close() still goes out
             with self._lock:
                 latched, self._latched = self._latched, set()
             for name in sorted(latched):
@@ -282,13 +310,14 @@ class LiveView:
                                          else self._parameters)
             while self._logs:
                 self._send_log(*self._logs.popleft())
-            queue = self._queue
-            while queue:
+            for snap in self._queue.take():
                 try:
-                    self._send(queue.popleft())
+                    self._send(snap)
                 except Exception as exc:  # a broken message must not end the sender
                     self._send_log(0, 'error', f'foxglove: a state was not sent ({exc})')
                 self.sent += 1
+            if stopping:
+                return
 
     def _send_log(self, stamp_ns: int, level: str, text: str) -> None:
         self._channels['log'].log({
@@ -311,6 +340,8 @@ class LiveView:
         ch['command'].log({'interface': self._interface, 'commanded': _finite(s.commanded),
                            'applied': _finite(s.effort)}, log_time=t)
         ch['physics'].log({'n': s.params.n, 'gamma': s.params.gamma}, log_time=t)
+        if self._target is not None:
+            ch['target'].log({'data': self._target}, log_time=t)
         ch['counters'].log(dict(s.counters, foxglove_dropped=self.dropped), log_time=t)
         try:
             terms = energy_terms(s.params, s.phi, s.dphi, s.residual)

@@ -1,0 +1,196 @@
+"""The live view without ROS: its parameters, its queue, its server seen by a plain client,
+the in-process closed loop served live, and the shipped layout."""
+from __future__ import annotations
+
+import json
+import re
+import socket
+import threading
+import time
+from typing import Any
+
+import numpy as np
+import pytest
+from foxglove_client import FoxgloveClient, free_port
+from scipy.spatial.transform import Rotation
+
+from pendulum_sim.controller.pd_law import PDGains, pd_torque
+from pendulum_sim.node.errors import LiveError
+from pendulum_sim.node.foxglove import (
+    SCHEMAS,
+    TOPICS,
+    DropOldest,
+    LiveView,
+    layout_path,
+)
+from pendulum_sim.node.parameters import SPECS, check
+from pendulum_sim.testing import TestingError, closed_loop
+from pendulum_sim.testing.record import EFFORT_COMMAND, JOINT_STATES
+
+DEFAULTS = {s.name: s.default for s in SPECS}
+
+
+def view(port: int = 0, **kw: Any) -> LiveView:
+    return LiveView('127.0.0.1', port, joint_name='j', interface='effort', urdf='<robot/>',
+                    parameters={'gamma': 1.0}, **kw)
+
+
+@pytest.mark.parametrize('port', [0, 1024, 8765, 65535])
+def test_foxglove_port_is_0_or_an_unprivileged_port(port: int) -> None:
+    assert check({**DEFAULTS, 'foxglove_port': port}) is None
+
+
+@pytest.mark.parametrize('port', [1, 80, 1023])
+def test_a_privileged_foxglove_port_is_refused_with_the_rule(port: int) -> None:
+    assert check({**DEFAULTS, 'foxglove_port': port}) == (
+        f'foxglove_port must be 0 (off) or in 1024..65535, got {port}')
+
+
+@pytest.mark.parametrize('host', ['', ' 127.0.0.1'])
+def test_a_blank_foxglove_host_is_refused(host: str) -> None:
+    assert check({**DEFAULTS, 'foxglove_host': host}) == (
+        f"foxglove_host must be an address to listen on, got '{host}'")
+
+
+def test_a_full_queue_drops_the_oldest_and_counts_it() -> None:
+    queue = DropOldest(4)
+    for i in range(10):
+        queue.put(i)
+    assert (queue.take(), queue.dropped) == ([6, 7, 8, 9], 6)
+    assert queue.take() == []
+
+
+def test_a_port_in_use_is_a_live_error_naming_it() -> None:
+    with socket.socket() as taken:
+        taken.bind(('127.0.0.1', 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        msg = (f'foxglove_port {port}: cannot listen on 127.0.0.1:{port} (Failed to bind port: '
+               'Address already in use (os error 98))')
+        with pytest.raises(LiveError, match=re.escape(msg)):
+            view(port)
+
+
+def wait(predicate: Any, what: str, timeout: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f'timed out waiting for {what}')
+        time.sleep(0.005)
+
+
+def test_the_view_is_watched_only_while_a_client_subscribes() -> None:
+    with view() as live:
+        with FoxgloveClient(live.port) as client:
+            client.wait_channels(*TOPICS.values())
+            assert not live.watching            # connected, subscribed to nothing
+            advertised = {c['topic']: c['schemaName'] for c in client.channels.values()}
+            assert advertised == {TOPICS[k]: name for k, (name, _) in SCHEMAS.items()}
+            assert advertised['/tf'] == 'foxglove.FrameTransforms'
+            assert advertised['/log'] == 'foxglove.Log'
+            client.subscribe('/robot_description', '/log')
+            wait(lambda: live.watching, 'the subscription')
+            (_, _, msg), = client.messages(1, '/robot_description')
+            assert msg == {'data': '<robot/>'}
+            live.log(5_000_000_007, 'warning', 'a line')
+            (_, log_time, line), = client.messages(1, '/log')
+            assert (log_time, line) == (5_000_000_007, {
+                'timestamp': {'sec': 5, 'nsec': 7}, 'level': 3, 'message': 'a line',
+                'name': 'pendulum_node', 'file': '', 'line': 0})
+        wait(lambda: not live.watching, 'the disconnect')
+        assert live.stats()['foxglove_subscriptions'] == 0
+
+
+def test_a_closed_loop_served_live_sends_the_states_of_the_run() -> None:
+    port = free_port()
+    gains = PDGains(kp=4.0, kd=1.0, target=0.5)
+    watched = threading.Event()
+
+    def law(t: float, x: float, v: float) -> float:
+        watched.wait(30.0)   # the first answer waits for the client: nothing goes unseen
+        return pd_torque(gains, x, v)
+
+    runs: list[Any] = []
+    worker = threading.Thread(target=lambda: runs.append(closed_loop(
+        law, periods=60, target=0.5, foxglove_port=port)))
+    worker.start()
+    try:
+        deadline = time.monotonic() + 30.0
+        while True:
+            try:
+                client = FoxgloveClient(port)
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.01)
+        with client:
+            client.subscribe('/joint_states', '/tf', '/target', '/energy_terms',
+                             '/robot_description')
+            # The URDF is sent when a subscription arrives: the server has them all now.
+            client.messages(1, '/robot_description')
+            watched.set()
+            got = client.messages(59, '/joint_states')
+    finally:
+        watched.set()
+        worker.join(60.0)
+    run = runs[0]
+    by_topic: dict[str, list[Any]] = {}
+    for topic, log_time, msg in got:
+        by_topic.setdefault(topic, []).append((log_time, msg))
+    # The states after the first (sent before the client watched) are the run's, exactly.
+    states = by_topic['/joint_states'][:59]
+    assert [t for t, _ in states] == [round(t * 1e9) for t in run.t[1:]]
+    assert [m['position'][0] for _, m in states] == list(run.position[1:])
+    assert [m['velocity'][0] for _, m in states] == list(run.velocity[1:])
+    assert [m['effort'][0] for _, m in states] == list(run.effort[1:])
+    assert {m['data'] for _, m in by_topic['/target']} == {0.5}
+    # The 3D view: the bob's frame turned by the angle about the joint's y axis (the URDF's).
+    for (_, state), (_, tf) in zip(states, by_topic['/tf'], strict=False):
+        (frame,) = tf['transforms']
+        assert (frame['parent_frame_id'], frame['child_frame_id']) == (
+            'base_link', 'pendulum_link')
+        q = frame['rotation']
+        expected = Rotation.from_rotvec([0.0, state['position'][0], 0.0]).as_quat()
+        np.testing.assert_allclose([q['x'], q['y'], q['z'], q['w']], expected, atol=1e-15)
+    for _, terms in by_topic['/energy_terms']:
+        assert terms['energy'] == pytest.approx(terms['kinetic'] + terms['potential'],
+                                                rel=1e-15, abs=1e-15)
+
+
+def test_closed_loop_refuses_a_privileged_foxglove_port() -> None:
+    msg = 'foxglove_port must be 0 (off) or in 1024..65535, got 80'
+    with pytest.raises(TestingError, match=re.escape(msg)):
+        closed_loop(lambda t, x, v: 0.0, periods=1, foxglove_port=80)
+
+
+def topics_in(node: Any) -> set[str]:
+    """Return the topics of every message path and topic field in a layout's panels."""
+    found: set[str] = set()
+    if isinstance(node, dict):
+        for key, value in node.items():
+            if key in ('value', 'topicPath', 'topic', 'topicToRender') and isinstance(value,
+                                                                                     str):
+                found.add(re.match(r'/[^.]*', value).group(0))  # type: ignore[union-attr]
+            elif key == 'topics' and isinstance(value, dict):   # the 3D panel's topics
+                found |= set(value)
+            else:
+                found |= topics_in(value)
+    elif isinstance(node, list):
+        for item in node:
+            found |= topics_in(item)
+    return found
+
+
+def test_the_shipped_layout_shows_topics_of_the_live_view_or_the_recordings() -> None:
+    doc = json.loads(layout_path().read_text())
+    panels = doc['configById']
+    recorded = {JOINT_STATES, EFFORT_COMMAND, '/energy', '/parameter_events', '/diagnostics'}
+    used = topics_in(panels)
+    assert used <= set(TOPICS.values()) | recorded, used - set(TOPICS.values()) - recorded
+    # Each panel the layout places exists, and each one configured is placed.
+    placed = set(re.findall(r'"([A-Za-z0-9]+![a-z0-9]+)"', json.dumps(doc['layout'])))
+    assert placed == set(panels)
+    assert {'/joint_states', '/energy', '/robot_description', '/tf'} <= used
+    kinds = {name.split('!')[0] for name in panels}
+    assert {'Plot', '3D', 'RawMessages'} <= kinds
