@@ -7,6 +7,7 @@ import re
 import socket
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -194,3 +195,63 @@ def test_the_shipped_layout_shows_topics_of_the_live_view_or_the_recordings() ->
     assert {'/joint_states', '/energy', '/robot_description', '/tf'} <= used
     kinds = {name.split('!')[0] for name in panels}
     assert {'Plot', '3D', 'RawMessages'} <= kinds
+
+
+CAMPAIGN = """controller: pendulum_sim.testing.examples:pd
+episodes: 2
+periods: 5
+target: 0.5
+"""
+
+
+@pytest.mark.parametrize(('args', 'msg'), [
+    (['--foxglove-port', '80'],
+     '--foxglove-port: foxglove_port must be 0 (off) or in 1024..65535, got 80'),
+    (['--foxglove-port', '8765', '--workers', '2'],
+     '--foxglove-port serves one episode at a time: it needs the local cluster with '
+     '--workers 1'),
+])
+def test_pendulum_campaign_refuses_a_live_view_it_cannot_serve(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], msg: str) -> None:
+    from pendulum_sim.testing.campaign.cli import main
+
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(CAMPAIGN)
+    assert main([str(path), '--out', str(tmp_path / 'out'), '--no-progress', *args]) == 2
+    assert capsys.readouterr().err == f'pendulum_campaign: error: {msg}\n'
+    assert not (tmp_path / 'out').exists()
+
+
+def test_a_campaign_episode_is_served_live_while_it_runs() -> None:
+    import live_laws
+
+    from pendulum_sim.testing.campaign.episode import run_episode
+
+    port = free_port()
+    rows: list[dict[str, Any]] = []
+    text = CAMPAIGN.replace('pendulum_sim.testing.examples:pd', 'live_laws:gated_pd').replace(
+        'periods: 5', 'periods: 50')
+    live_laws.GATE.clear()
+    worker = threading.Thread(target=lambda: rows.append(run_episode(text, 0, None, port)))
+    worker.start()
+    try:
+        deadline = time.monotonic() + 30.0
+        while True:
+            try:
+                client = FoxgloveClient(port)
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.01)
+        with client:
+            client.subscribe('/joint_states', '/robot_description', '/target')
+            client.messages(1, '/robot_description')   # the server has the subscriptions
+            live_laws.GATE.set()
+            got = client.messages(49, '/joint_states')
+    finally:
+        live_laws.GATE.set()
+        worker.join(60.0)
+    (row,) = rows
+    assert row['episode'] == 0 and row['reason'] == '', row
+    assert {m['data'] for topic, _, m in got if topic == '/target'} == {0.5}
