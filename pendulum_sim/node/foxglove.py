@@ -5,7 +5,8 @@ JSON schema each; the 3D view's on Foxglove's well-known schemas ``foxglove.Fram
 and ``foxglove.Log``). The tick hands it one :class:`Snapshot` per published state, and only
 while a client is subscribed (:attr:`LiveView.watching`, one attribute read otherwise). The
 snapshot goes into a bounded queue that drops and counts the oldest when full, as the recorder
-does; a thread of its own turns snapshots into messages and logs them, off the tick's path.
+does; a thread of its own turns snapshots into messages and logs them, off the tick's path, at
+most :data:`MAX_SEND_RATE` states a wall second.
 
 Topic names follow the node's where a topic exists on DDS (``joint_states``, ``energy``,
 ``robot_description``), so the shipped layout (:data:`LAYOUT`) opens the live server and this
@@ -16,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 import threading
+import time
 from collections import deque
 from collections.abc import Mapping
 from importlib import resources
@@ -31,6 +33,11 @@ if TYPE_CHECKING:
     from foxglove.websocket import ServerListener
 
 QUEUE_SIZE = 256          # snapshots waiting for the sender thread; the oldest goes first
+# The sender sends at most this many states per wall second (more than a real-time node's
+# publish rate of 1 kHz); faster, e.g. free lockstep, the queue drops the oldest. Its thread
+# holds the GIL while it builds messages: unbounded, it would slow the tick it serves.
+MAX_SEND_RATE = 2000.0
+SEND_PERIOD = 1.0 / MAX_SEND_RATE
 LAYOUT = 'foxglove_layout.json'
 PORT_RANGE = (1024, 65535)
 LEVELS = {'debug': 1, 'info': 2, 'warning': 3, 'error': 4, 'fatal': 5}
@@ -152,6 +159,11 @@ class DropOldest:
         if len(items) == items.maxlen:
             self.dropped += 1
         items.append(item)
+
+    def get(self) -> Any:
+        """Remove and return the oldest item, or None if the queue is empty."""
+        items = self._items
+        return items.popleft() if items else None
 
     def take(self) -> list[Any]:
         """Remove and return every item, oldest first."""
@@ -298,6 +310,7 @@ class LiveView:
 
     def _run(self) -> None:
         """The sender thread: turn queued snapshots and log lines into messages."""
+        last = 0.0
         while True:
             self._wake.wait()
             self._wake.clear()
@@ -310,7 +323,12 @@ class LiveView:
                                          else self._parameters)
             while self._logs:
                 self._send_log(*self._logs.popleft())
-            for snap in self._queue.take():
+            while (snap := self._queue.get()) is not None:
+                due = last + SEND_PERIOD
+                now = time.monotonic()
+                if due > now:   # at most MAX_SEND_RATE states a second: the GIL is shared
+                    time.sleep(due - now)
+                last = max(due, now)
                 try:
                     self._send(snap)
                 except Exception as exc:  # a broken message must not end the sender
