@@ -37,6 +37,7 @@ QUEUE_SIZE = 256          # snapshots waiting for the sender thread; the oldest 
 # publish rate of 1 kHz); faster, e.g. free lockstep, the queue drops the oldest. Its thread
 # holds the GIL while it builds messages: unbounded, it would slow the tick it serves.
 MAX_SEND_RATE = 2000.0
+HISTORY = 50              # log lines kept for a client that subscribes later
 SEND_PERIOD = 1.0 / MAX_SEND_RATE
 LAYOUT = 'foxglove_layout.json'
 PORT_RANGE = (1024, 65535)
@@ -237,6 +238,7 @@ class LiveView:
         self._subscriptions: dict[str, int] = {}
         self._latched: set[str] = set()
         self._logs: deque[tuple[int, str, str]] = deque(maxlen=queue_size)
+        self._history: deque[tuple[int, str, str]] = deque(maxlen=HISTORY)
         self._wake = threading.Event()
         self._stopping = False
         self._context = foxglove.Context()
@@ -270,9 +272,12 @@ class LiveView:
         self._wake.set()
 
     def log(self, stamp_ns: int, level: str, text: str) -> None:
-        """Send a line of the node's log on ``log`` (nothing while nobody watches)."""
+        """Send a line of the node's log on ``log``; the last lines are kept and sent again to
+        each client that subscribes (the start lines come before any client)."""
+        line = (stamp_ns, level, text)
+        self._history.append(line)
         if self.watching:
-            self._logs.append((stamp_ns, level, text))
+            self._logs.append(line)
             self._wake.set()
 
     def parameters(self, values: Mapping[str, object]) -> None:
@@ -295,6 +300,9 @@ class LiveView:
                 del self._subscriptions[topic]
             self.watching = bool(self._subscriptions)
         if change > 0:
+            if topic == self._topics['log']:
+                self._logs.extend(self._history)
+                self._wake.set()
             for name in ('robot_description', 'parameters'):
                 if topic == self._topics[name]:
                     self._resend(name)

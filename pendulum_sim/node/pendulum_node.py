@@ -117,7 +117,8 @@ class PendulumNode(Node):
                 'joint_states': self._js_pub.topic_name,
                 'energy': self.resolve_topic_name('energy'),
                 'robot_description': self.resolve_topic_name('robot_description')})
-        self._recording = Recording(None, self.get_logger().error, self.get_logger().info)
+        self._recording = Recording(None, lambda text: self._log('error', text),
+                                    lambda text: self._log('info', text))
         if v['recording.path']:
             channels: list[tuple[str, Any, Any]] = [
                 (self._js_pub.topic_name, JointState, JOINT_STATE_QOS)]
@@ -154,10 +155,10 @@ class PendulumNode(Node):
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
-        self.get_logger().info(self._telemetry.start_text(v))
+        self._log('info', self._telemetry.start_text(v))
         if self._live is not None:
-            self.get_logger().info(f'foxglove: serving the joint on '
-                                   f'ws://{self._live.host}:{self._live.port}')
+            self._log('info', f'foxglove: serving the joint on '
+                      f'ws://{self._live.host}:{self._live.port}')
 
     @property
     def stop_requested(self) -> bool:
@@ -172,8 +173,9 @@ class PendulumNode(Node):
             logger.warning(text)
         else:
             logger.info(text)
-        if self._live is not None:
-            self._live.log(self._joint.stamp_ns(), level, text)
+        live, joint = self._live, getattr(self, '_joint', None)   # None while starting
+        if live is not None:
+            live.log(joint.stamp_ns() if joint is not None else 0, level, text)
 
     def _urdf(self) -> str:
         """Return the URDF of this joint, its ros2_control block naming this node's topics."""
@@ -191,7 +193,7 @@ class PendulumNode(Node):
             kind = getattr(event.last_policy_kind, 'name', str(event.last_policy_kind))
             line = commands.incompatible_line(name, kind, self._sync, count)
             if line is not None:
-                self.get_logger().warning(line)
+                self._log('warning', line)
 
         events = SubscriptionEventCallbacks(incompatible_qos=incompatible)
         created.append(self.create_subscription(msg_type, topic, callback, qos,
@@ -256,7 +258,7 @@ class PendulumNode(Node):
         if decoded.reason:
             line = self._drops.drop(topic, decoded.reason, decoded.detail)
             if line is not None:
-                self.get_logger().warning(line)
+                self._log('warning', line)
             return
         stamp = self._driver.command(decoded.value, decoded.stamp_ns, time.monotonic_ns())
         if stamp is not None and self._recording.recorder is not None:
@@ -309,7 +311,7 @@ class PendulumNode(Node):
         except StepError as exc:
             line = self._refused_steps.drop('~/step_periods', str(exc))
             if line is not None:   # the first of each reason, then every 1000th
-                self.get_logger().warning(line.replace('dropped a command on ', ''))
+                self._log('warning', line.replace('dropped a command on ', ''))
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         self._tick_first()
