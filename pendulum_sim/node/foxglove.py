@@ -8,9 +8,9 @@ snapshot goes into a bounded queue that drops and counts the oldest when full, a
 does; a thread of its own turns snapshots into messages and logs them, off the tick's path, at
 most :data:`MAX_SEND_RATE` states a wall second.
 
-Topic names follow the node's where a topic exists on DDS (``joint_states``, ``energy``,
-``robot_description``), so the shipped layout (:data:`LAYOUT`) opens the live server and this
-package's MCAP recordings alike.
+Topic names are those of a node without a namespace where the topic exists on DDS
+(``/joint_states``, ``/energy``, ``/robot_description``), so the shipped layout (:data:`LAYOUT`)
+opens the live view of any node and this package's MCAP recordings alike.
 """
 from __future__ import annotations
 
@@ -85,7 +85,7 @@ SCHEMAS: dict[str, tuple[str, dict[str, Any]]] = {
         timestamp=_FOXGLOVE_TIME, level={'type': 'integer'}, message={'type': 'string'},
         name={'type': 'string'}, file={'type': 'string'}, line={'type': 'integer'})),
 }
-# The topic of each channel when the owner names none (the node passes its resolved names).
+# The topic of each channel (a server shows one joint: no namespace is needed).
 TOPICS = {'joint_states': '/joint_states', 'energy': '/energy', 'target': '/target',
           'energy_terms': '/energy_terms', 'command': '/command', 'physics': '/physics',
           'counters': '/counters', 'parameters': '/parameters',
@@ -205,7 +205,7 @@ class LiveView:
     parameters : mapping
         The parameter set sent on ``parameters`` (:meth:`parameters` replaces it).
     topics : mapping, optional
-        Topic names replacing those of :data:`TOPICS` (the node's resolved names).
+        Topic names replacing those of :data:`TOPICS`.
     target : float, optional
         The reference of a closed-loop run (rad), sent on ``target`` with each state.
     queue_size : int

@@ -111,12 +111,11 @@ class PendulumNode(Node):
             self.create_subscription(UInt32, '~/step_periods', self._on_step_periods,
                                      STEP_QOS)
         # The live view before the recording: a port in use stops the start with nothing open.
+        # Its topics are the un-namespaced names whatever the node's namespace (one joint per
+        # server), so the shipped layout shows any node.
         self._live = None if not v['foxglove_port'] else LiveView(
             str(v['foxglove_host']), int(v['foxglove_port']), joint_name=self._joint_name,
-            interface=self._interface, urdf=self._urdf(), parameters=v, topics={
-                'joint_states': self._js_pub.topic_name,
-                'energy': self.resolve_topic_name('energy'),
-                'robot_description': self.resolve_topic_name('robot_description')})
+            interface=self._interface, urdf=self._urdf(), parameters=v)
         self._recording = Recording(None, lambda text: self._log('error', text),
                                     lambda text: self._log('info', text))
         if v['recording.path']:
