@@ -257,8 +257,19 @@ class LiveView:
             raise LiveError(f'foxglove_port {port}: cannot listen on {host}:{port} '
                             f'({reason})') from None
         self.host, self.port = host, int(self._server.port)
+        self.url = f'ws://{host}:{self.port}'
         self._thread = threading.Thread(target=self._run, name='foxglove', daemon=True)
         self._thread.start()
+
+    @classmethod
+    def of(cls, values: Mapping[str, object], urdf: str,
+           target: float | None = None) -> LiveView:
+        """Return the live view that the node parameters ``values`` ask for (``foxglove_host``,
+        ``foxglove_port``, ``joint_name``, ``command_interface``), showing ``urdf``."""
+        return cls(str(values['foxglove_host']), int(str(values['foxglove_port'])),
+                   joint_name=str(values['joint_name']),
+                   interface=str(values['command_interface']), urdf=urdf,
+                   parameters=values, target=target)
 
     @property
     def dropped(self) -> int:

@@ -19,11 +19,9 @@ from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 class Recording:
     """The node's recorder, if any: writes that never raise, an error reported once."""
 
-    def __init__(self, recorder: Any, log_error: Callable[[str], None],
-                 log_info: Callable[[str], None] = print) -> None:
+    def __init__(self, recorder: Any, log: Callable[[str, str], None]) -> None:
         self.recorder = recorder
-        self._log_error = log_error
-        self._log_info = log_info
+        self._log = log   # (level, text), the node's log
         self._error_logged = False
 
     def open(self, path: str, overwrite: bool, metadata: dict[str, dict[str, str]],
@@ -32,7 +30,7 @@ class Recording:
         try:
             from pendulum_sim.recording import McapRecorder
         except ImportError as exc:
-            self._log_error(f'recording is not available ({exc}); not recording')
+            self._log('error', f'recording is not available ({exc}); not recording')
             return
         from rcl_interfaces.msg import ParameterEvent
 
@@ -42,7 +40,7 @@ class Recording:
             rec.add_channel(topic, msg_type, qos)
         rec.add_channel('/parameter_events', ParameterEvent, 10)
         self.recorder = rec
-        self._log_info(f'recording to {rec.path}')
+        self._log('info', f'recording to {rec.path}')
 
     def write(self, topic: str, msg: Any, stamp_ns: int) -> None:
         """Write a message (or its CDR bytes) at ``stamp_ns``; never raise."""
@@ -71,7 +69,7 @@ class Recording:
         """Report a recorder error once."""
         if not self._error_logged:
             self._error_logged = True
-            self._log_error(f'recording failed, simulation continues: {exc}')
+            self._log('error', f'recording failed, simulation continues: {exc}')
 
     def close(self) -> None:
         """Close the recording (report, never raise: the shutdown goes on)."""

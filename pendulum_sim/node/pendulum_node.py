@@ -28,7 +28,7 @@ from pendulum_sim import __version__
 
 from . import commands, replies
 from . import diagnostics as diag
-from .drivers import WAKE_BUDGET_NS, SyncDriver, make_driver, wake_period
+from .drivers import WAKE_BUDGET_NS, make_driver, wake_period
 from .errors import ParameterError
 from .exchange import Gate, StepError
 from .foxglove import LiveView
@@ -44,14 +44,7 @@ from .parameters import (
     refusal,
     start_epoch_ns,
 )
-from .qos import (
-    COMMAND_QOS,
-    JOINT_STATE_QOS,
-    LATCHED_QOS,
-    SERVICE_QOS,
-    STEP_QOS,
-    SYNC_COMMAND_QOS,
-)
+from .qos import COMMAND_QOS, JOINT_STATE_QOS, LATCHED_QOS, SERVICE_QOS, STEP_QOS, SYNC_COMMAND_QOS
 from .realtime import WakeStats
 from .status import StatusLine, summary_text
 from .telemetry import Telemetry
@@ -111,13 +104,8 @@ class PendulumNode(Node):
             self.create_subscription(UInt32, '~/step_periods', self._on_step_periods,
                                      STEP_QOS)
         # The live view before the recording: a port in use stops the start with nothing open.
-        # Its topics are the un-namespaced names whatever the node's namespace (one joint per
-        # server), so the shipped layout shows any node.
-        self._live = None if not v['foxglove_port'] else LiveView(
-            str(v['foxglove_host']), int(v['foxglove_port']), joint_name=self._joint_name,
-            interface=self._interface, urdf=self._urdf(), parameters=v)
-        self._recording = Recording(None, lambda text: self._log('error', text),
-                                    lambda text: self._log('info', text))
+        self._live = LiveView.of(v, self._urdf()) if v['foxglove_port'] else None
+        self._recording = Recording(None, self._log)
         if v['recording.path']:
             channels: list[tuple[str, Any, Any]] = [
                 (self._js_pub.topic_name, JointState, JOINT_STATE_QOS)]
@@ -140,9 +128,7 @@ class PendulumNode(Node):
             f'synchronous: waiting for a controller (a subscriber on {self._js_pub.topic_name}'
             f" and a reliable publisher on {', '.join(self._topics.values())})",
             remind=self._outputs.remind, remind_state=set(self._topics) == {'joint_commands'})
-        if isinstance(self._driver, SyncDriver):
-            exchange = self._driver.exchange
-            self._outputs.live_counters = lambda: {**vars(joint.counters), **exchange.stats}
+        self._outputs.live_counters = self._driver.counters
         period, scheduled = wake_period(v)
         self._period_ns = round(period * 1e9)
         self._wakes = WakeStats(self._period_ns if scheduled else 0)
@@ -156,8 +142,7 @@ class PendulumNode(Node):
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self._log('info', self._telemetry.start_text(v))
         if self._live is not None:
-            self._log('info', f'foxglove: serving the joint on '
-                      f'ws://{self._live.host}:{self._live.port}')
+            self._log('info', f'foxglove: serving the joint on {self._live.url}')
 
     @property
     def stop_requested(self) -> bool:
@@ -172,9 +157,8 @@ class PendulumNode(Node):
             logger.warning(text)
         else:
             logger.info(text)
-        live, joint = self._live, getattr(self, '_joint', None)   # None while starting
-        if live is not None:
-            live.log(joint.stamp_ns() if joint is not None else 0, level, text)
+        if self._live is not None:   # stamp 0 before the joint exists
+            self._live.log(self._joint.stamp_ns() if hasattr(self, '_joint') else 0, level, text)
 
     def _urdf(self) -> str:
         """Return the URDF of this joint, its ros2_control block naming this node's topics."""

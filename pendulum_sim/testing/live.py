@@ -25,11 +25,7 @@ class LiveLoop:
         from pendulum_sim.node.errors import LiveError
 
         try:
-            self.view = LiveView(str(values['foxglove_host']), int(values['foxglove_port']),
-                                 joint_name=str(values['joint_name']),
-                                 interface=str(values['command_interface']),
-                                 urdf=urdf_from_values(values), parameters=values,
-                                 target=target)
+            self.view = LiveView.of(values, urdf_from_values(values), target)
         except LiveError as exc:
             raise TestingError(str(exc)) from None
         rtf = float(values['real_time_factor'])

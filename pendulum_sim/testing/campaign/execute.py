@@ -146,7 +146,8 @@ def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
 
     def submit(chunk: list[int], again: str = '') -> Any:
         return client.submit(run_chunk, spec.text, chunk, out, spec.episode_timeout,
-                             foxglove_port=foxglove_port, key=f'episodes-{chunk[0]}-{chunk[-1]}-{tag}{again}', pure=False)
+                             foxglove_port=foxglove_port, pure=False,
+                             key=f'episodes-{chunk[0]}-{chunk[-1]}-{tag}{again}')
 
     futures = as_completed([submit(c) for c in chunks])
     try:
