@@ -3,9 +3,9 @@
 foxglove-sdk, so a test of the server through it checks the protocol as a viewer speaks it.
 
 foxglove-sdk's server (0.30.3) accepts the protocol only under its current subprotocol name,
-``foxglove.sdk.v1`` (a handshake offering ``foxglove.websocket.v1`` alone gets HTTP 400); the
-messages this client uses (serverInfo, advertise, subscribe, binary message data) are those of
-``foxglove.websocket.v1``. The client offers both names, as the Foxglove app does.
+``foxglove.sdk.v1``: a handshake offering ``foxglove.websocket.v1`` alone gets HTTP 400
+(test_foxglove checks it). The messages this client uses (serverInfo, advertise, subscribe,
+binary message data) are those of ``foxglove.websocket.v1``; the client offers both names.
 """
 from __future__ import annotations
 
@@ -26,6 +26,18 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(('127.0.0.1', 0))
         return int(s.getsockname()[1])
+
+
+def connect_when_up(port: int, timeout: float = 60.0) -> FoxgloveClient:
+    """Return a client of the server on ``port`` once it listens (within ``timeout`` s)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return FoxgloveClient(port)
+        except OSError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.01)
 
 
 class FoxgloveClient:

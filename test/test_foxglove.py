@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from foxglove_client import FoxgloveClient, free_port
+from foxglove_client import SUBPROTOCOLS, FoxgloveClient, connect_when_up, free_port
 from scipy.spatial.transform import Rotation
 
 from pendulum_sim.controller.pd_law import PDGains, pd_torque
@@ -80,6 +80,24 @@ def wait(predicate: Any, what: str, timeout: float = 10.0) -> None:
         time.sleep(0.005)
 
 
+def test_the_server_takes_the_protocol_under_foxglove_sdk_v1_only() -> None:
+    """What the guide says of foxglove-sdk 0.30.3: a handshake offering only the spec's
+    foxglove.websocket.v1 gets HTTP 400; offering foxglove.sdk.v1 too, the server picks it."""
+    from websockets.exceptions import InvalidStatus
+    from websockets.sync.client import connect
+
+    assert SUBPROTOCOLS == ('foxglove.websocket.v1', 'foxglove.sdk.v1')
+    with view() as live:
+        url = f'ws://127.0.0.1:{live.port}'
+        with pytest.raises(InvalidStatus, match=re.escape('HTTP 400')):
+            connect(url, subprotocols=['foxglove.websocket.v1'],  # type: ignore[list-item]
+                    proxy=None, open_timeout=10.0)
+        with connect(url, subprotocols=[*SUBPROTOCOLS],  # type: ignore[list-item]
+                     proxy=None, open_timeout=10.0) as ws:
+            assert ws.subprotocol == 'foxglove.sdk.v1'
+            assert json.loads(ws.recv(timeout=10.0))['op'] == 'serverInfo'
+
+
 def test_the_view_is_watched_only_while_a_client_subscribes() -> None:
     with view() as live:
         with FoxgloveClient(live.port) as client:
@@ -116,16 +134,7 @@ def test_a_closed_loop_served_live_sends_the_states_of_the_run() -> None:
         law, periods=60, target=0.5, foxglove_port=port)))
     worker.start()
     try:
-        deadline = time.monotonic() + 30.0
-        while True:
-            try:
-                client = FoxgloveClient(port)
-                break
-            except OSError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.01)
-        with client:
+        with connect_when_up(port, 30.0) as client:
             client.subscribe('/joint_states', '/tf', '/target', '/energy_terms',
                              '/robot_description')
             # The URDF is sent when a subscription arrives: the server has them all now.
@@ -139,12 +148,15 @@ def test_a_closed_loop_served_live_sends_the_states_of_the_run() -> None:
     by_topic: dict[str, list[Any]] = {}
     for topic, log_time, msg in got:
         by_topic.setdefault(topic, []).append((log_time, msg))
-    # The states after the first (sent before the client watched) are the run's, exactly.
+    # The states from the first the client watched (the first state, at t = 0, goes out as the
+    # server starts: the client may subscribe before or after it) are the run's, exactly.
+    first = [round(t * 1e9) for t in run.t].index(by_topic['/joint_states'][0][0])
+    assert first <= 1
     states = by_topic['/joint_states'][:59]
-    assert [t for t, _ in states] == [round(t * 1e9) for t in run.t[1:]]
-    assert [m['position'][0] for _, m in states] == list(run.position[1:])
-    assert [m['velocity'][0] for _, m in states] == list(run.velocity[1:])
-    assert [m['effort'][0] for _, m in states] == list(run.effort[1:])
+    assert [t for t, _ in states] == [round(t * 1e9) for t in run.t[first:first + 59]]
+    assert [m['position'][0] for _, m in states] == list(run.position[first:first + 59])
+    assert [m['velocity'][0] for _, m in states] == list(run.velocity[first:first + 59])
+    assert [m['effort'][0] for _, m in states] == list(run.effort[first:first + 59])
     assert {m['data'] for _, m in by_topic['/target']} == {0.5}
     # The 3D view: the bob's frame turned by the angle about the joint's y axis (the URDF's).
     for (_, state), (_, tf) in zip(states, by_topic['/tf'], strict=False):
@@ -210,6 +222,9 @@ target: 0.5
     (['--foxglove-port', '8765', '--workers', '2'],
      '--foxglove-port serves one episode at a time: it needs the local cluster with '
      '--workers 1'),
+    (['--foxglove-port', '8765', '--scheduler', 'tcp://127.0.0.1:8786'],
+     '--foxglove-port serves one episode at a time: it needs the local cluster with '
+     '--workers 1'),
 ])
 def test_pendulum_campaign_refuses_a_live_view_it_cannot_serve(
         tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], msg: str) -> None:
@@ -235,16 +250,7 @@ def test_a_campaign_episode_is_served_live_while_it_runs() -> None:
     worker = threading.Thread(target=lambda: rows.append(run_episode(text, 0, None, port)))
     worker.start()
     try:
-        deadline = time.monotonic() + 30.0
-        while True:
-            try:
-                client = FoxgloveClient(port)
-                break
-            except OSError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.01)
-        with client:
+        with connect_when_up(port, 30.0) as client:
             client.subscribe('/joint_states', '/robot_description', '/target')
             client.messages(1, '/robot_description')   # the server has the subscriptions
             live_laws.GATE.set()
@@ -254,4 +260,44 @@ def test_a_campaign_episode_is_served_live_while_it_runs() -> None:
         worker.join(60.0)
     (row,) = rows
     assert row['episode'] == 0 and row['reason'] == '', row
+    assert {m['data'] for topic, _, m in got if topic == '/target'} == {0.5}
+
+
+def test_pendulum_campaign_serves_the_episode_its_episode_process_runs(tmp_path: Path) -> None:
+    """Through the command line: a local cluster of one worker runs each episode in its episode
+    process, which serves it live on --foxglove-port while it runs."""
+    import os
+    import subprocess
+    import sys
+
+    here = Path(__file__).resolve().parent
+    gate = tmp_path / 'gate'
+    env = {**os.environ, 'PENDULUM_LIVE_GATE': str(gate), 'PYTHONPATH': os.pathsep.join(
+        [str(here), *filter(None, [os.environ.get('PYTHONPATH')])])}
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(CAMPAIGN.replace('pendulum_sim.testing.examples:pd', 'live_laws:file_gated_pd')
+                    .replace('periods: 5', 'periods: 50'))
+    port = free_port()
+    proc = subprocess.Popen(
+        [str(Path(sys.executable).parent / 'pendulum_campaign'), str(path), '--out',
+         str(tmp_path / 'out'), '--no-progress', '--foxglove-port', str(port)],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        with connect_when_up(port) as client:   # episode 0's server, in its episode process
+            client.subscribe('/joint_states', '/robot_description', '/target')
+            client.messages(1, '/robot_description')   # the server has the subscriptions
+            gate.touch()
+            got = client.messages(49, '/joint_states')
+        _, err = proc.communicate(timeout=120.0)
+    finally:
+        gate.touch()
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    assert '2 episodes, 2 passed' in err
+    states = [m for topic, _, m in got if topic == '/joint_states']
+    stamps = [s['header']['stamp']['sec'] * 10**9 + s['header']['stamp']['nanosec']
+              for s in states]
+    assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps) >= 49
     assert {m['data'] for topic, _, m in got if topic == '/target'} == {0.5}
