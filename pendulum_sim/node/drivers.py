@@ -148,9 +148,10 @@ class Driver:
         self.rate.advance(done * self.joint.config.h)
         self.check_failed()
 
-    def counters(self) -> dict[str, int]:
-        """Return the joint's command counters (the live view shows them with each state)."""
-        return dict(vars(self.joint.counters))
+    def counters(self) -> Mapping[str, int]:
+        """Return the joint's command counters (the live view copies them with each state)."""
+        counters: Mapping[str, int] = vars(self.joint.counters)
+        return counters
 
     def check_failed(self) -> None:
         """Log, once, that the simulation stopped (stepping or publishing found it)."""
@@ -343,7 +344,7 @@ class SyncDriver(Driver):
         self.exchange.action = str(values['sync_timeout_action'])
         self.exchange.reconfigured()
 
-    def counters(self) -> dict[str, int]:
+    def counters(self) -> Mapping[str, int]:
         """Return the joint's command counters and the exchange's (``sync_*`` keys' values)."""
         return {**vars(self.joint.counters), **self.exchange.stats}
 

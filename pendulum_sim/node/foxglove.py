@@ -280,7 +280,8 @@ class LiveView:
     def offer(self, snapshot: Snapshot) -> None:
         """Queue a snapshot for the sender (the caller looked at :attr:`watching`); cheap."""
         self._queue.put(snapshot)
-        self._wake.set()
+        if not self._wake.is_set():   # set: the sender clears it before it takes the queue
+            self._wake.set()          # (Event.set takes a lock: not once per state)
 
     def log(self, stamp_ns: int, level: str, text: str) -> None:
         """Send a line of the node's log on ``log``; the last lines are kept and sent again to
