@@ -237,6 +237,24 @@ def test_pendulum_campaign_refuses_a_live_view_it_cannot_serve(
     assert not (tmp_path / 'out').exists()
 
 
+def test_pendulum_campaign_refuses_a_port_in_use_before_any_episode(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from pendulum_sim.testing.campaign.cli import main
+
+    path = tmp_path / 'campaign.yaml'
+    path.write_text(CAMPAIGN)
+    with socket.socket() as taken:
+        taken.bind(('127.0.0.1', 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert main([str(path), '--out', str(tmp_path / 'out'), '--no-progress',
+                     '--foxglove-port', str(port)]) == 2
+    assert capsys.readouterr().err == (
+        f'pendulum_campaign: error: --foxglove-port: cannot listen on 127.0.0.1:{port} '
+        '(Address already in use)\n')
+    assert not (tmp_path / 'out').exists()
+
+
 def test_a_campaign_episode_is_served_live_while_it_runs() -> None:
     import live_laws
 

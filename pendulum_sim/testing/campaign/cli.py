@@ -3,6 +3,7 @@
 ::
 
     pendulum_campaign CAMPAIGN.yaml --out DIR [--scheduler ADDRESS] [--workers N] [--resume]
+                      [--foxglove-port PORT]
     pendulum_campaign --rerun DIR EPISODE
 
 Exit status: 0 when every episode passed, 1 when some failed (or a rerun differs), 2 for a bad
@@ -115,7 +116,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise CampaignError('--foxglove-port serves one episode at a time: it needs '
                                     'the local cluster with --workers 1')
             args.workers = 1
-        from .check import check_values
+        from .check import check_live_port, check_values
         from .execute import check_address, run_campaign
         from .spec import read_spec
         from .summary import write_results
@@ -124,6 +125,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_address(args.scheduler)
         spec = read_spec(args.campaign)
         check_values(spec)
+        if args.foxglove_port:
+            check_live_port(spec, args.foxglove_port)
         out = Path(args.out)
         rows = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers,
                             resume=args.resume, progress=not args.no_progress,
