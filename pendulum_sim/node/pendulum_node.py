@@ -3,7 +3,8 @@
 The node declares parameters, creates the publishers, subscriptions, services and timer, and hands
 each callback to a ROS-free part: ``joint.py`` (the joint), ``drivers.py`` (when it advances, per
 mode), ``exchange.py`` (pause, step budget, synchronous answers), ``commands.py`` (decoding),
-``outputs.py`` (publishing, recording) and ``telemetry.py`` (diagnostics, summary).
+``outputs.py`` (publishing, recording), ``telemetry.py`` (diagnostics, summary) and
+``foxglove.py`` (the live view).
 """
 from __future__ import annotations
 
