@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from pendulum_sim.controller.pd_law import PDGains, pd_torque
 from pendulum_sim.node.errors import LiveError
+from pendulum_sim.node.exchange import Gate, SyncExchange
 from pendulum_sim.node.foxglove import (
     SCHEMAS,
     TOPICS,
@@ -24,6 +25,7 @@ from pendulum_sim.node.foxglove import (
     LiveView,
     layout_path,
 )
+from pendulum_sim.node.joint import CommandCounters
 from pendulum_sim.node.parameters import SPECS, check
 from pendulum_sim.testing import TestingError, closed_loop
 from pendulum_sim.testing.record import EFFORT_COMMAND, JOINT_STATES
@@ -136,7 +138,7 @@ def test_a_closed_loop_served_live_sends_the_states_of_the_run() -> None:
     try:
         with connect_when_up(port, 30.0) as client:
             client.subscribe('/joint_states', '/tf', '/target', '/energy_terms',
-                             '/robot_description')
+                             '/counters', '/robot_description')
             # The URDF is sent when a subscription arrives: the server has them all now.
             client.messages(1, '/robot_description')
             watched.set()
@@ -158,6 +160,15 @@ def test_a_closed_loop_served_live_sends_the_states_of_the_run() -> None:
     assert [m['velocity'][0] for _, m in states] == list(run.velocity[first:first + 59])
     assert [m['effort'][0] for _, m in states] == list(run.effort[first:first + 59])
     assert {m['data'] for _, m in by_topic['/target']} == {0.5}
+    # The counters of the node's synchronous mode: the joint's and the exchange's, each state
+    # answered once (the in-process controller answers every state).
+    counters = [m for _, m in by_topic['/counters']]
+    assert set(counters[-1]) == (set(vars(CommandCounters())) | set(SyncExchange(
+        Gate(), 1, 'hold').stats) | {'foxglove_dropped'})
+    # State k of the run goes out after the answers to the k before it.
+    answered = [c['answered'] for c in counters]   # the last state's may not be read yet
+    assert answered == list(range(first, first + len(answered))) and len(answered) >= 58
+    assert {c['timeouts'] for c in counters} == {0}
     # The 3D view: the bob's frame turned by the angle about the joint's y axis (the URDF's).
     for (_, state), (_, tf) in zip(states, by_topic['/tf'], strict=False):
         (frame,) = tf['transforms']

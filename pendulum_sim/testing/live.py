@@ -32,8 +32,9 @@ class LiveLoop:
         self._rtf = rtf if rtf > 0.0 else 1.0
         self._anchor: tuple[int, float] | None = None   # (wall ns, simulated s) when watched
 
-    def offer(self, joint: SimulatedJoint, sample: Sample) -> None:
-        """Send ``sample`` if a client watches, after waiting for its time to come."""
+    def offer(self, joint: SimulatedJoint, sample: Sample, counters: Mapping[str, int]) -> None:
+        """Send ``sample`` (with the driver's ``counters``) if a client watches, after waiting
+        for its time to come."""
         view = self.view
         if not view.watching:
             self._anchor = None
@@ -45,7 +46,7 @@ class LiveLoop:
         due = wall0 + round((joint.time - sim0) / self._rtf * 1e9)
         if due > now:
             time.sleep((due - now) / 1e9)
-        view.offer(snapshot(joint, sample, vars(joint.counters)))
+        view.offer(snapshot(joint, sample, counters))
 
     def close(self) -> None:
         """Stop the server."""

@@ -155,8 +155,8 @@ def run_in_process(law: Law, values: Mapping[str, Value], periods: int,
         sample = joint.sample()
         if sample is not None:
             sent.append(sample)
-            if live is not None:
-                live.offer(joint, sample)
+            if live is not None:   # the node's synchronous counters, as over DDS
+                live.offer(joint, sample, driver.counters())
         return sample is not None
 
     exchange = SyncExchange(Gate(), round(float(values['sync_timeout']) * 1e9), 'hold')
