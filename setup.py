@@ -18,7 +18,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'bench']),
-    package_data={package_name: ['py.typed']},
+    package_data={package_name: ['py.typed', 'foxglove_layout.json']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -36,6 +36,8 @@ setup(
         # Gymnasium environments of the joint (pendulum_sim.gym).
         'gym': ['gymnasium>=1.0'],
         'docs': ['sphinx>=8', 'myst-parser>=4'],
+        # The live view (node parameter foxglove_port): a foxglove.websocket server.
+        'foxglove': ['foxglove-sdk>=0.30'],
         'test': [
             'pytest>=8', 'wheel>=0.40', 'ruff>=0.6', 'mypy>=1.10', 'scipy>=1.10',
             'mcap-ros2-support>=0.5',
@@ -47,6 +49,8 @@ setup(
             'hypothesis>=6.100',
             # The Gymnasium environments, their checker and Pendulum-v1 (the benchmark's peer).
             'gymnasium>=1.0',
+            # The live view and a plain client of its protocol.
+            'foxglove-sdk>=0.30', 'websockets>=13',
         ],
         'identify': ['scipy>=1.10', 'matplotlib>=3.7'],
         'campaign': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'matplotlib>=3.7'],

@@ -13,6 +13,10 @@ Phase 0 (default), the tick and the comparison:
   achieved real-time factor), with nothing subscribed and with this process subscribed to
   joint_states and /clock (the node skips publications nobody receives, so both are shown).
 
+Then the Foxglove live view (``foxglove_port``, issue 27): the same two figures (1 kHz CPU,
+free-lockstep rate) with the server off, on without a client and on with one client reading
+every channel, interleaved (``--only-live`` runs only this).
+
 Phase 1, real time (1 kHz physics, 1 kHz publishing by default): the publish period seen by the
 subscriber, the stamp-to-receive age, the drift of simulated against wall time over the run,
 the node's CPU (from /proc/<pid>/stat) and its own wake latency (from /diagnostics).
@@ -300,11 +304,56 @@ def node_cmd(first: Path | None) -> tuple[list[str], dict[str, str]]:
     return [sys.executable, '-c', code], env
 
 
+class LiveClient:
+    """A Foxglove client in a thread of this process, subscribed to every channel of a node's
+    live view, reading (and counting) until stopped."""
+
+    def __init__(self, port: int) -> None:
+        import threading
+
+        self.port = port
+        self.received = 0
+        self.error: BaseException | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        from foxglove_client import FoxgloveClient
+
+        try:
+            deadline = time.monotonic() + 30.0
+            while True:
+                try:
+                    client = FoxgloveClient(self.port)
+                    break
+                except OSError:
+                    if time.monotonic() > deadline:
+                        raise
+                    time.sleep(0.05)
+            with client:
+                client.wait_channels('/tf', '/log')
+                client.subscribe(*client.channels)
+                while not self._stop.is_set():
+                    self.received += len(client.messages(1))
+        except BaseException as exc:  # reported by stop()
+            self.error = exc
+
+    def stop(self) -> int:
+        """Stop reading; return the messages received."""
+        self._stop.set()
+        self._thread.join(30.0)
+        if self.error is not None:
+            raise RuntimeError(f'the live client failed: {self.error!r}')
+        return self.received
+
+
 def run_node(first: Path | None, scene: str, params: dict[str, str], seconds: float,
-             warmup: float, listen: bool = False) -> tuple[float, str]:
+             warmup: float, listen: bool = False,
+             live_client: int | None = None) -> tuple[float, str]:
     """Run a node for ``warmup + seconds``; return its CPU share after the warm-up and its
     shutdown summary. ``listen``: a subscriber in this process takes its joint_states and
-    /clock meanwhile."""
+    /clock meanwhile; ``live_client``: a Foxglove client reads its live view on that port."""
     import signal
     import subprocess
 
@@ -318,6 +367,7 @@ def run_node(first: Path | None, scene: str, params: dict[str, str], seconds: fl
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, cwd=root)
     probe = Probe('bench_listener', executor='events') if listen else None
+    client = LiveClient(live_client) if live_client is not None else None
     try:
         if probe is not None:
             best_effort = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -330,9 +380,16 @@ def run_node(first: Path | None, scene: str, params: dict[str, str], seconds: fl
         share = (cpu_seconds(proc.pid) - c0) / (time.monotonic() - w0)
         if proc.poll() is not None:
             raise RuntimeError(f'the node ended early: {proc.communicate()[1][-2000:]}')
+        if client is not None:
+            got = client.stop()
+            client = None
+            if got == 0:
+                raise RuntimeError('the live client received nothing')
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)
     finally:
+        if client is not None:
+            client.stop()
         if probe is not None:
             probe.close()
         if proc.poll() is None:
@@ -398,6 +455,43 @@ def compare(args: argparse.Namespace) -> None:
               f'{np.median(heard[b]) / np.median(heard[a]):.2f}')
 
 
+def live_compare(args: argparse.Namespace) -> None:
+    """Print the node with its Foxglove live view off, on without a client and on with one,
+    side by side, interleaved (issue 27: the server off costs what the node did before)."""
+    from foxglove_client import free_port
+
+    variants = ('server off', 'on, no client', 'on, one client')
+    cpu: dict[str, list[float]] = {v: [] for v in variants}
+    rtf: dict[str, list[float]] = {v: [] for v in variants}
+    for _ in range(args.rounds):
+        for variant in variants:
+            params = {'status_line': 'false'}
+            port = None
+            if variant != 'server off':
+                port = free_port()
+                params['foxglove_port'] = str(port)
+            client = port if variant == 'on, one client' else None
+            share, _ = run_node(None, 'paper', {**params, 'publish_rate': '1000.0'},
+                                args.cpu_seconds, 3.0, live_client=client)
+            cpu[variant].append(100.0 * share)
+            if port is not None:
+                port = free_port()
+                params['foxglove_port'] = str(port)
+            _, err = run_node(None, 'lockstep', params, args.lockstep_duration, 2.0,
+                              live_client=port if client is not None else None)
+            rtf[variant].append(summary_value(err, 'achieved real-time factor'))
+    print(f'\nFoxglove live view (foxglove_port), interleaved, {args.rounds} rounds: paper '
+          f'scene at 1 kHz for {args.cpu_seconds:g} s, free lockstep for '
+          f'{args.lockstep_duration:g} s (the client reads every channel):')
+    off_c, off_r = np.median(cpu['server off']), np.median(rtf['server off'])
+    for v in variants:
+        c, r = np.array(cpu[v]), np.array(rtf[v])
+        print(f'  {v:<16} 1 kHz CPU median {np.median(c):5.1f} % of a core '
+              f'({", ".join(f"{x:.1f}" for x in c)}), ratio to off {np.median(c) / off_c:.2f};'
+              f'  free lockstep RTF median {np.median(r):6.1f}x '
+              f'({", ".join(f"{x:.1f}" for x in r)}), ratio to off {np.median(r) / off_r:.2f}')
+
+
 def main() -> int:
     """Run the phases and print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
@@ -417,14 +511,24 @@ def main() -> int:
     parser.add_argument('--ticks', type=int, default=20000, help='ticks in the breakdown')
     parser.add_argument('--cpu-seconds', type=float, default=10.0,
                         help='CPU measurement per comparison run, s')
+    parser.add_argument('--skip-live', action='store_true',
+                        help='skip the Foxglove live view comparison')
+    parser.add_argument('--only-live', action='store_true',
+                        help='only the Foxglove live view comparison (off / on / one client)')
     parser.add_argument('--executor', choices=('events', 'single'), default='events')
     parser.add_argument('--rt-priority', type=int, default=0,
                         help="the node's SCHED_FIFO priority (0 = normal scheduler)")
     args = parser.parse_args()
     print(f'machine: {machine()}')
     print(f'node executor: {args.executor}; ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}')
+    if args.only_live:
+        live_compare(args)
+        rclpy.try_shutdown()
+        return 0
     if not args.skip_compare:
         compare(args)
+    if not args.skip_live:
+        live_compare(args)
     if args.only_compare:
         rclpy.try_shutdown()
         return 0

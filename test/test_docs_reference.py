@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
+from foxglove_client import free_port
 from node_harness import NodeProcess, Probe
 from rcl_interfaces.srv import DescribeParameters, ListParameters
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -134,7 +135,7 @@ def test_every_console_script_and_option_is_listed() -> None:
 def test_the_running_node_declares_and_publishes_what_the_reference_lists() -> None:
     """Parameters over DDS and every /diagnostics key, families included, are in the tables."""
     params = {'lockstep': True, 'synchronous': True, 'sync_timeout': 0.02,
-              'publish_rate': 100.0, 'array_command_input': True}
+              'publish_rate': 100.0, 'array_command_input': True, 'foxglove_port': free_port()}
     table = rows(reftables.parameters_markdown())
     with NodeProcess('default', params) as node, Probe() as probe:
         ns = node.namespace

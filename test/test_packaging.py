@@ -21,6 +21,7 @@ def test_wheel_installs_the_ament_marker_package_xml_scenes_and_executables(
     scenes = {Path(n).name for n in names if n.startswith(data + 'share/pendulum_sim/config/')}
     assert {p.name for p in (ROOT / 'config').glob('*.yaml')} | {'fastdds_localhost.xml'} == scenes
     assert 'pendulum_sim/py.typed' in names
+    assert 'pendulum_sim/foxglove_layout.json' in names   # the Foxglove layout
     entry = zipfile.ZipFile(wheel).read('pendulum_sim-0.1.0.dist-info/entry_points.txt').decode()
     for exe in ('pendulum_node', 'pendulum_replay', 'pendulum_report', 'pendulum_demo',
                 'pendulum_pd_controller'):

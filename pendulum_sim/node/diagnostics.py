@@ -38,6 +38,7 @@ class Key:
 
 GUARD = 'counted over the whole run, across resets (core GuardStats)'
 SYNC = 'synchronous mode'
+FOXGLOVE = 'foxglove_port set'
 
 # Every key the node's status holds, in the order it publishes them.
 KEYS: tuple[Key, ...] = (
@@ -108,6 +109,12 @@ KEYS: tuple[Key, ...] = (
     Key('sync_ahead', 'int', '', 'Commands for a state not yet published, dropped.', SYNC),
     Key('sync_republished', 'int', '',
         'Awaited states published again after a stop timeout, when stepping resumed.', SYNC),
+    Key('foxglove_subscriptions', 'int', '',
+        'Subscriptions of Foxglove clients to channels now (0: the tick does no live work).',
+        FOXGLOVE),
+    Key('foxglove_sent', 'int', '', 'States sent to Foxglove clients.', FOXGLOVE),
+    Key('foxglove_dropped', 'int', '',
+        "States dropped, the oldest first, from the live view's full queue.", FOXGLOVE),
     Key('incompatible_qos[<topic>]', 'int', '',
         "Publishers or subscribers on a topic whose QoS cannot match the node's.",
         'once such an endpoint was seen'),

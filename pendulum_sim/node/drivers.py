@@ -148,6 +148,11 @@ class Driver:
         self.rate.advance(done * self.joint.config.h)
         self.check_failed()
 
+    def counters(self) -> Mapping[str, int]:
+        """Return the joint's command counters (the live view copies them with each state)."""
+        counters: Mapping[str, int] = vars(self.joint.counters)
+        return counters
+
     def check_failed(self) -> None:
         """Log, once, that the simulation stopped (stepping or publishing found it)."""
         failed = self.joint.failed
@@ -338,6 +343,10 @@ class SyncDriver(Driver):
         self.exchange.timeout_ns = round(float(values['sync_timeout']) * 1e9)
         self.exchange.action = str(values['sync_timeout_action'])
         self.exchange.reconfigured()
+
+    def counters(self) -> Mapping[str, int]:
+        """Return the joint's command counters and the exchange's (``sync_*`` keys' values)."""
+        return {**vars(self.joint.counters), **self.exchange.stats}
 
     def after_reset(self, now_ns: int) -> None:
         self._failure_logged = False

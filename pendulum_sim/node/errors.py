@@ -18,3 +18,7 @@ class ParameterError(NodeError, ValueError):
 
 class JointError(NodeError, ValueError):
     """The simulated joint cannot take a configuration or state (the reason says why)."""
+
+
+class LiveError(NodeError):
+    """The live Foxglove server cannot start (the reason says why)."""

@@ -7,10 +7,11 @@ recorder is reported once and never stops the joint.
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from .errors import JointError
+from .foxglove import LiveView, snapshot
 from .joint import SimulatedJoint
 from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 
@@ -18,11 +19,9 @@ from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 class Recording:
     """The node's recorder, if any: writes that never raise, an error reported once."""
 
-    def __init__(self, recorder: Any, log_error: Callable[[str], None],
-                 log_info: Callable[[str], None] = print) -> None:
+    def __init__(self, recorder: Any, log: Callable[[str, str], None]) -> None:
         self.recorder = recorder
-        self._log_error = log_error
-        self._log_info = log_info
+        self._log = log   # (level, text), the node's log
         self._error_logged = False
 
     def open(self, path: str, overwrite: bool, metadata: dict[str, dict[str, str]],
@@ -31,7 +30,7 @@ class Recording:
         try:
             from pendulum_sim.recording import McapRecorder
         except ImportError as exc:
-            self._log_error(f'recording is not available ({exc}); not recording')
+            self._log('error', f'recording is not available ({exc}); not recording')
             return
         from rcl_interfaces.msg import ParameterEvent
 
@@ -41,7 +40,7 @@ class Recording:
             rec.add_channel(topic, msg_type, qos)
         rec.add_channel('/parameter_events', ParameterEvent, 10)
         self.recorder = rec
-        self._log_info(f'recording to {rec.path}')
+        self._log('info', f'recording to {rec.path}')
 
     def write(self, topic: str, msg: Any, stamp_ns: int) -> None:
         """Write a message (or its CDR bytes) at ``stamp_ns``; never raise."""
@@ -70,7 +69,7 @@ class Recording:
         """Report a recorder error once."""
         if not self._error_logged:
             self._error_logged = True
-            self._log_error(f'recording failed, simulation continues: {exc}')
+            self._log('error', f'recording failed, simulation continues: {exc}')
 
     def close(self) -> None:
         """Close the recording (report, never raise: the shutdown goes on)."""
@@ -106,11 +105,17 @@ class StateOutputs:
         energy_terms/{kinetic, potential, dissipated_power, residual}, or empty.
     recording : Recording
         Where every publication (but /clock and the terms) is also written.
+    live : LiveView, optional
+        The Foxglove server, handed a snapshot of each state sent while a client watches;
+        ``live_counters`` returns the counters it shows.
     """
 
     def __init__(self, joint: SimulatedJoint, joint_name: str, states: Any, clock: Any,
-                 energy: Any, terms: list[Any], recording: Recording) -> None:
+                 energy: Any, terms: list[Any], recording: Recording,
+                 live: LiveView | None = None) -> None:
         self.joint = joint
+        self.live = live
+        self.live_counters: Callable[[], Mapping[str, int]] = lambda: vars(joint.counters)
         self._states = states
         self._clock = clock
         self._energy = energy
@@ -161,6 +166,9 @@ class StateOutputs:
             self.last_states = data
             if record:
                 self._recording.write(self._states_topic, data, stamp_ns)
+        live = self.live
+        if live is not None and live.watching and sample is not None:
+            live.offer(snapshot(joint, sample, self.live_counters()))
         # /clock after the state: a controller manager woken by /clock (ros2_control_node on
         # use_sim_time) finds the state of that time already sent when it reads.
         if with_clock and self._to_clock:

@@ -17,6 +17,7 @@ from pendulum_sim.core import METHODS, ModelError, PendulumError, PendulumParams
 from pendulum_sim.core.model import validate_state
 
 from .errors import JointError
+from .foxglove import check_port
 from .joint import INTERFACES, JointConfig, SimulatedJoint, check_config
 
 if TYPE_CHECKING:
@@ -190,6 +191,12 @@ SPECS: tuple[Spec, ...] = (
     Spec('recording.path', '', "Record to this MCAP file or folder ('' = off). " + SWITCH,
          read_only=True),
     Spec('recording.overwrite', False, 'Replace an existing recording file.', read_only=True),
+    # Live view.
+    Spec('foxglove_port', 0, 'Serve the joint live to Foxglove (foxglove-sdk WebSocket server) '
+         'on this TCP port; 0 = off.', read_only=True, low=0, high=65535,
+         constraints='0 (off) or 1024..65535', unit='1'),
+    Spec('foxglove_host', '127.0.0.1', 'Address the Foxglove server listens on (loopback '
+         "unless set; '0.0.0.0' = every interface).", read_only=True),
 )
 
 SPEC_BY_NAME: dict[str, Spec] = {s.name: s for s in SPECS}
@@ -264,6 +271,12 @@ def _check_rest(values: Mapping[str, Value], params: PendulumParams) -> str | No
         return (f"command_interface '{values['command_interface']}' takes commands on "
                 'joint_commands or commands: set joint_commands_input or array_command_input '
                 'to true (effort_command carries N m, effort only)')
+    port_reason = check_port(int(values['foxglove_port']))
+    if port_reason is not None:
+        return port_reason
+    host = str(values['foxglove_host'])
+    if not host.strip() or host != host.strip():
+        return f"foxglove_host must be an address to listen on, got '{host}'"
     for name in ('position_min', 'position_max'):
         if math.isnan(float(values[name])):
             return f'{name} must be a number or an infinity, got nan'

@@ -3,7 +3,8 @@
 The node declares parameters, creates the publishers, subscriptions, services and timer, and hands
 each callback to a ROS-free part: ``joint.py`` (the joint), ``drivers.py`` (when it advances, per
 mode), ``exchange.py`` (pause, step budget, synchronous answers), ``commands.py`` (decoding),
-``outputs.py`` (publishing, recording) and ``telemetry.py`` (diagnostics, summary).
+``outputs.py`` (publishing, recording), ``telemetry.py`` (diagnostics, summary) and
+``foxglove.py`` (the live view).
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from . import diagnostics as diag
 from .drivers import WAKE_BUDGET_NS, make_driver, wake_period
 from .errors import ParameterError
 from .exchange import Gate, StepError
+from .foxglove import LiveView
 from .joint import SimulatedJoint
 from .outputs import Recording, StateOutputs
 from .parameters import (
@@ -43,14 +45,7 @@ from .parameters import (
     refusal,
     start_epoch_ns,
 )
-from .qos import (
-    COMMAND_QOS,
-    JOINT_STATE_QOS,
-    LATCHED_QOS,
-    SERVICE_QOS,
-    STEP_QOS,
-    SYNC_COMMAND_QOS,
-)
+from .qos import COMMAND_QOS, JOINT_STATE_QOS, LATCHED_QOS, SERVICE_QOS, STEP_QOS, SYNC_COMMAND_QOS
 from .realtime import WakeStats
 from .status import StatusLine, summary_text
 from .telemetry import Telemetry
@@ -109,7 +104,9 @@ class PendulumNode(Node):
             self.create_service(Trigger, '~/step', self._on_step_one, qos_profile=SERVICE_QOS)
             self.create_subscription(UInt32, '~/step_periods', self._on_step_periods,
                                      STEP_QOS)
-        self._recording = Recording(None, self.get_logger().error, self.get_logger().info)
+        # The live view before the recording: a port in use stops the start with nothing open.
+        self._live = LiveView.of(v, self._urdf()) if v['foxglove_port'] else None
+        self._recording = Recording(None, self._log)
         if v['recording.path']:
             channels: list[tuple[str, Any, Any]] = [
                 (self._js_pub.topic_name, JointState, JOINT_STATE_QOS)]
@@ -125,24 +122,28 @@ class PendulumNode(Node):
         self._joint = joint = SimulatedJoint(joint_config(v, start_epoch_ns(v, time.time_ns())))
         self._gate = gate = Gate(bool(v['start_paused']))
         self._outputs = StateOutputs(joint, self._joint_name, self._js_pub, clock, energy,
-                                     terms, self._recording)
+                                     terms, self._recording, self._live)
         now = time.monotonic_ns()
         self._driver = make_driver(
             v, joint, gate, self._outputs, self._log, now, self._ready,
             f'synchronous: waiting for a controller (a subscriber on {self._js_pub.topic_name}'
             f" and a reliable publisher on {', '.join(self._topics.values())})",
             remind=self._outputs.remind, remind_state=set(self._topics) == {'joint_commands'})
+        self._outputs.live_counters = self._driver.counters
         period, scheduled = wake_period(v)
         self._period_ns = round(period * 1e9)
         self._wakes = WakeStats(self._period_ns if scheduled else 0)
         self._telemetry = Telemetry(joint, self._driver, gate, self._drops, self._wakes,
                                     self._incompatible, float(v['real_time_factor']), now)
+        self._telemetry.live = self._live
         self._status = status if v['status_line'] else None
         self._timer = self.create_timer(period, self._on_wake,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
-        self.get_logger().info(self._telemetry.start_text(v))
+        self._log('info', self._telemetry.start_text(v))
+        if self._live is not None:
+            self._log('info', f'foxglove: serving the joint on {self._live.url}')
 
     @property
     def stop_requested(self) -> bool:
@@ -157,6 +158,8 @@ class PendulumNode(Node):
             logger.warning(text)
         else:
             logger.info(text)
+        if self._live is not None:   # stamp 0 before the joint exists
+            self._live.log(self._joint.stamp_ns() if hasattr(self, '_joint') else 0, level, text)
 
     def _urdf(self) -> str:
         """Return the URDF of this joint, its ros2_control block naming this node's topics."""
@@ -174,7 +177,7 @@ class PendulumNode(Node):
             kind = getattr(event.last_policy_kind, 'name', str(event.last_policy_kind))
             line = commands.incompatible_line(name, kind, self._sync, count)
             if line is not None:
-                self.get_logger().warning(line)
+                self._log('warning', line)
 
         events = SubscriptionEventCallbacks(incompatible_qos=incompatible)
         created.append(self.create_subscription(msg_type, topic, callback, qos,
@@ -239,7 +242,7 @@ class PendulumNode(Node):
         if decoded.reason:
             line = self._drops.drop(topic, decoded.reason, decoded.detail)
             if line is not None:
-                self.get_logger().warning(line)
+                self._log('warning', line)
             return
         stamp = self._driver.command(decoded.value, decoded.stamp_ns, time.monotonic_ns())
         if stamp is not None and self._recording.recorder is not None:
@@ -292,7 +295,7 @@ class PendulumNode(Node):
         except StepError as exc:
             line = self._refused_steps.drop('~/step_periods', str(exc))
             if line is not None:   # the first of each reason, then every 1000th
-                self.get_logger().warning(line.replace('dropped a command on ', ''))
+                self._log('warning', line.replace('dropped a command on ', ''))
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         self._tick_first()
@@ -308,6 +311,8 @@ class PendulumNode(Node):
                 self._values[p.name] = p.value
         self._driver.take_parameters(self._values, names)   # applied by the next wake, once
         self._telemetry.rtf_target = float(self._values['real_time_factor'])
+        if self._live is not None:
+            self._live.parameters(self._values)
         if self._recording.recorder is not None:
             stamp = self._joint.stamp_ns()
             event = ParameterEvent(node=self.get_fully_qualified_name(), stamp=_stamp(stamp))
@@ -341,3 +346,5 @@ class PendulumNode(Node):
         except Exception as exc:  # the summary must never hide the shutdown
             print(f'pendulum_node: no summary ({type(exc).__name__}: {exc})', file=sys.stderr)
         self._recording.close()
+        if self._live is not None:
+            self._live.close()

@@ -15,6 +15,7 @@ from .commands import Drops
 from .drivers import Driver, SyncDriver
 from .errors import JointError
 from .exchange import Gate
+from .foxglove import LiveView
 from .joint import SimulatedJoint
 from .realtime import WakeStats
 from .status import status_text
@@ -52,6 +53,7 @@ class Telemetry:
         self.rtf_target = rtf_target
         self._last_error = math.nan
         self._max_error = 0.0
+        self.live: LiveView | None = None   # the node sets its live view, if it has one
         self._next_report_ns = start_ns + REPORT_PERIOD_NS
 
     def report_due(self, now_ns: int) -> bool:
@@ -160,6 +162,8 @@ class Telemetry:
         }
         if isinstance(self.driver, SyncDriver):
             values.update({f'sync_{k}': n for k, n in self.driver.exchange.stats.items()})
+        if self.live is not None:
+            values.update(self.live.stats())
         for topic, n in self.incompatible.items():
             values[f'incompatible_qos[{topic}]'] = n
         return values

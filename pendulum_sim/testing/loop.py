@@ -55,7 +55,8 @@ def _check_target(target: float | None) -> float | None:
 def closed_loop(controller: Law | Callable[..., float] | Sequence[str], *,
                 scene: str = 'controller_test', periods: int,
                 overrides: Mapping[str, Any] | None = None, record: str | Path | None = None,
-                timeout: float = 120.0, target: float | None = None) -> ClosedLoopRun:
+                timeout: float = 120.0, target: float | None = None,
+                foxglove_port: int = 0) -> ClosedLoopRun:
     """Run ``controller`` against the joint of ``scene`` for ``periods`` control periods.
 
     Parameters
@@ -80,6 +81,10 @@ def closed_loop(controller: Law | Callable[..., float] | Sequence[str], *,
         an argument holds ``{target}`` (:mod:`pendulum_sim.testing.target`); the run keeps it
         as its ``target``, the default of ``metrics()`` and ``plot()``. None (the default):
         the controller gets no target and the run has none.
+    foxglove_port : int
+        Serve the run live to Foxglove on this port (the node's ``foxglove_port``: 0 = off,
+        or 1024..65535); in this process the run is paced to real time while a client
+        watches (:mod:`pendulum_sim.testing.live`).
 
     Raises
     ------
@@ -92,6 +97,8 @@ def closed_loop(controller: Law | Callable[..., float] | Sequence[str], *,
     """
     periods = _check_periods(periods)
     target = _check_target(target)
+    if foxglove_port:
+        overrides = {**(overrides or {}), 'foxglove_port': foxglove_port}
     values = scene_values(scene, overrides)
     if isinstance(controller, (list, tuple)):
         if not controller or not all(isinstance(a, str) for a in controller):
@@ -106,7 +113,7 @@ def closed_loop(controller: Law | Callable[..., float] | Sequence[str], *,
         raise TestingError(f'controller must be a callable (t, position, velocity) -> '
                            f'command or a command line (list of str), got {controller!r}')
     law = controller if target is None else bind_target(controller, target)
-    run = run_in_process(law, values, periods)
+    run = run_in_process(law, values, periods, target)
     if target is not None:
         run = run.with_target(target)
     if record is not None:
@@ -116,7 +123,8 @@ def closed_loop(controller: Law | Callable[..., float] | Sequence[str], *,
     return run
 
 
-def run_in_process(law: Law, values: Mapping[str, Value], periods: int) -> ClosedLoopRun:
+def run_in_process(law: Law, values: Mapping[str, Value], periods: int,
+                   target: float | None = None) -> ClosedLoopRun:
     """Run ``law`` against a :class:`SimulatedJoint` built from ``values`` (no ROS).
 
     The node's own synchronous driver (:class:`~pendulum_sim.node.drivers.SyncDriver` with its
@@ -131,11 +139,14 @@ def run_in_process(law: Law, values: Mapping[str, Value], periods: int) -> Close
     from pendulum_sim.node.joint import Sample, SimulatedJoint
     from pendulum_sim.node.parameters import joint_config
 
+    from .live import LiveLoop
+
     try:
         joint = SimulatedJoint(joint_config(values, epoch_ns(values)))
     except JointError as exc:
         raise TestingError(str(exc)) from None
     sent: list[Sample] = []
+    live = LiveLoop(values, target) if values['foxglove_port'] else None
 
     def publish(with_clock: bool) -> bool:
         """Send the state as the node's outputs do: one measurement per publication."""
@@ -144,29 +155,35 @@ def run_in_process(law: Law, values: Mapping[str, Value], periods: int) -> Close
         sample = joint.sample()
         if sample is not None:
             sent.append(sample)
+            if live is not None:   # the node's synchronous counters, as over DDS
+                live.offer(joint, sample, driver.counters())
         return sample is not None
 
     exchange = SyncExchange(Gate(), round(float(values['sync_timeout']) * 1e9), 'hold')
     driver = SyncDriver(joint, exchange, publish, _quiet, 0, _connected, '', clock=_still)
-    driver.wake(0, WAKE_BUDGET_NS)   # the first state
     out = np.full((5, periods), np.nan)
     n = 0
-    for _ in range(periods):
-        if joint.failed is not None:
-            break
-        if not sent:   # no state went out (a sensor delay filling): the command holds
-            driver.wake(0, WAKE_BUDGET_NS)
-            continue
-        sample = sent.pop()
-        t = sample.stamp_ns / 1e9
-        try:
-            value = _answer(law, t, sample.position, sample.velocity)
-        except ControllerFailed as exc:
-            exc.run = _samples(out, n, values, joint.failed)   # the run up to the fault
-            raise
-        out[:, n] = (t, sample.position, sample.velocity, sample.effort, value)
-        n += 1
-        driver.command(value, None, 0)   # answers the state, advances, sends the next
+    try:
+        driver.wake(0, WAKE_BUDGET_NS)   # the first state
+        for _ in range(periods):
+            if joint.failed is not None:
+                break
+            if not sent:   # no state went out (a sensor delay filling): the command holds
+                driver.wake(0, WAKE_BUDGET_NS)
+                continue
+            sample = sent.pop()
+            t = sample.stamp_ns / 1e9
+            try:
+                value = _answer(law, t, sample.position, sample.velocity)
+            except ControllerFailed as exc:
+                exc.run = _samples(out, n, values, joint.failed)   # the run up to the fault
+                raise
+            out[:, n] = (t, sample.position, sample.velocity, sample.effort, value)
+            n += 1
+            driver.command(value, None, 0)   # answers the state, advances, sends the next
+    finally:
+        if live is not None:
+            live.close()
     return _samples(out, n, values, joint.failed)
 
 

@@ -5,6 +5,8 @@ values of an episode (:mod:`.scenarios`, :mod:`.episode`), which sit above the p
 """
 from __future__ import annotations
 
+import socket
+
 from ..errors import CampaignError, TestingError
 from ..scene import with_overrides
 from .episode import scene_base  # read once per process, for the episodes too
@@ -29,3 +31,20 @@ def check_values(spec: CampaignSpec) -> None:
                     with_overrides(base, {**first, name: value})
     except TestingError as exc:
         raise CampaignError(str(exc).splitlines()[0]) from None
+
+
+def check_live_port(spec: CampaignSpec, port: int) -> None:
+    """Refuse ``--foxglove-port`` when the episodes could not listen on it (it is in use now, on
+    the scene's ``foxglove_host``): every episode would fail with that reason."""
+    try:
+        host = str(scene_base(spec.scene)['foxglove_host'])
+        family = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0][0]
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            # As a server binds (SO_REUSEADDR): only a socket listening there is in the way.
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            probe.bind((host, port))
+    except TestingError as exc:
+        raise CampaignError(str(exc).splitlines()[0]) from None
+    except OSError as exc:
+        raise CampaignError(f'--foxglove-port: cannot listen on {host}:{port} '
+                            f'({exc.strerror or exc})') from None

@@ -3,6 +3,7 @@
 ::
 
     pendulum_campaign CAMPAIGN.yaml --out DIR [--scheduler ADDRESS] [--workers N] [--resume]
+                      [--foxglove-port PORT]
     pendulum_campaign --rerun DIR EPISODE
 
 Exit status: 0 when every episode passed, 1 when some failed (or a rerun differs), 2 for a bad
@@ -44,6 +45,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--rerun', nargs=2, metavar=('DIR', 'EPISODE'),
                         help='run one episode of the campaign in DIR again and compare')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar')
+    parser.add_argument('--foxglove-port', type=int, default=0, metavar='PORT',
+                        help='serve the episode being run live to Foxglove on this port '
+                        '(1024-65535; one local worker, one episode at a time)')
     return parser
 
 
@@ -102,7 +106,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.scheduler is not None and args.workers is not None:
             raise CampaignError('--workers sizes the local cluster; it cannot go with '
                                 '--scheduler')
-        from .check import check_values
+        if args.foxglove_port:
+            from pendulum_sim.node.foxglove import check_port
+
+            reason = check_port(args.foxglove_port)
+            if reason is not None:
+                raise CampaignError(f'--foxglove-port: {reason}')
+            if args.scheduler is not None or args.workers not in (None, 1):
+                raise CampaignError('--foxglove-port serves one episode at a time: it needs '
+                                    'the local cluster with --workers 1')
+            args.workers = 1
+        from .check import check_live_port, check_values
         from .execute import check_address, run_campaign
         from .spec import read_spec
         from .summary import write_results
@@ -111,9 +125,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_address(args.scheduler)
         spec = read_spec(args.campaign)
         check_values(spec)
+        if args.foxglove_port:
+            check_live_port(spec, args.foxglove_port)
         out = Path(args.out)
         rows = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers,
-                            resume=args.resume, progress=not args.no_progress)
+                            resume=args.resume, progress=not args.no_progress,
+                            foxglove_port=args.foxglove_port)
         write_results(spec, rows, out)
     except CampaignError as exc:
         line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__

@@ -120,13 +120,15 @@ def _keep_failure(out: str | None, row: dict[str, Any], run: ClosedLoopRun | Non
         write_run(run, path)
 
 
-def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
+def run_episode(text: str, episode: int, out: str | None,
+                foxglove_port: int = 0) -> dict[str, Any]:
     """Run episode ``episode`` of the campaign ``text``; return its row.
 
     When ``out`` is given, a failing episode's run is written to
     :func:`failure_path` (with the target, so ``pendulum_report closed-loop`` reads it). A
     vectorised law runs as a batch of one (the batched path decides for it, as in the
-    campaign).
+    campaign). With ``foxglove_port`` (0 = off) the episode is served live to Foxglove while
+    it runs (``closed_loop(..., foxglove_port=)``); a batch is not.
     """
     spec = cached_spec(text)
     if batched(spec):
@@ -138,11 +140,15 @@ def run_episode(text: str, episode: int, out: str | None) -> dict[str, Any]:
     try:
         if isinstance(spec.controller, tuple):
             run = closed_loop(list(spec.controller), scene=spec.scene, periods=spec.periods,
-                              overrides=drawn.values, target=drawn.target)
+                              overrides=drawn.values, target=drawn.target,
+                              foxglove_port=foxglove_port)
         else:
             law = watched(bind_target(load_controller(spec.controller), drawn.target))
-            run = run_in_process(law, episode_values(spec, drawn.values),
-                                 spec.periods).with_target(drawn.target)
+            values = episode_values(spec, drawn.values)
+            if foxglove_port:
+                values['foxglove_port'] = foxglove_port
+            run = run_in_process(law, values, spec.periods,
+                                 drawn.target).with_target(drawn.target)
     except TestingError as exc:
         reason = str(exc).splitlines()[0]
         run = failed_run(exc)
@@ -187,11 +193,15 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
     return rows
 
 
-def run_chunk(text: str, episodes: list[int], out: str | None) -> list[dict[str, Any]]:
-    """Run several episodes in this process (a batch for a vectorised law); return their rows."""
+def run_chunk(text: str, episodes: list[int], out: str | None,
+              foxglove_port: int = 0) -> list[dict[str, Any]]:
+    """Run several episodes in this process (a batch for a vectorised law); return their rows.
+
+    Episodes run one by one are served live on ``foxglove_port`` (0 = off); a batch is not.
+    """
     if batched(cached_spec(text)):
         return run_episodes(text, episodes, out)
-    return [run_episode(text, i, out) for i in episodes]
+    return [run_episode(text, i, out, foxglove_port) for i in episodes]
 
 
 def batched(spec: CampaignSpec) -> bool:

@@ -122,12 +122,14 @@ def check_address(address: str) -> None:
 
 def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
                 progress: bool = True,
-                on_row: Callable[[dict[str, Any]], None] | None = None) -> int:
+                on_row: Callable[[dict[str, Any]], None] | None = None,
+                foxglove_port: int = 0) -> int:
     """Run the episodes without a stored row on ``client``; return how many ran.
 
     Each task's rows are stored in one transaction when it ends. A task that fails as a whole
     (its worker died, say) is run again one episode per task; an episode whose own task fails
-    so fails with the reason.
+    so fails with the reason. With ``foxglove_port`` (0 = off) each episode is served live
+    while it runs (the caller gives a client of one worker: one server at a time).
     """
     from distributed import as_completed
 
@@ -144,7 +146,8 @@ def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
 
     def submit(chunk: list[int], again: str = '') -> Any:
         return client.submit(run_chunk, spec.text, chunk, out, spec.episode_timeout,
-                             key=f'episodes-{chunk[0]}-{chunk[-1]}-{tag}{again}', pure=False)
+                             foxglove_port=foxglove_port, pure=False,
+                             key=f'episodes-{chunk[0]}-{chunk[-1]}-{tag}{again}')
 
     futures = as_completed([submit(c) for c in chunks])
     try:
@@ -193,10 +196,12 @@ def _workers(client: Any) -> int:
 
 def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None,
                  workers: int | None = None, resume: bool = False,
-                 progress: bool = True) -> list[dict[str, Any]]:
+                 progress: bool = True, foxglove_port: int = 0) -> list[dict[str, Any]]:
     """Run (or continue) the campaign into ``out``; return every row, by episode id.
 
-    Nothing is written before the folder is checked and the cluster reached.
+    Nothing is written before the folder is checked and the cluster reached. With
+    ``foxglove_port`` (0 = off) the episode being run is served live to Foxglove
+    (:func:`run_pending`).
     """
     store = EpisodeStore(out)
     store.check(spec.text, resume)
@@ -204,7 +209,7 @@ def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None,
     try:
         store.create(spec.text, resume)
         if client is not None:
-            run_pending(spec, store, client, progress)
+            run_pending(spec, store, client, progress, foxglove_port=foxglove_port)
         return store.rows()
     finally:
         store.close()

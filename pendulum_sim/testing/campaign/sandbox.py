@@ -143,15 +143,16 @@ class Sandbox:
                     return ('ended', f'worker killed: memory (the episode process passed the '
                             f"worker's memory limit of {self.memory_limit / 2**20:.0f} MiB)")
 
-    def run(self, text: str, episodes: list[int], out: str | None,
-            timeout: float) -> tuple[list[dict[str, Any]], Fault | None]:
+    def run(self, text: str, episodes: list[int], out: str | None, timeout: float,
+            foxglove_port: int = 0) -> tuple[list[dict[str, Any]], Fault | None]:
         """Run ``episodes`` in the child; return the rows it sent and the fault that ended it.
 
         After a fault the child is gone (:attr:`alive` is False); the rows before it are kept.
+        With ``foxglove_port`` (0 = off) the child serves each episode live while it runs.
         """
         assert self.proc.stdin is not None
         try:
-            send(self.proc.stdin, (text, episodes, out))
+            send(self.proc.stdin, (text, episodes, out, foxglove_port))
         except OSError:
             pass   # it is gone: the next message says why
         rows: list[dict[str, Any]] = []
@@ -202,14 +203,17 @@ def worker_memory_limit() -> int | None:
 
 
 def run_chunk(text: str, episodes: list[int], out: str | None, timeout: float,
-              memory_limit: int | None = None) -> list[dict[str, Any] | Fault]:
+              memory_limit: int | None = None,
+              foxglove_port: int = 0) -> list[dict[str, Any] | Fault]:
     """Run ``episodes`` in this thread's episode process; return a row or a Fault for each.
 
     A batch that faults is run again one episode at a time. ``memory_limit`` (bytes) is the
-    Dask worker's own when None and this runs in a worker.
+    Dask worker's own when None and this runs in a worker. With ``foxglove_port`` (0 = off)
+    each episode run one by one is served live to Foxglove from the episode process while it
+    runs (one server at a time, so one worker).
     """
     limit = memory_limit if memory_limit is not None else worker_memory_limit()
-    rows, fault = sandbox(limit).run(text, episodes, out, timeout)
+    rows, fault = sandbox(limit).run(text, episodes, out, timeout, foxglove_port)
     if fault is None:
         return list(rows)
     done = {r['episode'] for r in rows}
@@ -217,12 +221,12 @@ def run_chunk(text: str, episodes: list[int], out: str | None, timeout: float,
     results: list[dict[str, Any] | Fault] = list(rows)
     if fault.episode < 0:   # a batch faulted: each episode alone says which one did
         for i in left:
-            results.extend(run_chunk(text, [i], out, timeout, limit))
+            results.extend(run_chunk(text, [i], out, timeout, limit, foxglove_port))
         return results
     results.append(fault)
     rest = [i for i in left if i != fault.episode]
     if rest:
-        results.extend(run_chunk(text, rest, out, timeout, limit))
+        results.extend(run_chunk(text, rest, out, timeout, limit, foxglove_port))
     return results
 
 
@@ -252,11 +256,12 @@ def main() -> None:
 
 
 def serve(stdin: int, stdout: IO[bytes]) -> None:
-    """Read (text, episodes, out), send each finished episode's rows, then None; repeat."""
+    """Read (text, episodes, out, foxglove_port), send each finished episode's rows, then
+    None; repeat."""
     from .episode import batched, cached_spec, fault_row, run_episode, run_episodes
 
     while True:
-        text, episodes, out = receive(stdin)
+        text, episodes, out, foxglove_port = receive(stdin)
         spec = cached_spec(text)
         if batched(spec):
             send(stdout, 'batch')
@@ -271,7 +276,7 @@ def serve(stdin: int, stdout: IO[bytes]) -> None:
         else:
             for i in episodes:
                 try:
-                    row = run_episode(text, i, out)
+                    row = run_episode(text, i, out, foxglove_port)
                 except Exception as exc:   # a defect outside the law: this episode's alone
                     row = fault_row(spec, i, f'the episode raised {type(exc).__name__}: '
                                     f'{exc}'.splitlines()[0])
