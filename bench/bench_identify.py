@@ -17,8 +17,9 @@ Run: ``.venv/bin/python bench/bench_identify.py`` (``--seconds``, ``--rate``, ``
    after ``--max-nfev`` evaluations (60 by default: 8 to 10 Jacobians). The Coulomb term's
    sign(φ') is written as tanh(φ'/ε), ε = 0.01 rad/s, as a by-hand user would: with a true
    sign RK45 crawls at every reversal;
-5. each law's time and RMS residual both ways, the speed-up, whether ``compare``'s residual is
-   equal (within 0.1 %) or better, and the totals beside the 10x target.
+5. each law's time and RMS residual both ways, why the fit by hand stopped (least_squares'
+   status), the speed-up, whether ``compare``'s residual is equal (within 0.1 %) or better,
+   and the totals beside the 10x target.
 
 Asserts nothing.
 """
@@ -72,9 +73,16 @@ def offered() -> tuple[list[str], dict[str, str]]:
     return [m for m in MODELS if m in LAWS and m not in refused], refused
 
 
+STOPPED = {-1: 'failed', 0: 'max_nfev', 1: 'gtol', 2: 'ftol', 3: 'xtol', 4: 'ftol+xtol'}
+"""least_squares' status codes, as the table prints why the fit by hand stopped."""
+
+
 def by_hand(law: str, t: np.ndarray, y: np.ndarray, max_nfev: int
-            ) -> tuple[float, float, int]:
-    """Fit ``law`` with least_squares over solve_ivp; return (seconds, RMS residual, nfev)."""
+            ) -> tuple[float, float, int, str]:
+    """Fit ``law`` with least_squares over solve_ivp.
+
+    Return the seconds, the RMS residual, the evaluations and why it stopped.
+    """
     rec = prepare(t, y)
     start = _starts(LAWS[law], rec, {})[0]
     fixed_n = LAWS[law].n
@@ -82,12 +90,14 @@ def by_hand(law: str, t: np.ndarray, y: np.ndarray, max_nfev: int
     if fixed_n is None:
         names.append('n')
     coulomb = law == 'coulomb'
-    extra_friction = 'coulomb' in law and not coulomb   # power+coulomb: a deceleration c
-    if extra_friction:
-        names.append('friction')
+    # power+coulomb: a Coulomb deceleration c = friction / I beside the power law
+    extra_friction = bool(getattr(LAWS[law], 'friction', False)) or (
+        'coulomb' in law and not coulomb)
     x0 = np.array([float(start.get(k, 0.0) or 0.0) for k in names])
     if extra_friction:
-        x0[-1] = max(x0[-1], 1e-3)
+        c0 = start.get('friction_accel', start.get('friction', 0.0)) or 0.0
+        names.append('friction_accel')
+        x0 = np.append(x0, max(float(c0), 1e-3))
 
     def residual(x: np.ndarray) -> np.ndarray:
         om, gam, off, p0, v0 = x[:5]
@@ -110,7 +120,9 @@ def by_hand(law: str, t: np.ndarray, y: np.ndarray, max_nfev: int
     began = time.perf_counter()
     res = least_squares(residual, x0, bounds=(lo, np.inf), method='trf', max_nfev=max_nfev)
     took = time.perf_counter() - began
-    return took, float(np.sqrt(np.mean(res.fun ** 2))), int(res.nfev)
+    failed = int(np.sum(np.all(res.fun == 1e3)))
+    why = STOPPED.get(int(res.status), str(res.status)) + (' (solve failed)' if failed else '')
+    return took, float(np.sqrt(np.mean(res.fun ** 2))), int(res.nfev), why
 
 
 def exponents(models: list[str]) -> tuple[float, ...]:
@@ -163,11 +175,11 @@ def main() -> None:
     print(f'by hand: least_squares(trf, max_nfev={args.max_nfev}) over solve_ivp(RK45, '
           f'rtol 1e-8, atol 1e-10); sign(v) as tanh(v / {TANH_WIDTH:g} rad/s)')
     print(f'{"law":14s} {"compare s":>9s} {"rms rad":>10s} {"iters":>5s}   {"by hand s":>9s} '
-          f'{"rms rad":>10s} {"nfev":>5s}   {"speed-up":>8s}  residual')
+          f'{"rms rad":>10s} {"nfev":>5s} {"stopped":>9s}   {"speed-up":>8s}  residual')
     hand_total = 0.0
     worse = []
     for law in models:
-        secs, rms, nfev = by_hand(law, t, y, args.max_nfev)
+        secs, rms, nfev, why = by_hand(law, t, y, args.max_nfev)
         hand_total += secs
         f = by[law]
         same = f.rms_residual <= rms * (1.0 + SAME)
@@ -176,7 +188,7 @@ def main() -> None:
         word = ('equal' if abs(f.rms_residual - rms) <= SAME * rms else
                 'better' if same else 'WORSE')
         print(f'{law:14s} {took[law]:9.2f} {f.rms_residual:10.6f} {f.iterations:5d}   '
-              f'{secs:9.2f} {rms:10.6f} {nfev:5d}   {secs / took[law]:8.1f}  {word}')
+              f'{secs:9.2f} {rms:10.6f} {nfev:5d} {why:>9s}   {secs / took[law]:8.1f}  {word}')
     ratio = hand_total / total
     print(f'total: compare {total:.2f} s, by hand {hand_total:.2f} s: {ratio:.1f}x '
           f'(target >= {TARGET_RATIO:g}x: {"meets" if ratio >= TARGET_RATIO else "misses"}); '
