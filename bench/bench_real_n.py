@@ -7,8 +7,11 @@ Run: ``.venv/bin/python bench/bench_real_n.py`` (``--sizes``, ``--steps``, ``--r
 [1, 3], all distinct. For each, on the numpy path: ns per pendulum-step (the best of
 ``--repeats``, set-up included, as ``sweep`` is called), the ratios (b)/(a) and (c)/(b), and the
 fraction of pendulum-steps that took the careful path (``SweepResult.batched`` batched over arrays
-plus ``handed_back`` one by one in Python). With ``--jit`` (numba, the ``jit`` extra) also the
-compiled sweep (after a first call that compiles) beside a bare compiled RK4 kernel
+plus ``handed_back`` one by one in Python: for non-integer 1 < n < 3 the batched share is
+the steps within the grading window 1/ω0 of a reversal, ``reversal.GRADE_WINDOW``, about half
+of all steps here at 2.7 branch substeps each; the one-by-one share the steps split at a
+reversal, about 170 scalar branch substeps each). With ``--jit`` (numba, the ``jit`` extra)
+also the compiled sweep (after a first call that compiles) beside a bare compiled RK4 kernel
 (``bench_sweep_jit.bare_rk4``: per exponent for integer n, the n = 1.5 kernel over all for
 distinct n) over the same pendulums, and the first ``jit=True`` sweep of a
 fresh process (its compile time: the compiled paths are not cached on disk). Asserts nothing.

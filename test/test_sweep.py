@@ -389,6 +389,16 @@ def test_array_safe_speed_ranges_are_the_scalar_ones_exactly() -> None:
                 kinds.add('empty' if ref[0] > ref[1] else 'low end' if ref[0] > 0.0
                           else 'open')
     assert kinds == {'empty', 'low end', 'open'}
+    # One exponent per row (a group of distinct n): each the scalar function's float as well.
+    exps = np.array([0.0, 0.3, 0.5, 0.999999, 1.0, 1.0000001, 1.5, 2.0, 2.7, 5.0, 30.0])
+    nn = np.concatenate([exps[rng.integers(0, exps.size, rows.shape[0])],
+                         rng.uniform(0.2, 3.0, rows.shape[0])])
+    both = np.vstack((rows, rows))
+    for h in (1e-3, 2e-2, 0.3):
+        lo, hi = safe_speed_ranges(guard, both[:, 0], both[:, 1], nn, h, both[:, 2])
+        for k, (w2, gamma, bound) in enumerate(both.tolist()):
+            ref = safe_speed_range(guard, w2, gamma, float(nn[k]), h, bound)
+            assert (lo[k], hi[k]) == ref, (nn[k], h, w2, gamma, bound)
 
 
 @pytest.mark.parametrize('column', ['omega0_sq', 'gamma', 'torque'])

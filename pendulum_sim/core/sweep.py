@@ -314,7 +314,7 @@ class _Group:
         bound = bounds[sl]
         old = self.ranges.get(hh)
         if old is None:
-            lo, hi = _ranges(guard, om2[sl], gam[sl], self.nn, hh, bound)
+            lo, hi = safe_speed_ranges(guard, om2[sl], gam[sl], self.nn, hh, bound)
             if len(self.ranges) > 8:
                 self.ranges.clear()
         else:
@@ -322,8 +322,8 @@ class _Group:
             moved = np.flatnonzero(old[0] != bound)
             if moved.size:
                 nn = self.nn[moved] if isinstance(self.nn, np.ndarray) else self.nn
-                lo[moved], hi[moved] = _ranges(guard, om2[sl][moved], gam[sl][moved], nn, hh,
-                                               bound[moved])
+                lo[moved], hi[moved] = safe_speed_ranges(guard, om2[sl][moved], gam[sl][moved],
+                                                         nn, hh, bound[moved])
         self.ranges[hh] = (bound, lo, hi)
         self.lo, self.hi = lo, hi
         self.any_lo = bool(lo.any())
@@ -345,19 +345,6 @@ class _Group:
         """Write the group's state back into the n-sorted arrays."""
         sl = self.sl
         phi[sl], v[sl], energy[sl] = self.p, self.v, self.e
-
-
-def _ranges(guard: Any, om2: FloatArray, gam: FloatArray, nn: Any, hh: float,
-            bound: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Return ``guard.safe_speed_ranges`` where the exponent ``nn`` may be a column."""
-    if not isinstance(nn, np.ndarray):
-        return safe_speed_ranges(guard, om2, gam, nn, hh, bound)
-    lo, hi = np.empty(nn.size), np.empty(nn.size)
-    values, inv = np.unique(nn, return_inverse=True)
-    for k, val in enumerate(values.tolist()):
-        at = np.flatnonzero(inv == k)
-        lo[at], hi[at] = safe_speed_ranges(guard, om2[at], gam[at], val, hh, bound[at])
-    return lo, hi
 
 
 def general_law(n: FloatArray) -> BoolArray:
