@@ -200,3 +200,15 @@ def test_sweep_friction_is_validated_and_refused_compiled() -> None:
            'sweep takes it)')
     with pytest.raises(IntegratorError, match=re.escape(msg)):
         sweep(9.8, 0.5, 1.0, 0.1, 0.0, 1.0, 1e-3, friction=0.1, jit=True)
+
+
+def test_break_away_under_a_stiff_law_takes_the_guards_substeps() -> None:
+    # γ h = 6 beyond RK4's stability: from rest the break-away is taken in the guard's
+    # substeps, so the overdamped drift ((F − f/I)/γ) is the fine step's, not a false stick.
+    params = PendulumParams(gamma=300.0, n=1.0, friction=0.3)
+    coarse = simulate(params, 1.0, 0.0, 4.0, 0.02)
+    fine = simulate(params, 1.0, 0.0, 4.0, 0.02 / 64)
+    assert coarse.stats.substeps > 0
+    assert coarse.dphi[-1] < 0.0  # still drifting down, as the fine run
+    assert abs(coarse.phi[-1] - fine.phi[-1]) < 1e-10
+    assert abs(coarse.dphi[-1] - fine.dphi[-1]) < 1e-10

@@ -186,9 +186,14 @@ class SplitSteps:
 
     def friction(self, p: float, v: float, h: float, ain: float,
                  creeps: bool) -> tuple[bool, float, float, float]:
-        """Return ``coulomb.friction_step``: (taken, φ₁, φ'₁, w) where friction holds."""
+        """Return ``coulomb.friction_step``: (taken, φ₁, φ'₁, w) where friction holds.
+
+        Beside a friction (c_f > 0) the rest is left to the guard's substeps (``micro_step``
+        takes ``coulomb.rest_step`` in each): the break-away's branch step under a stiff power
+        law (γ h beyond RK4's stability) must be as short as the guard's substeps.
+        """
         return friction_step(self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma,
-                             self.n, self.coulomb, creeps, self.cf)
+                             self.n, self.coulomb and not self.cf, creeps, self.cf)
 
     def speed_gain(self, h: float, ain: float) -> float:
         """Return the most |φ'| can grow in h (:meth:`Problem.speed_gain`)."""
