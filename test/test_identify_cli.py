@@ -179,10 +179,8 @@ def bad_cases(tmp: Path) -> list[tuple[list[str | Path], str]]:
                  'noise; record a free swing from a release angle'),
         ([other], f"{other}: header 'time,angle' does not match --columns 't,position'; pass "
                   "--columns with the file's columns in order (_ for one to skip)"),
-        ([rest, '--models', 'power+coulomb'],
-         "model 'power+coulomb' needs a Coulomb friction torque beside the power law, which the "
-         "core (pendulum_sim.core) does not have yet; fit 'power' or 'coulomb', or compare them "
-         'with compare()'),
+        ([rest, '--models', 'power,cubic'],
+         "--models takes viscous, quadratic, coulomb, power, power+coulomb, got 'cubic'"),
     ]
 
 

@@ -111,6 +111,41 @@ def test_paper_scene_matches_simulate() -> None:
     assert e[0] <= float(energy(params, 2.0, 0.0))
 
 
+def test_friction_over_dds_sticks_where_the_core_does_and_is_live() -> None:
+    """friction from the node's parameters (as a scene gives it): the joint comes to rest where
+    simulate puts it, to round-off, and stays; the range is refused with its reason; set live
+    to 0 the joint swings again from that rest (gravity is no longer held)."""
+    f = 0.5
+    with NodeProcess('paper', {'start_time': EPOCH_S, 'friction': f,
+                               'real_time_factor': 4.0}) as node, Probe() as probe:
+        states = probe.subscribe(JointState, f'{node.namespace}/joint_states')
+
+        def resting() -> bool:
+            last = states.msgs[-30:]
+            return len(last) == 30 and all(m.velocity[0] == 0.0 for m in last) and len(
+                {m.position[0] for m in last}) == 1
+
+        probe.spin_until(lambda: resting() or not node.alive(), 30.0, 'the joint at rest')
+        assert node.alive(), node.output()
+        rest = states.msgs[-1]
+        k = steps_of(rest)
+        ours = simulate(PendulumParams(gamma=1.0, n=1.0, friction=f), 2.0, 0.0, k * 1e-3, 1e-3)
+        assert ours.dphi[-1] == 0.0
+        assert abs(rest.position[0] - ours.phi[-1]) <= 1e-12
+        assert 0.2 * 9.8 * abs(math.sin(rest.position[0])) <= f
+        (result,) = probe.set_parameters(node.fqn, {'friction': -1.0})
+        assert not result.successful
+        assert result.reason == ('Parameter friction out of range Min: 0.0, Max: 1000000.0, '
+                                 'value: -1.0')
+        (result,) = probe.set_parameters(node.fqn, {'friction': 0.0})
+        assert result.successful
+        seen = len(states)
+        probe.spin_until(lambda: any(m.velocity[0] != 0.0 for m in states.msgs[seen:]), 20.0,
+                         'the joint moving again')
+        assert node.alive()
+        assert_clean_exit(node)
+
+
 @pytest.mark.slow
 def test_live_parameters_and_rejections() -> None:
     """n and gamma set over the parameter service change the dynamics; bad values change nothing.

@@ -351,3 +351,38 @@ def test_a_report_is_due_once_a_second_and_missed_ones_are_not_made_up() -> None
     assert tel.report_due(5 * s + 100)      # three missed: one report, the next at 6 s + 7
     assert not tel.report_due(6 * s + 6)
     assert tel.report_due(6 * s + 7)
+
+
+def test_friction_is_a_live_physical_parameter_of_the_joint() -> None:
+    """friction: validated as the core validates it, live, and the joint sticks under it.
+
+    Set live on a swinging joint it applies from the next step (the state kept); the joint
+    then comes to rest inside |m g l sin φ| <= friction and stays there to the bit, and the
+    energy terms' dissipated power counts f |φ'| while it moves.
+    """
+    from pendulum_sim.core.model import dissipated_power
+    from pendulum_sim.node.parameters import joint_config
+
+    assert check(defaults(friction=-0.5)) == 'friction must be >= 0 N m, got -0.5'
+    assert check(defaults(friction=math.inf)) == 'friction must be finite, got inf'
+    assert check(defaults(friction=0.3, integrator='dopri5')) == (
+        "friction > 0 needs an explicit integrator (euler, midpoint, rk4), got friction = 0.3 "
+        "N m with integrator 'dopri5'")
+    values = defaults(phi0=0.8)
+    j = SimulatedJoint(joint_config(values, 0))  # type: ignore[arg-type]
+    j.advance(300)
+    moving = j.stepper.dphi
+    assert moving != 0.0
+    f = 0.3
+    j.reconfigure(joint_config({**values, 'friction': f}, 0))  # type: ignore[arg-type]
+    assert j.stepper.dphi == moving and j.config.params.friction == f
+    assert j.terms().dissipated_power == pytest.approx(
+        float(dissipated_power(j.config.params.with_changes(friction=0.0), moving))
+        + f * abs(moving), rel=1e-12)
+    j.advance(6000)
+    rest = j.stepper.phi
+    assert j.stepper.dphi == 0.0
+    params = j.config.params
+    assert params.mgl * abs(math.sin(rest)) <= f
+    j.advance(500)
+    assert (j.stepper.phi, j.stepper.dphi) == (rest, 0.0)

@@ -638,3 +638,35 @@ def test_a_cut_short_row_of_the_json_layout_is_refused_with_nothing_written(
                                        'episode row; delete it and --resume runs episode 2 '
                                        'again\n')
     assert sorted(p.name for p in out.rglob('*')) == before
+
+
+FRICTION = """
+controller: pendulum_sim.testing.examples:pd
+scene: controller_test
+episodes: 4
+seed: 5
+periods: 150
+target: 0.5
+parameters:
+  friction: {distribution: uniform, low: 0.0, high: 0.6}
+"""
+
+
+def test_a_campaign_draws_the_friction_and_the_joint_feels_it(tmp_path: Path) -> None:
+    """friction is a physical parameter like the others: drawn per episode, in its row, and the
+    episode's joint runs under it (the drawn value's run is closed_loop's with it, to the bit,
+    and differs from the run without friction)."""
+    from pendulum_sim.testing import closed_loop
+    from pendulum_sim.testing.examples import pd
+
+    spec = parse_spec(FRICTION)
+    drawn = [float(scenario(spec, i)['friction']) for i in range(4)]  # type: ignore[arg-type]
+    assert all(0.0 <= f <= 0.6 for f in drawn) and len(set(drawn)) == 4
+    rows = [run_episode(FRICTION, i, str(tmp_path)) for i in range(2)]
+    assert [r['friction'] for r in rows] == drawn[:2]
+    with_f = closed_loop(pd, scene=spec.scene, periods=150, overrides={'friction': drawn[0]},
+                         target=0.5)
+    without = closed_loop(pd, scene=spec.scene, periods=150, overrides={'friction': 0.0},
+                          target=0.5)
+    assert same_rows([{m: rows[0][m] for m in METRIC_NAMES}], [with_f.metrics().as_dict()])
+    assert not np.array_equal(with_f.position, without.position)

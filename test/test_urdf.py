@@ -104,6 +104,20 @@ def test_damping_only_where_urdf_has_an_equivalent() -> None:
     assert 'gamma = 0.5, n = 2.0 has no URDF equivalent' in text
 
 
+@pytest.mark.parametrize(('gamma', 'n', 'friction', 'damping', 'coulomb'), [
+    (0.7, 1.0, 0.25, 0.7 * 0.31, 0.25),   # viscous: damping γ I, friction f
+    (0.5, 0.0, 0.25, 0.0, 0.5 * 0.31 + 0.25),  # dry law: its γ I adds to f
+    (0.5, 2.0, 0.25, 0.0, 0.25),  # no URDF law for n = 2: the friction alone
+])
+def test_dynamics_writes_the_friction(gamma: float, n: float, friction: float, damping: float,
+                                      coulomb: float) -> None:
+    """<dynamics damping=".." friction=".."/>: the Coulomb torque f beside the law."""
+    params = BODY.with_changes(gamma=gamma, n=n, friction=friction)
+    dyn = one(parse(pendulum_urdf(params)), 'joint/dynamics')
+    assert float(dyn.get('damping', 'nan')) == pytest.approx(damping, rel=1e-15)
+    assert float(dyn.get('friction', 'nan')) == pytest.approx(coulomb, rel=1e-15)
+
+
 @pytest.mark.parametrize('interface', ['effort', 'velocity', 'position'])
 def test_ros2_control_block(interface: str) -> None:
     """topic_based_ros2_control: plugin, this node's topics, 3 state and 1 command interface."""
@@ -256,6 +270,61 @@ def test_mujoco_notices_a_different_pendulum() -> None:
     theirs = mujoco_swing(mujoco_model(pendulum_urdf(other)), BODY.g, phi0, t_end, h)
     ours = simulate(BODY, phi0, 0.0, t_end, h, 'rk4')
     assert np.max(np.abs(ours.phi - theirs)) > 1e-4
+
+
+def mujoco_run(model: Any, phi0: float, t_end: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Swing the loaded model freely with MuJoCo's RK4; return (φ, φ') at every step."""
+    import mujoco
+
+    model.opt.gravity[:] = (0.0, 0.0, -BODY.g)
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    model.opt.timestep = h
+    data = mujoco.MjData(model)
+    data.qpos[0] = phi0
+    steps = round(t_end / h)
+    phi, dphi = np.empty(steps + 1), np.empty(steps + 1)
+    phi[0], dphi[0] = phi0, 0.0
+    for k in range(steps):
+        mujoco.mj_step(model, data)
+        phi[k + 1], dphi[k + 1] = data.qpos[0], data.qvel[0]
+    return phi, dphi
+
+
+def test_mujoco_frictionloss_shows_the_same_stick_slip() -> None:
+    """URDF friction → MuJoCo frictionloss: the same slip, the same stick (time and angle).
+
+    Sliding, MuJoCo's frictionloss is the constant torque f against the motion, as here: the
+    first half-swing agrees to 1e-9 rad (both RK4 at h = 1e-4 s). At a reversal MuJoCo solves
+    the friction as a soft constraint (its default solref time constant 0.02 s), so its turning
+    points and its stick differ a little: a constraint force within f leaves a slow creep,
+    not an exact rest. Hence the stick time (|φ'| below 1e-3 rad/s for good in MuJoCo, exactly
+    0 here) within 0.05 s and the rest angle within 2e-3 rad (the creep's 2.4e-4 rad/s
+    moves MuJoCo's by 5e-4 rad from its stick to 6 s; the static band |m g l sin φ| <= f is
+    ±0.034 rad wide, so the bound tells a rest within it from a swing), and MuJoCo's angle
+    inside the band.
+    """
+    h, t_end, phi0 = 1e-4, 6.0, 0.5
+    params = BODY.with_changes(friction=0.1)
+    model = mujoco_model(pendulum_urdf(params))
+    assert model.dof_frictionloss[0] == 0.1 and model.dof_damping[0] == BODY.gamma * 0.31
+    phi_mj, dphi_mj = mujoco_run(model, phi0, t_end, h)
+    ours = simulate(params, phi0, 0.0, t_end, h, 'rk4')
+    first = round(0.9 / h)  # before the first reversal (half a period of 2.0 s)
+    assert np.all(ours.dphi[1:first] < 0.0)
+    assert np.max(np.abs(ours.phi[:first] - phi_mj[:first])) < 1e-9
+
+    def stick_time(dphi: np.ndarray, tol: float) -> float:
+        return float((np.flatnonzero(np.abs(dphi) > tol)[-1] + 1) * h)
+
+    t_ours, t_mj = stick_time(ours.dphi, 0.0), stick_time(dphi_mj, 1e-3)
+    assert 1.0 < t_ours < 5.5 and ours.dphi[-1] == 0.0
+    assert abs(t_ours - t_mj) < 0.05
+    band = math.asin(0.1 / (BODY.m * BODY.g * BODY.l))
+    assert abs(ours.phi[-1]) <= band and abs(phi_mj[-1]) <= band
+    assert abs(ours.phi[-1] - phi_mj[-1]) < 2e-3
+    # The comparison can fail: without the friction MuJoCo still swings where ours rests.
+    free, _ = mujoco_run(mujoco_model(pendulum_urdf(BODY)), phi0, t_end, h)
+    assert np.max(np.abs(free[-round(2.0 / h):])) > 3 * abs(ours.phi[-1])
 
 
 @pytest.mark.ros

@@ -87,7 +87,9 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
     subs = fbs = turns = 0
     # Friction holds the pendulum (Engine.careful's first branch): Coulomb sticking or
     # break-away, the near-Coulomb creep (guarded: creep_state decides on n and γ).
-    held, p1, v1, _ = friction_step(branch, laws, p, v, h, ain, w2, gamma, n, coulomb, True)
+    # No friction beside the law (cf = 0.0): the compiled sweep refuses one.
+    held, p1, v1, _ = friction_step(branch, laws, p, v, h, ain, w2, gamma, n, coulomb, True,
+                                    0.0)
     if not held:
         _, _, _, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
         stiff = False
@@ -157,7 +159,7 @@ def guarded(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ai
         hh = left / m
         done, p1, v1, _, k, pm, vm, _, rest = micro_step(plain, branch, laws, p, v, hh, ain, w2,
                                                          gamma, n, reach, nonsmooth, coulomb,
-                                                         True)
+                                                         True, 0.0)
         if not done:
             if k < 0 or fallback_refused(vm, rest, ain, w2, omega0):  # split.NOT_FINITE
                 return False, p, v, 0, 0, 0

@@ -1,7 +1,13 @@
 """Friction at rest: Coulomb sticking, and the creep of near-Coulomb laws (0 < n < 1).
 
-At rest the net force per unit inertia is F = a_in − ω0² sin φ. Under Coulomb friction (n = 0)
-the pendulum sticks while |F| <= γ (:func:`from_rest`). A law γ φ'|φ'|^(n−1) with 0 < n < 1 has
+At rest the net force per unit inertia is F = a_in − ω0² sin φ. Under Coulomb friction (n = 0,
+or a friction c_f = f/I beside the power law) the pendulum sticks while |F| <= c, the Coulomb
+level c = c_f (+ γ where n = 0) of ``model.coulomb_level`` (:func:`from_rest`). While it moves in
+the direction s the friction is the constant −s c_f: a step on one side of a reversal is the
+power law's step under the input a_in − s c_f (:func:`moving_input`), and the friction's work
+per unit inertia is c_f |Δφ| = s c_f (φ₁ − φ₀) (:func:`friction_work`).
+
+A law γ φ'|φ'|^(n−1) with 0 < n < 1 has
 no static friction, but where it dominates, it holds the pendulum at the creep speed where
 damping balances the force, γ v_c^n = |F| (eq 16 with φ'' = 0):
 
@@ -28,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from .law import compile_laws
+from .model import coulomb_level
 from .problem import Problem
 
 CREEP_RELAX = 0.01
@@ -36,22 +43,42 @@ CREEP_RELAX = 0.01
 StepResult = tuple[float, float, float]
 
 
+def moving_input(ain: float, sign: float, cf: float) -> float:
+    """Return the input a_in − s c_f a motion in the direction ``sign`` feels (c_f = ``cf``).
+
+    ``ain`` itself, to the bit, without friction (c_f = 0).
+    """
+    return ain if cf == 0.0 else ain - math.copysign(cf, sign)
+
+
+def friction_work(cf: float, sign: float, p0: float, p1: float) -> float:
+    """Return the friction's work per unit inertia over a motion from φ₀ to φ₁ in one direction.
+
+    c_f |φ₁ − φ₀| as s c_f (φ₁ − φ₀), s = ``sign``: the quadrature of the step itself
+    (φ₁ − φ₀ = h Σ bᵢ φ'ᵢ), so the energy balance closes to the method's accuracy.
+    """
+    return math.copysign(cf, sign) * (p1 - p0)
+
+
 def rest_step(branch: Any, p: float, v: float, h: float, ain: float, w2: float, gamma: float,
-              n: float) -> StepResult:
+              n: float, cf: float = 0.0) -> StepResult:
     """Take a step of h from rest (or within round-off of it, φ' = ``v``) under Coulomb friction.
 
-    The pendulum sticks while |a_in − ω0² sin φ| <= γ; otherwise it breaks away on the branch
-    of the law in the direction of the force (``branch(φ, φ', h, a_in, ω0², γ, s, n)``: the
-    method's branch step, ``explicit.step_source_with_n``), and stops again if that step
-    reversed. Returns (φ₁, φ'₁, w).
+    The pendulum sticks while |a_in − ω0² sin φ| <= c (``model.coulomb_level`` of γ, n and the
+    friction ``cf`` = c_f); otherwise it breaks away on the branch of the law in the direction
+    of the force (``branch(φ, φ', h, a_in, ω0², γ, s, n)``: the method's branch step,
+    ``explicit.step_source_with_n``) under :func:`moving_input`, and stops again if that step
+    reversed. Returns (φ₁, φ'₁, w), w with the friction's work (:func:`friction_work`).
     """
     force = ain - w2 * math.sin(p)
-    if abs(force) <= gamma:
+    if abs(force) <= coulomb_level(gamma, n, cf):
         return p, 0.0, 0.0
     sign = 1.0 if force > 0.0 else -1.0
-    p1, v1, w, _ = branch(p, v, h, ain, w2, gamma, sign, n)
+    p1, v1, w, _ = branch(p, v, h, moving_input(ain, sign, cf), w2, gamma, sign, n)
     if v1 * sign < 0.0:
         return p, 0.0, 0.0  # the break-away reversed within the step: it stops again
+    if cf != 0.0:
+        w += friction_work(cf, sign, p, p1)
     return p1, v1, w
 
 
@@ -63,7 +90,7 @@ def stuck(coulomb: bool, v: float, v1: float) -> bool:
 def from_rest(prob: Problem, branch: Any, p: float, h: float, ain: float,
               v: float = 0.0) -> StepResult:
     """Return :func:`rest_step` for the pendulum ``prob`` (``branch``: exponent an argument)."""
-    return rest_step(branch, p, v, h, ain, prob.w2, prob.gamma, prob.n)
+    return rest_step(branch, p, v, h, ain, prob.w2, prob.gamma, prob.n, prob.friction)
 
 
 def creep_rate(force: float, gamma: float, n: float) -> float:
@@ -176,18 +203,18 @@ def creep_state(laws: Any, n: float, gamma: float, w2: float, p: float, v: float
 
 
 def friction_step(branch: Any, laws: Any, p: float, v: float, h: float, ain: float, w2: float,
-                  gamma: float, n: float, coulomb: bool,
-                  creeps: bool) -> tuple[bool, float, float, float]:
+                  gamma: float, n: float, coulomb: bool, creeps: bool,
+                  cf: float = 0.0) -> tuple[bool, float, float, float]:
     """Take the careful path's step where friction holds the pendulum: (taken, φ₁, φ'₁, w).
 
     Under Coulomb friction at rest, :func:`rest_step` (stick or break away); where a
     near-Coulomb law may creep (``creeps``: guarded explicit steps), :func:`creep_state`.
     ``taken`` is False (the state unchanged) where neither applies: the step is then the
     guard's. ``Engine.careful`` calls it first, in Python, and the compiled sweep's careful
-    step (``compiled_careful.py``) compiled.
+    step (``compiled_careful.py``) compiled. ``cf`` is the friction c_f beside the law.
     """
     if coulomb and v == 0.0:
-        p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n)
+        p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n, cf)
         return True, p1, v1, w
     if creeps:
         return creep_state(laws, n, gamma, w2, p, v, h, ain)
@@ -202,4 +229,4 @@ def creep(prob: Problem, p: float, v: float, h: float, ain: float) -> StepResult
 
 
 __all__ = ['CREEP_RELAX', 'creep', 'creep_rate', 'creep_speed', 'creep_state', 'friction_step',
-           'from_rest', 'rest_step', 'settle_shift', 'stuck']
+           'friction_work', 'from_rest', 'moving_input', 'rest_step', 'settle_shift', 'stuck']

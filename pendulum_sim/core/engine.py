@@ -22,7 +22,7 @@ import math
 from typing import Any
 
 from . import embedded
-from .coulomb import stuck
+from .coulomb import friction_work, moving_input, stuck
 from .decisions import (
     ENERGY_TOL,
     accuracy_speed,
@@ -53,6 +53,43 @@ def guard_for(tableau: Tableau) -> StabilityGuard:
     return StabilityGuard(tableau)
 
 
+def check_friction(method: Method, friction: float) -> None:
+    """Refuse a friction beside the power law for a method that cannot take it (IntegratorError).
+
+    The explicit family's steps take it (``coulomb.moving_input`` on either side of a
+    reversal, the Coulomb rest of ``coulomb.rest_step``); the others' do not yet.
+    """
+    if friction > 0.0 and not method.family.fast_path:
+        raise IntegratorError(f'friction > 0 is taken by the explicit methods (euler, midpoint, '
+                              f'rk4), not by {method.name}; got friction/I = {friction:g} rad/s^2')
+
+
+def moving_fallback(prob: Problem, p: float, v: float, h: float,
+                    ain: float) -> tuple[float, float, float]:
+    """Return the L-stable fallback's step (``implicit.fallback``) with the friction beside it.
+
+    The friction of the direction of motion is an input (``coulomb.moving_input``) and its work
+    is counted (``coulomb.friction_work``); a step that reverses under it ends at rest (its
+    kinetic energy ½ φ'₁² counted as dissipated: the rest rule decides the next step), since
+    its friction would have turned with the motion. From rest it sticks while the force stays
+    within the Coulomb level (``Problem.level``) and breaks away with the force otherwise.
+    Without friction, ``fallback`` itself.
+    """
+    cf = prob.friction
+    if cf == 0.0:
+        return fallback(prob, p, v, h, ain)
+    sign = v
+    if v == 0.0:
+        sign = ain - prob.w2 * math.sin(p)
+        if abs(sign) <= prob.level:
+            return p, 0.0, 0.0
+    p1, v1, w = fallback(prob, p, v, h, moving_input(ain, sign, cf))
+    w += friction_work(cf, sign, p, p1)
+    if v1 * sign < 0.0:
+        return p1, 0.0, w + 0.5 * v1 * v1
+    return p1, v1, w
+
+
 @functools.lru_cache(maxsize=64)
 def _explicit(tableau: Tableau) -> bool:
     """Return ``tableau.explicit``, computed once per tableau (an Engine is made per pendulum)."""
@@ -64,8 +101,8 @@ class Engine:
 
     Parameters
     ----------
-    w2, gamma, n : float
-        ω0² in s⁻², γ in s^(n−2), n >= 0 (eq 11, 15).
+    w2, gamma, n, friction : float
+        ω0² in s⁻², γ in s^(n−2), n >= 0 (eq 11, 15), the friction beside the law f/I in rad/s².
     method : Method
         The integration method (its tableau and kind).
     guard, energy_check : bool
@@ -79,17 +116,19 @@ class Engine:
 
     def __init__(self, w2: float, gamma: float, n: float, method: Method, guard: bool = True,
                  energy_check: bool = True, rtol: float = 1e-8, atol: float = 1e-10,
-                 jit: bool = False) -> None:
-        prob = self.problem = Problem(w2, gamma, n)
-        self.w2, self.gamma, self.n = w2, gamma, n
+                 jit: bool = False, friction: float = 0.0) -> None:
+        check_friction(method, friction)
+        prob = self.problem = Problem(w2, gamma, n, friction)
+        self.w2, self.gamma, self.n, self.cf = w2, gamma, n, friction
         self.jit = jit  # the adaptive method's steps compiled by numba (``jit.py``)
         self.omega0 = prob.omega0
         self.method = method
         fast = self.fast = method.family.fast_path  # plain explicit steps, guarded
         tab = method.tableau
         self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
-        # May creep (``coulomb.py``); plain unguarded steps are taken as asked.
-        self.near_coulomb = 0.0 < n < 1.0 and gamma > 0.0 and not (fast and not guard)
+        # May creep (``coulomb.py``; not beside a friction); unguarded steps are taken as asked.
+        self.near_coulomb = (0.0 < n < 1.0 and gamma > 0.0 and not friction
+                             and not (fast and not guard))
         self.v_acc = prob.v_acc if guard and fast else math.inf
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
         # only for a Coulomb break-away, never for the implicit method's own steps).
@@ -98,7 +137,7 @@ class Engine:
         self.micro = self.plain.micro
         self.guard = guard_for(tab) if guard and fast else None
         self.unguarded = fast and not guard  # plain explicit steps, as asked
-        self.energy_check = energy_check and prob.damped and fast
+        self.energy_check = energy_check and prob.damped and fast and not friction
         self.damping: DampingFn = prob.damping
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
         self.rtol, self.atol = rtol, atol
@@ -152,7 +191,7 @@ class Engine:
             return math.inf, -math.inf
         if self.guard is None:
             return 0.0, math.inf
-        bound = ain_bound(ain)
+        bound = ain_bound(abs(ain) + self.cf)  # the friction adds to the input's bound
         key = (h, bound)
         r = self._ranges.get(key)
         if r is None:
@@ -177,9 +216,9 @@ class Engine:
                 pass
             elif self.guard is None:
                 p1, v1, w = self.micro(p, v, h, ain, stats)
-            elif abs(v) > self.v_acc and stiff_transient(
+            elif abs(v) > self.v_acc and not self.cf and stiff_transient(
                     v, ain - self.damping(v) - self.w2 * math.sin(p), self.gamma, self.n,
-                    self.v_acc):
+                    self.v_acc):  # beside a friction the guard's substeps take it
                 p1, v1, w = self.stiff(p, v, h, ain, stats)
             else:
                 p1, v1, w = self.guarded(p, v, h, ain, stats)
@@ -257,7 +296,7 @@ class Engine:
                     ain: float) -> tuple[float, float, float]:
         """Replace a step that overflowed or came out non-finite by the fallback's."""
         try:
-            return fallback(self.problem, p, v, h, ain)
+            return moving_fallback(self.problem, p, v, h, ain)
         except IntegratorError:  # refused by the fallback's work bound
             raise
         except (OverflowError, ValueError):
@@ -273,14 +312,14 @@ class Engine:
         """
         assert self.guard is not None
         w2 = self.w2
-        force = abs(ain) + w2
+        force = abs(ain) + self.cf + w2
         left, w, taken = h, 0.0, 0
         while left > 0.0:
             m = self.guard.substeps(left, w2, self.gamma, self.n, p, v, force,
-                                    abs(ain - w2 * math.sin(p)))
+                                    abs(moving_input(ain, v, self.cf) - w2 * math.sin(p)))
             if m == FALLBACK:
                 stats.fallbacks += 1
-                p, v, wi = fallback(self.problem, p, v, left, ain)
+                p, v, wi = moving_fallback(self.problem, p, v, left, ain)
                 stats.substeps += max(taken - 1, 0)
                 return p, v, w + wi
             hh = left / m
@@ -314,9 +353,11 @@ __all__ = [
     'Engine',
     'accuracy_speed',
     'ain_bound',
+    'check_friction',
     'compile_fast_step',
     'energy_rose',
     'guard_for',
+    'moving_fallback',
     'reversal_suspect',
     'specific_energy',
     'stiff_transient',

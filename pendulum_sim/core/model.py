@@ -1,9 +1,12 @@
 """The generalized damped physical pendulum (Quiroga and Ospina-Henao 2017, eq 11-26).
 
-    I φ'' = −m g l sin φ − γ I φ'|φ'|^(n−1) + τ
+    I φ'' = −m g l sin φ − γ I φ'|φ'|^(n−1) − f sgn(φ') + τ
 
 State is ``(φ, φ')`` in rad and rad/s. ``γ`` has units s^(n−2); ``n = 0`` is dry (Coulomb)
-friction of magnitude ``γ I``, ``n = 1`` viscous, ``n = 2`` quadratic drag (eq 15-16).
+friction of magnitude ``γ I``, ``n = 1`` viscous, ``n = 2`` quadratic drag (eq 15-16). ``f`` is
+a Coulomb friction torque beside the power law (``friction``, N m; the URDF's
+``<dynamics friction>``, MuJoCo's ``frictionloss``): at rest the joint sticks while
+|τ − m g l sin φ| <= f (+ γ I where n = 0), :func:`coulomb_level`.
 """
 from __future__ import annotations
 
@@ -121,6 +124,10 @@ class PendulumParams:
         Damping coefficient γ in s^(n−2) (>= 0).
     n : float
         Damping exponent (>= 0, real): 0 Coulomb, 1 viscous, 2 quadratic drag.
+    friction : float
+        Coulomb friction torque f in N m (>= 0) beside the power law: −f sgn(φ'), and at rest
+        the joint sticks while the other torques stay within the Coulomb level
+        (:func:`coulomb_level`). 0 (the default) leaves the power law alone, to the bit.
 
     The defaults are the paper's set-up: m = 0.2 kg, l = 1 m, I = 0.2 kg m², g = 9.8 m/s²,
     so ω0² = 9.8 s⁻², with γ = 1 and n = 1.
@@ -132,6 +139,7 @@ class PendulumParams:
     g: float = 9.8
     gamma: float = 1.0
     n: float = 1.0
+    friction: float = 0.0
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -141,6 +149,7 @@ class PendulumParams:
         set_(self, 'g', _check_nonneg('g', self.g, ' m/s^2'))
         set_(self, 'gamma', _check_nonneg('gamma', self.gamma, ' s^(n-2)'))
         set_(self, 'n', _check_nonneg('n', self.n, ''))
+        set_(self, 'friction', _check_nonneg('friction', self.friction, ' N m'))
         # Parallel-axis theorem: I = I_cm + m l² >= m l² for every rigid body.
         limit = self.m * self.l * self.l
         if self.inertia < limit * (1.0 - INERTIA_RTOL):
@@ -148,18 +157,25 @@ class PendulumParams:
                              f'(parallel-axis theorem), got {self.inertia:.6g}')
 
     @classmethod
-    def from_omega0_sq(cls, omega0_sq: float, gamma: float, n: float) -> PendulumParams:
+    def from_omega0_sq(cls, omega0_sq: float, gamma: float, n: float,
+                       friction: float = 0.0) -> PendulumParams:
         """Build parameters with m = I = 1 kg (m²) and l = 1 m, g = ω0², for dimensionless use.
 
-        ω0² is checked under its own name (``omega0_sq``), before it becomes g.
+        ω0² is checked under its own name (``omega0_sq``), before it becomes g; ``friction`` is
+        then f/I in rad/s².
         """
         w2 = _check_nonneg('omega0_sq', omega0_sq, ' s^-2')
-        return cls(m=1.0, l=1.0, inertia=1.0, g=w2, gamma=gamma, n=n)
+        return cls(m=1.0, l=1.0, inertia=1.0, g=w2, gamma=gamma, n=n, friction=friction)
 
     @property
     def omega0_sq(self) -> float:
         """Return ω0² = m g l / I (eq 11), in s⁻²."""
         return self.m * self.g * self.l / self.inertia
+
+    @property
+    def friction_accel(self) -> float:
+        """Return the Coulomb friction per unit inertia f/I in rad/s²."""
+        return self.friction / self.inertia
 
     @property
     def mgl(self) -> float:
@@ -179,8 +195,14 @@ class PendulumParams:
         return float(compile_damping(self.n)(dphi, self.gamma, 1.0))
 
     def acceleration(self, phi: float, dphi: float, torque: float = 0.0) -> float:
-        """Return φ'' = −γ φ'|φ'|^(n−1) − ω0² sin φ + τ/I (eq 16 with input torque)."""
-        return -self.damping(dphi) - self.omega0_sq * math.sin(phi) + torque / self.inertia
+        """Return φ'' = −γ φ'|φ'|^(n−1) − (f/I) sgn φ' − ω0² sin φ + τ/I (eq 16 with input).
+
+        Off rest; at rest (φ' = 0) the friction term is 0 here (sticking is the integrators').
+        """
+        acc = -self.damping(dphi) - self.omega0_sq * math.sin(phi) + torque / self.inertia
+        if self.friction > 0.0 and dphi != 0.0:
+            acc -= math.copysign(self.friction_accel, dphi)
+        return acc
 
     @property
     def smooth_damping(self) -> bool:
@@ -238,11 +260,24 @@ def potential_energy(params: PendulumParams, phi: Any) -> Any:
 
 
 def dissipated_power(params: PendulumParams, dphi: Any) -> Any:
-    """Return the power lost to damping, γ I |φ'|^(n+1) in W (eq 26; >= 0).
+    """Return the power lost to damping, γ I |φ'|^(n+1) + f |φ'| in W (eq 26; >= 0).
 
-    φ' times the damping torque I D(φ'), generated from the law (``law.power_expression``).
+    φ' times the damping torque I D(φ'), generated from the law (``law.power_expression``),
+    plus the Coulomb friction's f |φ'| where ``friction`` > 0.
     """
-    return compile_power(params.n)(dphi, params.gamma * params.inertia)
+    power = compile_power(params.n)(dphi, params.gamma * params.inertia)
+    if params.friction > 0.0:
+        power = power + params.friction * np.abs(dphi)
+    return power
+
+
+def coulomb_level(gamma: float, n: float, friction: float) -> float:
+    """Return the Coulomb level c per unit inertia (rad/s²): the joint sticks while |F| <= c.
+
+    ``friction`` is f/I; the power law adds its own dry friction γ where n = 0 (eq 15). The
+    core's one rule for the level: the rest test (``coulomb.rest_step``), ``Problem.coulomb``.
+    """
+    return friction + gamma if n == 0.0 else friction
 
 
 def input_power(dphi: Any, torque: Any) -> Any:

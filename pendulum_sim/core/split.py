@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-from .coulomb import creep_state, friction_step, rest_step
+from .coulomb import creep_state, friction_step, friction_work, moving_input, rest_step
 from .decisions import reversal_suspect
 from .explicit import StepFn, compile_step_with_n
 from .guard import GuardStats
@@ -38,7 +38,7 @@ SplitResult = tuple[bool, float, float, float, int, float, float, float, float]
 
 def split_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
                w2: float, gamma: float, n: float, a0: float, reach: float,
-               coulomb: bool) -> SplitResult:
+               coulomb: bool, cf: float = 0.0) -> SplitResult:
     """Split a step of h that straddles φ' = 0 at the reversal (the paper's Fig 9 remark).
 
     A first guess comes from the cubic Hermite interpolant of φ' on the step, with the end
@@ -54,26 +54,33 @@ def split_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
     Returns (done, φ₁, φ'₁, w, reversals, φm, φ'm, wm, rest): where ``done`` is False the branch
     run from rest broke its bounds (a law too steep at rest for explicit steps) and the
     fallback must take ``rest`` from the reversal's (φm, φ'm), wm being the work up to it.
+    With a friction ``cf`` = c_f beside the law (``coulomb`` then holds), the side up to the
+    reversal is taken under ``coulomb.moving_input`` and its work counts the friction's.
     Written to compile: :meth:`SplitSteps.split` calls it in Python and the compiled sweep's
     careful step (``compiled_careful.py``) compiled, the same function.
     """
     sign = 1.0 if v > 0.0 else -1.0
-    p1, v1, w1, _ = branch(p, v, h, ain, w2, gamma, sign, n)
+    a = moving_input(ain, sign, cf)
+    p1, v1, w1, _ = branch(p, v, h, a, w2, gamma, sign, n)
     if v1 * v > 0.0:
         # The branch step does not reach φ' = 0: no kink inside (graded if it is near).
         if reach > 0.0 and a0 != 0.0:
             x = abs(v) / abs(a0)
             lens = graded_mesh(max(x - h, 0.0), x, h, n, reach)
-            p1, v1, w1 = branch_run(branch, p, v, lens, True, ain, w2, gamma, sign, n)
+            p1, v1, w1 = branch_run(branch, p, v, lens, True, a, w2, gamma, sign, n)
+        if cf != 0.0:
+            w1 += friction_work(cf, sign, p, p1)
         return True, p1, v1, w1, 0, p, v, 0.0, 0.0
-    a1 = branch(p1, v1, 0.0, ain, w2, gamma, sign, n)[3]  # φ'' on the branch at the end
-    th, pm, vm, wm = locate_on_branch(branch, p, v, v1, a0, a1, h, ain, w2, gamma, sign, n,
+    a1 = branch(p1, v1, 0.0, a, w2, gamma, sign, n)[3]  # φ'' on the branch at the end
+    th, pm, vm, wm = locate_on_branch(branch, p, v, v1, a0, a1, h, a, w2, gamma, sign, n,
                                       NEWTON_TOL, NEWTON_ITERATIONS)
-    th, pm, vm, wm = graded_landing(branch, laws, p, v, th, pm, vm, wm, h, ain, w2, gamma,
+    th, pm, vm, wm = graded_landing(branch, laws, p, v, th, pm, vm, wm, h, a, w2, gamma,
                                     sign, n, reach)
+    if cf != 0.0:
+        wm += friction_work(cf, sign, p, pm)
     rest = (1.0 - th) * h
     if coulomb:
-        p2, v2, w2_ = rest_step(branch, pm, vm, rest, ain, w2, gamma, n)
+        p2, v2, w2_ = rest_step(branch, pm, vm, rest, ain, w2, gamma, n, cf)
         return True, p2, v2, wm + w2_, 1, pm, vm, wm, rest
     crept, p2, v2, w2_ = creep_state(laws, n, gamma, w2, pm, vm, rest, ain)
     if crept:
@@ -100,7 +107,7 @@ NOT_FINITE = -1
 
 def micro_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
                w2: float, gamma: float, n: float, reach: float, nonsmooth: bool, coulomb: bool,
-               strict: bool) -> SplitResult:
+               strict: bool, cf: float = 0.0) -> SplitResult:
     """Take one plain step of h, split at a velocity reversal where the damping is not smooth.
 
     Under Coulomb friction at rest, ``coulomb.rest_step``; otherwise the plain step, and where
@@ -109,19 +116,22 @@ def micro_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
     (``reversal.graded_mesh``) by the distance |φ'|/|φ''| to the reversal ahead (decelerating)
     or behind. Returns :func:`split_step`'s tuple. With ``strict`` a plain step that is not
     finite (where Python may have raised inside it) is declined: ``done`` False and
-    ``reversals`` NOT_FINITE. Written to compile: :meth:`SplitSteps.micro` calls it in Python,
-    the compiled sweep's careful step (``compiled_careful.py``) compiled.
+    ``reversals`` NOT_FINITE. With a friction ``cf`` = c_f beside the law, a step in motion is
+    taken under ``coulomb.moving_input`` and its work counts the friction's. Written to compile:
+    :meth:`SplitSteps.micro` calls it in Python, the compiled sweep's careful step
+    (``compiled_careful.py``) compiled.
     """
     if coulomb and v == 0.0:
-        p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n)
+        p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n, cf)
         return True, p1, v1, w, 0, p, v, 0.0, 0.0
-    p1, v1, w, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
+    a = moving_input(ain, v, cf)
+    p1, v1, w, a0 = plain(p, v, h, a, w2, gamma, 1.0, n)
     if strict and not (math.isfinite(p1) and math.isfinite(v1) and math.isfinite(a0)):
         return False, p, v, 0.0, NOT_FINITE, p, v, 0.0, 0.0
     if nonsmooth and reversal_suspect(v, v1, a0, h, reach):
         if v1 * v < 0.0 or (a0 * v < 0.0 and abs(v) <= h * abs(a0)):
             return split_step(plain, branch, laws, p, v, h, ain, w2, gamma, n, a0, reach,
-                              coulomb)
+                              coulomb, cf)
         if reach > 0.0 and a0 != 0.0:
             side = 1.0 if (v > 0.0 or (v == 0.0 and a0 > 0.0)) else -1.0
             x = abs(v) / abs(a0)
@@ -131,12 +141,16 @@ def micro_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
             else:
                 lens = graded_mesh(x, x + h, h, n, reach)
                 back = False
-            pg, vg, wg = branch_run(branch, p, v, lens, back, ain, w2, gamma, side, n)
+            pg, vg, wg = branch_run(branch, p, v, lens, back, a, w2, gamma, side, n)
             if vg * v >= 0.0:
+                if cf != 0.0:
+                    wg += friction_work(cf, side, p, pg)
                 return True, pg, vg, wg, 0, p, v, 0.0, 0.0
             # The branch reached φ' = 0 within the step after all: split there.
             return split_step(plain, branch, laws, p, v, h, ain, w2, gamma, n, a0, reach,
-                              coulomb)
+                              coulomb, cf)
+    if cf != 0.0:
+        w += friction_work(cf, v, p, p1)
     return True, p1, v1, w, 0, p, v, 0.0, 0.0
 
 
@@ -157,6 +171,7 @@ class SplitSteps:
         self.problem = prob
         self.w2, self.gamma, self.n = prob.w2, prob.gamma, prob.n
         self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
+        self.cf = prob.friction
         # The same steps and the laws with the exponent an argument: what the functions
         # written to compile (split_step, coulomb.rest_step) take, in Python as compiled.
         self.plain_n: StepFn = compile_step_with_n(tableau, prob.n)
@@ -167,13 +182,18 @@ class SplitSteps:
     def from_rest(self, p: float, h: float, ain: float,
                   v: float = 0.0) -> tuple[float, float, float]:
         """Coulomb friction at rest: stick, or break away (``coulomb.rest_step``)."""
-        return rest_step(self.branch_n, p, v, h, ain, self.w2, self.gamma, self.n)
+        return rest_step(self.branch_n, p, v, h, ain, self.w2, self.gamma, self.n, self.cf)
 
     def friction(self, p: float, v: float, h: float, ain: float,
                  creeps: bool) -> tuple[bool, float, float, float]:
-        """Return ``coulomb.friction_step``: (taken, φ₁, φ'₁, w) where friction holds."""
+        """Return ``coulomb.friction_step``: (taken, φ₁, φ'₁, w) where friction holds.
+
+        Beside a friction (c_f > 0) the rest is left to the guard's substeps (``micro_step``
+        takes ``coulomb.rest_step`` in each): the break-away's branch step under a stiff power
+        law (γ h beyond RK4's stability) must be as short as the guard's substeps.
+        """
         return friction_step(self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma,
-                             self.n, self.coulomb, creeps)
+                             self.n, self.coulomb and not self.cf, creeps, self.cf)
 
     def speed_gain(self, h: float, ain: float) -> float:
         """Return the most |φ'| can grow in h (:meth:`Problem.speed_gain`)."""
@@ -187,7 +207,7 @@ class SplitSteps:
         """
         return self._finish(micro_step(
             self.plain_n, self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma, self.n,
-            self.reach, self.nonsmooth, self.coulomb, False), ain, stats)
+            self.reach, self.nonsmooth, self.coulomb, False, self.cf), ain, stats)
 
     def _finish(self, res: SplitResult, ain: float,
                 stats: GuardStats) -> tuple[float, float, float]:
@@ -205,7 +225,7 @@ class SplitSteps:
         """Split a step that straddles φ' = 0 at the reversal (:func:`split_step`)."""
         return self._finish(split_step(
             self.plain_n, self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma, self.n,
-            a0, self.reach, self.coulomb), ain, stats)
+            a0, self.reach, self.coulomb, self.cf), ain, stats)
 
 
 __all__ = ['NOT_FINITE', 'SplitResult', 'SplitSteps', 'micro_step', 'split_step']

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+from .coulomb import friction_work, moving_input
 from .decisions import ENERGY_TOL, compile_fast_step
 from .engine import Engine
 from .errors import ModelError
@@ -81,8 +82,10 @@ class Stepper:
     def _configure(self, params: PendulumParams) -> None:
         self._params = params
         eng = Engine(params.omega0_sq, params.gamma, params.n, self._method, self._guard_on,
-                     self._energy_check, self._rtol, self._atol, self._jit)
+                     self._energy_check, self._rtol, self._atol, self._jit,
+                     params.friction_accel)
         self._engine = eng
+        self._cf = eng.cf  # the friction beside the law, f/I: the fast step's input moves
         self._inv_inertia = 1.0 / params.inertia
         self._max_torque = MAX_INPUT_ACCEL * params.inertia
         # The state bound, held along a run; not on plain unguarded steps (their work does not
@@ -180,7 +183,7 @@ class Stepper:
 
     @property
     def dissipated_work(self) -> float:
-        """Return ∫ γ I |φ'|^(n+1) dt since the reset, in J (eq 26)."""
+        """Return ∫ (γ I |φ'|^(n+1) + f |φ'|) dt since the reset, in J (eq 26, friction f)."""
         return self._work_damping * self._params.inertia
 
     @property
@@ -222,10 +225,13 @@ class Stepper:
                 self._range_ain = ain
             r = None
             if self._lo <= abs(v) <= self._hi:
+                cf = self._cf  # moving in the direction of v, the friction is an input
                 try:
-                    r = self._fast_fn(p, v, h, ain, self._e)
+                    r = self._fast_fn(p, v, h, moving_input(ain, v, cf) if cf else ain, self._e)
                 except (OverflowError, ValueError):
                     r = None
+                if r is not None and cf:
+                    r = (r[0], r[1], r[2] + friction_work(cf, v, p, r[0]), r[3])
             if r is None:
                 self._engine.check_ahead(v, h, ain, self._steps * self._h)
                 p1, v1, w = self._slow(p, v, h, ain, self.stats)

@@ -170,15 +170,15 @@ def _as_vector(name: str, value: Any) -> FloatArray:
     return arr.astype(np.float64)
 
 
-def _validate(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, torque: Any
-              ) -> tuple[FloatArray, ...]:
+def _validate(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, torque: Any,
+              friction: Any = 0.0) -> tuple[FloatArray, ...]:
     """Broadcast the inputs to N pendulums and validate each with the core's one validation.
 
     The first pendulum that ``PendulumParams``/``validate_state`` would refuse is refused with
     their message, plus its index when the input was an array.
     """
     named = {'omega0_sq': omega0_sq, 'gamma': gamma, 'n': n, 'phi0': phi0, 'dphi0': dphi0,
-             'torque': torque}
+             'torque': torque, 'friction': friction}
     arrs = {k: _as_vector(k, v) for k, v in named.items()}
     sizes = {a.shape[0] for a in arrs.values() if a.ndim == 1}
     if len(sizes) > 1:
@@ -191,10 +191,10 @@ def _validate(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, torque:
            for k, a in arrs.items()}
     # The model's checks on arrays (finite, >= 0); the first pendulum that fails them is
     # refused by PendulumParams itself, so the message is the model's one.
-    om2, gam, nn = out['omega0_sq'], out['gamma'], out['n']
+    om2, gam, nn, fr = out['omega0_sq'], out['gamma'], out['n'], out['friction']
     with np.errstate(invalid='ignore'):
-        fine = np.isfinite(om2) & np.isfinite(gam) & np.isfinite(nn)
-        fine &= (om2 >= 0.0) & (gam >= 0.0) & (nn >= 0.0)
+        fine = np.isfinite(om2) & np.isfinite(gam) & np.isfinite(nn) & np.isfinite(fr)
+        fine &= (om2 >= 0.0) & (gam >= 0.0) & (nn >= 0.0) & (fr >= 0.0)
     if not fine.all():
         i = int(np.flatnonzero(~fine)[0])
         _one(arrs, i, lambda: _params(out, i))
@@ -216,7 +216,20 @@ def _each(fn: Any, *arrays: FloatArray) -> FloatArray:
 
 def _params(out: dict[str, FloatArray], i: int) -> PendulumParams:
     w2 = float(out['omega0_sq'][i])
-    return PendulumParams.from_omega0_sq(w2, float(out['gamma'][i]), float(out['n'][i]))
+    fr = float(out['friction'][i]) if 'friction' in out else 0.0
+    return PendulumParams.from_omega0_sq(w2, float(out['gamma'][i]), float(out['n'][i]), fr)
+
+
+def _input_bounds(tau: FloatArray, fr: FloatArray) -> FloatArray:
+    """Return the torque octaves of the guard's ranges: of |τ/I| + f/I (``Engine.fast_range``)."""
+    return ain_bounds(np.abs(tau) + fr)
+
+
+def _refuse_compiled_friction(fr: FloatArray) -> None:
+    """Refuse a friction beside the law on the compiled sweep, which does not take it yet."""
+    if fr.any():
+        raise IntegratorError('sweep(jit=True) does not take friction > 0 yet; run it with '
+                              'jit=False (the numpy sweep takes it)')
 
 
 def _one(arrs: dict[str, FloatArray], i: int, check: Any, only: str | None = None) -> Any:
@@ -267,9 +280,11 @@ class _Group:
     damped: BoolArray
     reach: FloatArray
     v_acc: FloatArray
+    cf: FloatArray  # the friction beside the law, f/I (``Problem.friction``)
 
     def __post_init__(self) -> None:
         self.any_coulomb = bool(self.coulomb.any())
+        self.any_friction = bool(self.cf.any())
         self.any_nonsmooth = bool(self.nonsmooth.any())
         self.all_nonsmooth = bool(self.nonsmooth.all())
         # reach = 0 makes the near-reversal test false everywhere: the crossing test decides.
@@ -298,7 +313,7 @@ class _Group:
         sl = self.sl
         self.ain = _uniform(tau[sl])
         self.ain_col = tau[sl]
-        self.check = self.damped & (tau[sl] == 0.0) & energy_check
+        self.check = self.damped & (tau[sl] == 0.0) & energy_check & (self.cf == 0.0)
         self.any_check = bool(self.check.any())
         self.all_check = bool(self.check.all())
 
@@ -380,25 +395,27 @@ def _on_unique(fn: Any, *cols: FloatArray) -> FloatArray:
     return np.array([fn(*row) for row in rows], dtype=np.float64)[inv.ravel()]
 
 
-def _flags(w2: float, gamma: float, n: float, guard: bool) -> tuple[float, ...]:
+def _flags(w2: float, gamma: float, n: float, guard: bool,
+           friction: float = 0.0) -> tuple[float, ...]:
     """Return what the pendulum's frozen :class:`Problem` decides, as the group's columns.
 
     (damped, coulomb, nonsmooth, reach, v_acc): the very values the Stepper's engine reads
     from its Problem (v_acc only where the guard is on, as the engine has it).
     """
-    prob = Problem(w2, gamma, n)
+    prob = Problem(w2, gamma, n, friction)
     return (prob.damped, prob.coulomb, prob.nonsmooth, prob.reach,
             prob.v_acc if guard else math.inf)
 
 
 def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard: bool,
-            block: int = BLOCK) -> list[_Group]:
+            block: int = BLOCK, fr: FloatArray | None = None) -> list[_Group]:
     """Split the sorted pendulums into groups of one n (blocks of at most ``block``).
 
     The exponents of one text (:func:`general_law`, sorted after the others by the sweep) form
     one group, the exponent a column of it.
     """
     tab = METHODS[method].tableau
+    fr = np.zeros(nn.size) if fr is None else fr
     out = []
     # The runs of one n in the sorted order.
     starts = np.flatnonzero(np.r_[True, nn[1:] != nn[:-1]])
@@ -413,16 +430,19 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard
         sl = slice(a, b)
         col = _uniform(nn[sl])
         if isinstance(col, float):
-            flags = _on_unique(functools.partial(_flags, n=val, guard=guard), om2[sl], gam[sl])
+            flags = _on_unique(lambda w2, g, f, val=val: _flags(w2, g, val, guard, f),
+                               om2[sl], gam[sl], fr[sl])
             step = compile_step(tab, val, vector=True)
         else:
-            flags = _on_unique(functools.partial(_flags, guard=guard), om2[sl], gam[sl], col)
+            flags = _on_unique(lambda w2, g, x, f: _flags(w2, g, x, guard, f), om2[sl],
+                               gam[sl], col, fr[sl])
             step = functools.partial(compile_step_with_n(tab, val, vector=True), n=col)
         damped, coulomb, nonsmooth = (flags[:, k] != 0.0 for k in range(3))
         out.append(_Group(sl=sl, n=val, step=step, nn=col,
                           batchable=_each(batchable_law, nn[sl]) != 0.0,
                           nonsmooth=nonsmooth, coulomb=coulomb, damped=damped,
-                          reach=flags[:, 3].copy(), v_acc=flags[:, 4].copy()))
+                          reach=flags[:, 3].copy(), v_acc=flags[:, 4].copy(),
+                          cf=fr[sl].copy()))
     return out
 
 
@@ -433,6 +453,8 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     Returns how many steps the careful path took.
     """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
+    if grp.any_friction:  # moving, the friction is an input (coulomb.moving_input)
+        ain = ain - np.where(grp.cf == 0.0, 0.0, np.copysign(grp.cf, vv))
     p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
     av = np.abs(vv)
     ok = av <= grp.hi
@@ -474,12 +496,13 @@ def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float,
                  energy_check: bool) -> tuple[float, float]:
     """Take the step of the group's pendulum ``j`` on the engine's careful path; return it."""
     n = float(grp.nn[j]) if isinstance(grp.nn, np.ndarray) else grp.n
-    # Pendulums with the same (ω0², γ, n) share an Engine; a zero's sign is kept apart.
-    key = (w2, gamma, n) if w2 and gamma else (
-        w2, gamma, n, math.copysign(1.0, w2), math.copysign(1.0, gamma))
+    cf = float(grp.cf[j])
+    # Pendulums with the same (ω0², γ, n, f/I) share an Engine; a zero's sign is kept apart.
+    key = (w2, gamma, n, cf) if w2 and gamma else (
+        w2, gamma, n, cf, math.copysign(1.0, w2), math.copysign(1.0, gamma))
     eng = engines.get(key)
     if eng is None:
-        eng = engines[key] = Engine(w2, gamma, n, meth, guard, energy_check)
+        eng = engines[key] = Engine(w2, gamma, n, meth, guard, energy_check, friction=cf)
     i = grp.sl.start + j
     st = stats.get(i)
     if st is None:
@@ -538,6 +561,7 @@ def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
     p, vv = grp.p, grp.v
     av = np.abs(vv[refused])
     fit = grp.batchable[refused] & grp.nonsmooth[refused] & (av <= grp.v_acc[refused])
+    fit &= grp.cf[refused] == 0.0  # the batched steps know no friction beside the law
     if guard:
         fit &= (grp.lo[refused] * (1.0 + RANGE_MARGIN) <= av)
         fit &= av <= grp.hi[refused] * (1.0 - RANGE_MARGIN)
@@ -600,10 +624,8 @@ class Sweep:
 
     Parameters
     ----------
-    omega0_sq, gamma, n, phi0, dphi0, torque, guard, energy_check, max_steps, jit
+    omega0_sq, gamma, n, phi0, dphi0, h, torque, guard, energy_check, max_steps, jit, friction
         As for :func:`sweep`; ``torque`` is the input of the first advance.
-    h : float
-        Step in s (> 0).
     method : str
         ``'rk4'`` (default, the paper's), ``'midpoint'`` or ``'euler'``.
     """
@@ -611,8 +633,9 @@ class Sweep:
     def __init__(self, omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, h: float,
                  *, method: str = 'rk4', torque: Any = 0.0, guard: bool = True,
                  energy_check: bool = True, max_steps: int = MAX_STEPS,
-                 jit: bool = False) -> None:
-        om2, gam, nn, p0, v0, tau = _validate(omega0_sq, gamma, n, phi0, dphi0, torque)
+                 jit: bool = False, friction: Any = 0.0) -> None:
+        om2, gam, nn, p0, v0, tau, fr = _validate(omega0_sq, gamma, n, phi0, dphi0, torque,
+                                                  friction)
         self.guard = check_flag('guard', guard)
         self.energy_check = check_flag('energy_check', energy_check)
         self.jit = check_flag('jit', jit)
@@ -629,7 +652,7 @@ class Sweep:
         self.max_steps = check_count('max_steps', max_steps)
         order = self._order = _sort_order(nn)
         self._inv = np.argsort(order)  # the inverse permutation
-        self._om2, self._gam, self._nn = om2[order], gam[order], nn[order]
+        self._om2, self._gam, self._nn, self._fr = om2[order], gam[order], nn[order], fr[order]
         self._phi, self._v, self._tau = p0[order].copy(), v0[order].copy(), tau[order]
         # The state bound, held along the run where the guard is on (as in the Stepper).
         self._vmax = (_each(run_speed_limit, self._gam, self._nn, self._om2) if self.guard
@@ -637,8 +660,9 @@ class Sweep:
         # numpy takes a group in cache-sized blocks; a compiled run keeps each state in
         # registers over its steps, so it takes each exponent's pendulums in one run.
         self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard,
-                               order.size if self.jit else BLOCK)
+                               order.size if self.jit else BLOCK, self._fr)
         if self.jit:
+            _refuse_compiled_friction(self._fr)
             tab = METHODS[method].tableau
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
             for grp in self._groups:
@@ -648,7 +672,7 @@ class Sweep:
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
         self._handed_back = 0  # steps of the current advance taken by Engine.careful
         self._energy: FloatArray | None = None  # E/I of the states, n-sorted, where known
-        self._bounds = ain_bounds(self._tau)
+        self._bounds = _input_bounds(self._tau, self._fr)
         for grp in self._groups:
             grp.use_torque(self._tau, self.energy_check)
 
@@ -692,7 +716,7 @@ class Sweep:
             record_every = check_count('record_every', record_every)
         if torque is not None:
             self._tau = _torque(torque, self.size, self._params)[self._order]
-            self._bounds = ain_bounds(self._tau)
+            self._bounds = _input_bounds(self._tau, self._fr)
             for grp in self._groups:
                 grp.use_torque(self._tau, self.energy_check)
         k_full, last = step_count(t_end, h)
@@ -763,8 +787,8 @@ class Sweep:
 
     def _params(self, i: int) -> PendulumParams:
         """Return the parameters of pendulum ``i`` (in the order given)."""
-        return _params({'omega0_sq': self._om2, 'gamma': self._gam, 'n': self._nn},
-                       int(self._inv[i]))
+        return _params({'omega0_sq': self._om2, 'gamma': self._gam, 'n': self._nn,
+                        'friction': self._fr}, int(self._inv[i]))
 
     def _run_compiled(self, hh: float, count: int, base: int, total: int, t_end: float,
                       every: int, records: list[tuple[FloatArray, FloatArray]],
@@ -843,7 +867,7 @@ class Sweep:
 def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: float, h: float,
           *, method: str = 'rk4', torque: Any = 0.0, guard: bool = True,
           energy_check: bool = True, record_every: int | None = None,
-          max_steps: int = MAX_STEPS, jit: bool = False) -> SweepResult:
+          max_steps: int = MAX_STEPS, jit: bool = False, friction: Any = 0.0) -> SweepResult:
     """Advance N pendulums from their initial states to ``t_end`` with a fixed step ``h``.
 
     One :meth:`Sweep.advance` of a :class:`Sweep` made for the call.
@@ -880,11 +904,18 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         a result that is not finite) taken by ``Engine.careful`` (``compiled_sweep.py``; counted in
         ``SweepResult.handed_back``).
 
+    friction : float or array_like, shape (N,)
+        The Coulomb friction beside the law per unit inertia, f/I in rad/s² (>= 0): −(f/I)
+        sgn φ', and at rest a pendulum sticks while |τ/I − ω0² sin φ| <= f/I (+ γ where
+        n = 0), as ``PendulumParams.friction`` in the Stepper. The numpy sweep only (``jit``
+        refuses it), whose careful path is then ``Engine.careful`` in Python.
+
     Returns
     -------
     SweepResult
         Scalars broadcast to the common length N.
     """
     prepared = Sweep(omega0_sq, gamma, n, phi0, dphi0, h, method=method, torque=torque,
-                     guard=guard, energy_check=energy_check, max_steps=max_steps, jit=jit)
+                     guard=guard, energy_check=energy_check, max_steps=max_steps, jit=jit,
+                     friction=friction)
     return prepared.advance(t_end, record_every=record_every)

@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from .errors import IdentifyError
-from .laws import LAWS, MISSING_FRICTION
+from .laws import COMPARED, LAWS
 
 PROG = 'pendulum_identify'
 
@@ -37,8 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
                              '(default t,position); the header row must name them')
     parser.add_argument('--units', choices=('deg', 'rad'), default='rad',
                         help='unit of the CSV angle and velocity (default rad)')
-    parser.add_argument('--models', default=','.join(LAWS),
-                        help=f'laws to compare (default {",".join(LAWS)})')
+    parser.add_argument('--models', default=','.join(COMPARED),
+                        help=f'laws to compare, of {",".join(LAWS)} (default '
+                             f'{",".join(COMPARED)})')
     parser.add_argument('--inertia', type=float, default=None, metavar='KG_M2',
                         help="the joint's inertia, if known: turns the Coulomb deceleration "
                              'into a friction torque and goes into fit.yaml')
@@ -84,8 +85,6 @@ def run(args: argparse.Namespace) -> str:
 
     models = [m.strip() for m in args.models.split(',') if m.strip()]
     for m in models:
-        if m == 'power+coulomb':
-            raise IdentifyError(MISSING_FRICTION)
         if m not in LAWS:
             raise IdentifyError(f'--models takes {", ".join(LAWS)}, got {m!r}')
     for name, value in (('--inertia', args.inertia), ('--length', args.length),

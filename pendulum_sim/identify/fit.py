@@ -22,7 +22,7 @@ from pendulum_sim.core.jit import available as jit_available
 
 from .errors import IdentifyError
 from .guess import Guess, best_exponent, envelope_gamma, first_look
-from .laws import LAWS, MODELS, Law, get_law
+from .laws import COMPARED, MODELS, Law, get_law
 from .solver import Problem, solve
 
 FloatArray = npt.NDArray[np.float64]
@@ -47,8 +47,10 @@ class Fit:
     ----------
     params : dict
         ``omega0`` (rad/s), ``gamma`` (s^(n−2); for ``coulomb`` the friction deceleration in
-        rad/s²), ``n``, ``friction`` (Coulomb torque in N m: γ I for ``coulomb`` where the
-        inertia is known, 0 for laws without friction), ``phi_offset`` (rad, the sensor's zero:
+        rad/s²), ``n``, ``friction`` (Coulomb torque in N m: γ I for ``coulomb``, f for
+        ``power+coulomb``, where the inertia is known; 0 for laws without friction),
+        ``friction_accel`` (its deceleration f/I in rad/s², which a free swing determines
+        without the inertia), ``phi_offset`` (rad, the sensor's zero:
         measured = φ + phi_offset), ``phi0``, ``dphi0`` (the state at the first sample), and
         ``inertia`` (kg m²) where ``known`` gives it. A value that the record does not determine
         is None, and ``reasons`` says why.
@@ -60,7 +62,7 @@ class Fit:
     aic, bic : float
         Akaike and Bayesian information criteria (lower is better; inf when nothing was fitted).
     model : str
-        The law: ``viscous``, ``quadratic``, ``coulomb`` or ``power``.
+        The law: ``viscous``, ``quadratic``, ``coulomb``, ``power`` or ``power+coulomb``.
     samples : int
         Samples fitted.
     fixed : tuple of str
@@ -182,7 +184,7 @@ def _starts(law: Law, rec: Record, known: dict[str, float]) -> list[dict[str, fl
     om = known.get('omega0', g.omega0)
     assert om is not None
     base = {'omega0': om, 'phi_offset': known.get('phi_offset', g.offset), 'phi0': g.phi0,
-            'dphi0': g.dphi0}
+            'dphi0': g.dphi0, 'friction_accel': 0.0}
     if law.n is not None:
         ns = [known.get('n', law.n)]
     elif 'n' in known:
@@ -193,10 +195,28 @@ def _starts(law: Law, rec: Record, known: dict[str, float]) -> list[dict[str, fl
     for n in ns:
         gam = envelope_gamma(n, om, g.peaks_t, g.peaks_a)[0]
         gam = known.get('gamma', max(gam, 1e-4))
+        if law.friction:
+            out += friction_starts(base, n, gam, om, g, 'gamma' in known)
+            continue
         scales = (1.0,) if 'gamma' in known else ((1.0, 0.5, 2.0) if len(ns) == 1 else (1.0,))
         for s in scales:
             out.append({**base, 'n': n, 'gamma': gam * s})
     return out
+
+
+def friction_starts(base: dict[str, float], n: float, gam: float, om: float, g: Guess,
+                    gamma_known: bool) -> list[dict[str, float]]:
+    """Return the starts of a power law beside a Coulomb friction, for exponent ``n``.
+
+    The envelope read under the power law alone (γ) and under Coulomb friction alone (its
+    linear decay, the friction deceleration c: ``guess.envelope_gamma`` at n = 0) bound the
+    two shares; the starts split the decay between them: half each, mostly the law, mostly
+    the friction.
+    """
+    c = max(envelope_gamma(0.0, om, g.peaks_t, g.peaks_a)[0], 1e-4)
+    shares = ((0.5, 0.5), (0.9, 0.1), (0.1, 0.9))
+    return [{**base, 'n': n, 'gamma': gam if gamma_known else gam * a,
+             'friction_accel': c * b} for a, b in shares]
 
 
 def _problem(law: Law, rec: Record, start: dict[str, float], known: dict[str, float]
@@ -207,19 +227,23 @@ def _problem(law: Law, rec: Record, start: dict[str, float], known: dict[str, fl
     h = 2.0 ** math.floor(math.log2(min(2.0 * math.pi / om / STEPS_PER_PERIOD,
                                         float(rec.t[-1]) / 4.0)))
     t_end = math.ceil(float(rec.t[-1]) / (STEPS_PER_PERIOD * h)) * STEPS_PER_PERIOD * h
-    free = tuple(k for k in ('omega0', 'gamma', 'n', 'phi_offset', 'phi0', 'dphi0')
-                 if k not in known and not (k == 'n' and law.n is not None))
+    free = tuple(k for k in ('omega0', 'gamma', 'n', 'phi_offset', 'phi0', 'dphi0',
+                             'friction_accel')
+                 if k not in known and not (k == 'n' and law.n is not None)
+                 and not (k == 'friction_accel' and not law.friction))
     fixed = {k: v for k, v in start.items() if k not in free}
     amp = float(np.max(np.abs(rec.y - start['phi_offset'])))
     typical = {'omega0': om, 'gamma': max(start['gamma'], 1e-3), 'n': 1.0, 'phi_offset': amp,
-               'phi0': amp, 'dphi0': amp * om}
+               'phi0': amp, 'dphi0': amp * om,
+               'friction_accel': max(start['friction_accel'], 1e-3)}
     return Problem(t=rec.t, y=rec.y, h=h, t_end=t_end, free=free, fixed=fixed,
                    theta=np.array([start[k] for k in free]),
                    scale=np.array([typical[k] for k in free]))
 
 
 def _unfitted(law: Law, rec: Record, known: dict[str, float], why: str) -> Fit:
-    names = ('omega0', 'gamma', 'n', 'friction', 'phi_offset', 'phi0', 'dphi0')
+    names = ('omega0', 'gamma', 'n', 'friction', 'friction_accel', 'phi_offset', 'phi0',
+             'dphi0')
     params: dict[str, Value] = dict.fromkeys(names)
     params['phi_offset'] = rec.guess.offset
     reasons = {k: why for k in names if k != 'phi_offset'}
@@ -249,7 +273,7 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
         se = np.full(p, np.nan)
     q = float(student_t.ppf(0.975, max(m - p, 1)))
     params: dict[str, Value] = {k: values[k] for k in ('omega0', 'gamma', 'n', 'phi_offset',
-                                                       'phi0', 'dphi0')}
+                                                       'phi0', 'dphi0', 'friction_accel')}
     stderr: dict[str, Value] = {}
     ci: dict[str, tuple[float, float] | None] = {}
     for k, v in list(params.items()):
@@ -273,25 +297,10 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
         reasons['gamma'] = 'gamma is in s^(n-2) and n is not determined: ' + why
         for k in ('n', 'gamma'):
             params[k], stderr[k], ci[k] = None, None, None
-    # Friction: the Coulomb law's deceleration γ is a torque γ I.
-    if law.name == 'coulomb':
-        gam = params['gamma']
-        if 'inertia' in known and gam is not None:
-            inertia = known['inertia']
-            params['friction'] = gam * inertia
-            gam_se = stderr['gamma']
-            stderr['friction'] = None if gam_se is None else gam_se * inertia
-            c = ci['gamma']
-            ci['friction'] = None if c is None else (c[0] * inertia, c[1] * inertia)
-        else:
-            params['friction'], stderr['friction'], ci['friction'] = None, None, None
-            reasons['friction'] = ('friction = gamma * inertia (N m) needs the inertia: pass '
-                                   "known={'inertia': ...}; gamma is the friction deceleration "
-                                   'in rad/s^2')
-    else:
-        params['friction'], stderr['friction'], ci['friction'] = 0.0, 0.0, (0.0, 0.0)
+    _friction(law, known, params, stderr, ci, reasons)
     fixed = tuple(k for k in ('omega0', 'gamma', 'n', 'phi_offset') if k not in best.free)
-    fixed = (*fixed, 'friction') if law.name != 'coulomb' else fixed
+    if law.name != 'coulomb' and not law.friction:
+        fixed = (*fixed, 'friction', 'friction_accel')
     if 'inertia' in known:
         params['inertia'], stderr['inertia'] = known['inertia'], 0.0
         ci['inertia'] = (known['inertia'], known['inertia'])
@@ -309,6 +318,35 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
                bic=loglik + p * math.log(m), model=law.name, samples=int(m), fixed=fixed,
                reasons=reasons, correlation=corr, t=rec.t + rec.t0, position=rec.y,
                fitted=fitted, iterations=best.iterations, starts=starts)
+
+
+def _friction(law: Law, known: dict[str, float], params: dict[str, Value],
+              stderr: dict[str, Value], ci: dict[str, tuple[float, float] | None],
+              reasons: dict[str, str]) -> None:
+    """Set ``friction`` (N m) from the fitted deceleration: ``friction_accel`` times I.
+
+    The Coulomb law's deceleration is its γ (n = 0); ``power+coulomb`` fits the core's friction
+    f beside the law as f/I. A torque needs the inertia (``known``); without it, None.
+    """
+    if law.name == 'coulomb':
+        params['friction_accel'] = params['gamma']
+        stderr['friction_accel'], ci['friction_accel'] = stderr['gamma'], ci['gamma']
+    elif not law.friction:
+        for k in ('friction', 'friction_accel'):
+            params[k], stderr[k], ci[k] = 0.0, 0.0, (0.0, 0.0)
+        return
+    acc, acc_se, acc_ci = params['friction_accel'], stderr['friction_accel'], ci['friction_accel']
+    if 'inertia' in known and acc is not None:
+        inertia = known['inertia']
+        params['friction'] = acc * inertia
+        stderr['friction'] = None if acc_se is None else acc_se * inertia
+        ci['friction'] = None if acc_ci is None else (acc_ci[0] * inertia, acc_ci[1] * inertia)
+    else:
+        params['friction'], stderr['friction'], ci['friction'] = None, None, None
+        what = 'gamma is' if law.name == 'coulomb' else 'friction_accel is'
+        reasons['friction'] = (f'friction = {what.split()[0]} * inertia (N m) needs the '
+                               f"inertia: pass known={{'inertia': ...}}; {what} the friction "
+                               'deceleration in rad/s^2')
 
 
 def _use_jit(jit: bool | None) -> bool:
@@ -371,8 +409,8 @@ def fit(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
         Measured velocity (checked, used for nothing else yet) and effort (N m; must be zero:
         a free swing).
     model : str
-        ``'viscous'``, ``'quadratic'``, ``'coulomb'`` or ``'power'`` (``'power+coulomb'``
-        needs the core's friction term and is refused).
+        ``'viscous'``, ``'quadratic'``, ``'coulomb'``, ``'power'`` or ``'power+coulomb'``
+        (the power law beside the core's Coulomb ``friction``; simulated on the numpy sweep).
     known : dict, optional
         Values to hold fixed: ``omega0``, ``gamma``, ``n``, ``phi_offset``, and ``inertia``
         (kg m², which turns the Coulomb deceleration into a friction torque).
@@ -393,7 +431,7 @@ def compare_records(records: Sequence[Record], *, models: Sequence[str] | None =
                     known: Mapping[str, float] | None = None, jit: bool | None = None,
                     progress: Callable[[str], None] | None = None) -> list[list[Fit]]:
     """Fit each model to each prepared record; return each record's fits ranked by BIC."""
-    names = list(LAWS) if models is None else list(models)
+    names = list(COMPARED) if models is None else list(models)
     for name in names:
         get_law(name)
     per: list[list[Fit]] = [[] for _ in records]
@@ -411,7 +449,7 @@ def compare(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
             ) -> list[Fit]:
     """Fit each model (default: viscous, quadratic, coulomb, power) and rank them by BIC.
 
-    ``power+coulomb`` is not among the defaults: it needs the core's friction term.
+    ``power+coulomb`` is fitted where ``models`` names it (``laws.COMPARED``).
     """
     rec = prepare(t, position, velocity, effort)
     return compare_records([rec], models=models, known=known, jit=jit, progress=progress)[0]

@@ -2,11 +2,12 @@
 
 Each model is the core's law (Quiroga and Ospina-Henao 2017, eq 15-16)::
 
-    φ'' = −ω0² sin φ − γ φ'|φ'|^(n−1) + τ/I
+    φ'' = −ω0² sin φ − γ φ'|φ'|^(n−1) − (f/I) sgn φ' + τ/I
 
 with the exponent fixed (``viscous`` n = 1, ``quadratic`` n = 2, ``coulomb`` n = 0: dry friction
-of constant deceleration γ, i.e. a friction torque γ I) or free (``power``). ``power+coulomb``
-needs a friction torque beside the power law, which the core does not have yet.
+of constant deceleration γ, i.e. a friction torque γ I) or free (``power``), and
+``power+coulomb``: the power law with n free beside the core's Coulomb ``friction`` f, its
+deceleration f/I fitted (``friction_accel``).
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ class Law:
     name: str
     n: float | None
     description: str
+    friction: bool = False   # a Coulomb friction beside the law is fitted
 
 
 LAWS: dict[str, Law] = {
@@ -29,21 +31,21 @@ LAWS: dict[str, Law] = {
     'quadratic': Law('quadratic', 2.0, 'quadratic drag, n = 2'),
     'coulomb': Law('coulomb', 0.0, 'Coulomb friction only, n = 0'),
     'power': Law('power', None, 'power-law damping, n free (real >= 0)'),
+    'power+coulomb': Law('power+coulomb', None, 'power-law damping, n free, beside Coulomb '
+                         'friction', friction=True),
 }
 """The models ``fit`` takes, by name."""
 
-MODELS = (*LAWS, 'power+coulomb')
-"""Every model name the issue defines, in the order ``compare`` fits them."""
+MODELS = tuple(LAWS)
+"""Every model name the issue defines."""
 
-MISSING_FRICTION = ("model 'power+coulomb' needs a Coulomb friction torque beside the power law, "
-                    "which the core (pendulum_sim.core) does not have yet; fit 'power' or "
-                    "'coulomb', or compare them with compare()")
+COMPARED = ('viscous', 'quadratic', 'coulomb', 'power')
+"""The models ``compare`` fits unless told otherwise (``power+coulomb`` on request: it nests
+both ``power`` and ``coulomb``, and the numpy sweep simulates it, not the compiled one)."""
 
 
 def get_law(model: object) -> Law:
     """Return the law of ``model`` or say which models exist."""
-    if model == 'power+coulomb':
-        raise IdentifyError(MISSING_FRICTION)
     if not isinstance(model, str) or model not in LAWS:
         raise IdentifyError(f'model must be one of {", ".join(LAWS)}, got {model!r}')
     return LAWS[model]

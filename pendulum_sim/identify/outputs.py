@@ -2,7 +2,9 @@
 
 ``fit.yaml`` is a scene (a ROS 2 parameter file ``pendulum_node --scene`` and
 ``closed_loop(scene=...)`` read): the fitted ω0 is written as ``m`` with ``l``, ``g`` and the
-inertia given (ω0² = m g l / I, eq 11), with γ, n and the state at the first sample.
+inertia given (ω0² = m g l / I, eq 11), with γ, n, the Coulomb ``friction`` (the fitted
+deceleration f/I times that inertia; 0 but for ``power+coulomb``: the ``coulomb`` law is the
+dry law n = 0 itself) and the state at the first sample.
 ``campaign_parameters.yaml`` is a ``parameters:`` block for ``pendulum_campaign``: each fitted
 parameter a ``normal`` space from its estimate and standard error, ω0's as g (m, l and I of the
 scene held).
@@ -80,7 +82,16 @@ def _law(f: Fit) -> str:
         law += f', gamma = {p["gamma"]:.4g}'
     if n is not None:
         law += f', n = {n:.3g}'
+    acc = p.get('friction_accel')
+    if f.model == 'power+coulomb' and acc is not None:
+        law += f', friction/I = {acc:.4g} rad/s^2'
     return law
+
+
+def scene_friction(f: Fit, body: Body) -> float:
+    """Return the scene's friction in N m: the fitted f/I times the scene's inertia."""
+    acc = f.params.get('friction_accel')
+    return float(acc) * body.inertia if f.model == 'power+coulomb' and acc else 0.0
 
 
 def write_scene(path: Path, f: Fit, body: Body, source: str) -> None:
@@ -107,6 +118,7 @@ def write_scene(path: Path, f: Fit, body: Body, source: str) -> None:
         f'    g: {_num(body.g)}',
         f'    gamma: {_num(p["gamma"])}',
         f'    n: {_num(p["n"])}',
+        f'    friction: {_num(scene_friction(f, body))}',
         f'    phi0: {_num(p["phi0"] or 0.0)}',
         f'    dphi0: {_num(p["dphi0"] or 0.0)}',
     ]
@@ -138,6 +150,10 @@ def write_campaign(path: Path, f: Fit, body: Body) -> None:
             lines.append(f'  {k}: {_num(v)}   # fixed by the {f.model} law')
         else:
             lines.append(f'  {k}: {{distribution: normal, mean: {_num(v)}, std: {_num(e)}}}')
+    acc_se = se.get('friction_accel')
+    if f.model == 'power+coulomb' and acc_se is not None:
+        lines.append(f'  friction: {{distribution: normal, mean: {_num(scene_friction(f, body))}'
+                     f', std: {_num(acc_se * body.inertia)}}}')
     path.write_text('\n'.join(lines) + '\n')
 
 

@@ -25,9 +25,11 @@ from pendulum_sim.core.sweep import sweep
 
 FloatArray = npt.NDArray[np.float64]
 
-PARAMETERS = ('omega0', 'gamma', 'n', 'phi_offset', 'phi0', 'dphi0')
-"""Everything a trajectory depends on, in θ order."""
+PARAMETERS = ('omega0', 'gamma', 'n', 'phi_offset', 'phi0', 'dphi0', 'friction_accel')
+"""Everything a trajectory depends on, in θ order (``friction_accel``: the Coulomb friction
+beside the law per unit inertia, f/I in rad/s², the core sweep's ``friction``)."""
 BOUNDS = {'omega0': (1e-3, 1e3), 'gamma': (0.0, 1e3), 'n': (0.0, 6.0),
+          'friction_accel': (0.0, 1e3),
           'phi_offset': (-1e3, 1e3), 'phi0': (-1e3, 1e3), 'dphi0': (-100.0, 100.0)}
 """Where the search stays: the core's input limits, tightened to physical joints."""
 RELATIVE_STEP = 1e-6
@@ -121,9 +123,11 @@ def _run(problems: Sequence[Problem], thetas: Sequence[FloatArray], members: lis
             for k in PARAMETERS:
                 cols[k].append(values[k])
     om = np.asarray(cols['omega0'])
+    friction = np.asarray(cols['friction_accel'])
+    # The compiled sweep takes no friction beside the law yet: such batches run on numpy.
     result = sweep(om * om, np.asarray(cols['gamma']), np.asarray(cols['n']),
                    np.asarray(cols['phi0']), np.asarray(cols['dphi0']), t_end, h,
-                   record_every=1, jit=jit)
+                   record_every=1, jit=jit and not friction.any(), friction=friction)
     assert result.phi_record is not None and result.dphi_record is not None
     phi, dphi = result.phi_record, result.dphi_record
     offsets = np.asarray(cols['phi_offset'])
