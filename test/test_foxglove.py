@@ -133,12 +133,12 @@ def test_a_closed_loop_served_live_sends_the_states_of_the_run() -> None:
 
     runs: list[Any] = []
     worker = threading.Thread(target=lambda: runs.append(closed_loop(
-        law, periods=60, target=0.5, foxglove_port=port)))
+        law, periods=60, target=0.5, overrides={'friction': 0.25}, foxglove_port=port)))
     worker.start()
     try:
         with connect_when_up(port, 30.0) as client:
             client.subscribe('/joint_states', '/tf', '/target', '/energy_terms',
-                             '/counters', '/robot_description')
+                             '/counters', '/physics', '/robot_description')
             # The URDF is sent when a subscription arrives: the server has them all now.
             client.messages(1, '/robot_description')
             watched.set()
@@ -160,6 +160,9 @@ def test_a_closed_loop_served_live_sends_the_states_of_the_run() -> None:
     assert [m['velocity'][0] for _, m in states] == list(run.velocity[first:first + 59])
     assert [m['effort'][0] for _, m in states] == list(run.effort[first:first + 59])
     assert {m['data'] for _, m in by_topic['/target']} == {0.5}
+    # The live physics: the scene's n and γ and the friction the run was given.
+    assert {(m['n'], m['gamma'], m['friction']) for _, m in by_topic['/physics']} == {
+        (run.parameters['n'], run.parameters['gamma'], 0.25)}
     # The counters of the node's synchronous mode: the joint's and the exchange's, each state
     # answered once (the in-process controller answers every state).
     counters = [m for _, m in by_topic['/counters']]

@@ -73,7 +73,7 @@ SCHEMAS: dict[str, tuple[str, dict[str, Any]]] = {
         dissipated_power=_NUMBER, input=_NUMBER, residual=_NUMBER)),
     'command': ('pendulum_sim/Command', _object(
         interface={'type': 'string'}, commanded=_NUMBER, applied=_NUMBER)),
-    'physics': ('pendulum_sim/Physics', _object(n=_NUMBER, gamma=_NUMBER)),
+    'physics': ('pendulum_sim/Physics', _object(n=_NUMBER, gamma=_NUMBER, friction=_NUMBER)),
     'counters': ('pendulum_sim/Counters', {'type': 'object',
                                            'additionalProperties': {'type': 'integer'}}),
     'parameters': ('pendulum_sim/Parameters', {'type': 'object'}),
@@ -377,7 +377,8 @@ class LiveView:
             log_time=t)
         ch['command'].log({'interface': self._interface, 'commanded': _finite(s.commanded),
                            'applied': _finite(s.effort)}, log_time=t)
-        ch['physics'].log({'n': s.params.n, 'gamma': s.params.gamma}, log_time=t)
+        ch['physics'].log({'n': s.params.n, 'gamma': s.params.gamma,
+                           'friction': s.params.friction}, log_time=t)
         if self._target is not None:
             ch['target'].log({'data': self._target}, log_time=t)
         ch['counters'].log(dict(s.counters, foxglove_dropped=self.dropped), log_time=t)
