@@ -25,6 +25,8 @@ from pendulum_sim.core import (
     simulate,
 )
 from pendulum_sim.core.embedded import MAX_TRIALS, BudgetSpent
+from pendulum_sim.core.engine import AheadCheck
+from pendulum_sim.core.implicit import fallback_refused
 from pendulum_sim.core.model import (
     MAX_RUN_TRIALS,
     MAX_SPEED,
@@ -33,6 +35,7 @@ from pendulum_sim.core.model import (
     oscillation_trials,
     run_speed_limit,
 )
+from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.sweep import sweep
 
 PAPER = PendulumParams()
@@ -472,6 +475,36 @@ def test_the_sweep_refuses_ahead_what_simulate_and_the_stepper_refuse_ahead(jit:
     with pytest.raises(IntegratorError, match=exact):
         sweep(9.8, 0.0, 1.0, [0.5, 0.0, 1.0], 0.0, 10.0, 0.3, torque=[1.0, 1e8, -1.0],
               jit=jit)
+
+
+@pytest.mark.parametrize(('gamma', 'n'), [(0.0, 1.0), (0.5, 0.0), (100.0, 0.01), (0.1, 2.0)])
+def test_the_check_ahead_decided_once_per_step_and_torque_is_the_full_check(gamma: float,
+                                                                           n: float) -> None:
+    # AheadCheck skips the test below the run's speed bound where a step from the bound is not
+    # too long to work through: it must refuse exactly what the full rule refuses, in any order
+    # of (h, torque) and state, beyond the bound too.
+    params = PAPER.with_changes(gamma=gamma, n=n)
+    prob = Problem(params.omega0_sq, gamma, n)
+    check = AheadCheck(prob, False)
+    lim = run_speed_limit(gamma, n, params.omega0_sq)
+    refused = 0
+    for h in (1e-3, 0.3, 1e-3):
+        for ain in (0.0, 1e5, -1e8, 1e8, 1e5):
+            for v in (0.0, -0.5 * lim, lim, -2.0 * lim, 3.0 * lim, 0.9 * lim):
+                try:
+                    if fallback_refused(v, h, ain, prob.w2, prob.omega0):
+                        check_speed_ahead(v, ain, h, gamma, n, prob.w2, 0.0)
+                    full = ''
+                except IntegratorError as exc:
+                    full = str(exc)
+                    refused += 1
+                try:
+                    check(v, h, ain, 0.0)
+                    got = ''
+                except IntegratorError as exc:
+                    got = str(exc)
+                assert got == full, (h, ain, v)
+    assert refused > 0
 
 
 def test_the_numpy_sweep_refuses_the_step_ahead_in_bounded_time() -> None:
