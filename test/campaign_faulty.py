@@ -17,6 +17,7 @@ from pendulum_sim.testing.examples import pd, pd_batch
 
 FAULTY = 0.4
 HOARD: list[bytes] = []
+SLOW_S = 0.3   # s a call of ``slow`` takes: its 40 slow calls in an episode of 50 take 12 s
 
 
 def _faulty(t: float, target: float) -> bool:
@@ -53,6 +54,13 @@ def hangs(t: float, position: float, velocity: float, *, target: float) -> float
     """Never answer."""
     while _faulty(t, target):
         time.sleep(1.0)
+    return pd(t, position, velocity, target=target)
+
+
+def slow(t: float, position: float, velocity: float, *, target: float) -> float:
+    """Answer every call, each after SLOW_S (well within the episode's limit)."""
+    if _faulty(t, target):
+        time.sleep(SLOW_S)
     return pd(t, position, velocity, target=target)
 
 

@@ -6,7 +6,6 @@ laws of test/campaign_faulty.py misbehaving in the episodes whose target is 0.4.
 """
 from __future__ import annotations
 
-import json
 import os
 import re
 import signal
@@ -20,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from dask_harness import dask_cluster
 
 from pendulum_sim.testing.campaign.episode import RUN_COLUMNS, run_episode
 
@@ -34,8 +34,10 @@ controller: campaign_faulty:{law}
 episodes: 12
 periods: 50
 target: [0.5, 0.4, 0.6]
-episode_timeout: 1.5
 """
+TIMED = 3.0
+"""The episode_timeout of the campaigns whose law takes too long (the others have the default,
+60 s): the closed loop of a healthy episode, from its law's first call, takes well under 1 s."""
 HEALTHY = 'pendulum_sim.testing.examples:pd'
 
 
@@ -56,50 +58,30 @@ def rows_of(folder: Path) -> list[dict[str, Any]]:
 def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """Start ``dask scheduler`` and two single-threaded ``dask worker`` processes (memory limit
     :data:`MEMORY_LIMIT`, test/ on their PYTHONPATH); yield the scheduler's address."""
-    scheduler_file = tmp_path_factory.mktemp('dask') / 'scheduler.json'
-    dask = str(BIN / 'dask')
-    procs = [subprocess.Popen([dask, 'scheduler', '--host', '127.0.0.1', '--port', '0',
-                               '--no-dashboard', '--scheduler-file', str(scheduler_file)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        end = time.monotonic() + 60
-        while not scheduler_file.is_file() or not scheduler_file.read_text().strip():
-            assert procs[0].poll() is None and time.monotonic() < end, 'no scheduler'
-            time.sleep(0.05)
-        for _ in range(2):
-            procs.append(subprocess.Popen(
-                [dask, 'worker', '--scheduler-file', str(scheduler_file), '--nthreads', '1',
-                 '--host', '127.0.0.1', '--no-dashboard', '--memory-limit', MEMORY_LIMIT],
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV))
-        address = json.loads(scheduler_file.read_text())['address']
-        from distributed import Client
-
-        with Client(address, timeout='30s') as client:
-            client.wait_for_workers(2, timeout=60)
-        yield address
-    finally:   # the workers' episode processes leave when their worker is gone
-        for p in reversed(procs):
-            p.kill()
-            p.wait()
+    with dask_cluster(tmp_path_factory.mktemp('dask'), memory_limit=MEMORY_LIMIT,
+                      env=ENV) as running:
+        yield running.address
 
 
 @pytest.mark.parametrize(('law', 'reason'), [
-    ('overflow', 'the controller returned an int of 401 digits at t = 0.11 s (OverflowError: '
-     'too large for a float); a command must be finite'),
+    ('overflow', 'law raised OverflowError: the controller returned an int of 401 digits at '
+     't = 0.11 s, too large for a float; a command must be finite'),
     ('exits', 'law exited with 3'),
     ('hard_exit', 'law exited with 4'),
     ('batch_exit', 'law exited with 4'),   # a batch: each episode alone says which one
     ('leaks', "worker killed: memory (the episode process passed the worker's memory limit "
      'of 572 MiB)'),
-    ('hangs', 'law did not answer within 1.5 s'),
+    ('hangs', 'law did not answer within 3 s'),
+    # Every call answered within the limit, the episode not: 40 calls of 0.3 s (before: the
+    # limit held each call alone, and the episode ran its 12 s to a row that passed).
+    ('slow', 'law did not answer within 3 s'),
     ('text', "the controller returned '0.5' at t = 0.11 s; a command is a number"),
 ])
 def test_one_episodes_fault_fails_that_episode_alone(tmp_path: Path, cluster: str, law: str,
                                                      reason: str) -> None:
     path = tmp_path / 'campaign.yaml'
-    text = CAMPAIGN.format(law=law)
-    if law == 'leaks':   # the memory limit, not the time limit, must be what stops it
-        text = text.replace('episode_timeout: 1.5', 'episode_timeout: 60.0')
+    text = CAMPAIGN.format(law=law) + (f'episode_timeout: {TIMED}\n' if law in (
+        'hangs', 'slow') else '')   # else the default: the memory limit stops the leak
     path.write_text(text)
     out = tmp_path / 'out'
     proc = cli(str(path), '--out', str(out), '--scheduler', cluster, '--no-progress')
@@ -121,6 +103,18 @@ def test_one_episodes_fault_fails_that_episode_alone(tmp_path: Path, cluster: st
         out / 'failures').is_dir() else []
     assert kept == ([f'episode-{i:06d}.mcap' for i in (1, 4, 7, 10)]
                     if law in ('overflow', 'text') else [])
+
+
+def test_an_episode_slow_outside_its_law_fails_with_the_time_it_had(tmp_path: Path) -> None:
+    # The limit is the whole episode's; here the simulation, not the law (the example PD
+    # law, microseconds a call), takes most of it.
+    from pendulum_sim.testing.campaign.sandbox import Fault, run_chunk
+
+    text = (f'controller: {HEALTHY}\nepisodes: 2\nperiods: 100000\ntarget: 0.5\n'
+            'episode_timeout: 0.2\n')
+    got = run_chunk(text, [0, 1], None, 0.2)
+    assert got == [Fault(0, 'episode did not end within 0.2 s'),
+                   Fault(1, 'episode did not end within 0.2 s')]
 
 
 def rows_of_cell(value: Any) -> str:

@@ -7,6 +7,8 @@ from __future__ import annotations
 import importlib
 import math
 import re
+import subprocess
+import sys
 from decimal import Decimal
 from typing import Any
 
@@ -23,6 +25,8 @@ from pendulum_sim.core import (
     simulate,
 )
 from pendulum_sim.core.embedded import MAX_TRIALS, BudgetSpent
+from pendulum_sim.core.engine import AheadCheck
+from pendulum_sim.core.implicit import fallback_refused
 from pendulum_sim.core.model import (
     MAX_RUN_TRIALS,
     MAX_SPEED,
@@ -31,6 +35,7 @@ from pendulum_sim.core.model import (
     oscillation_trials,
     run_speed_limit,
 )
+from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.sweep import sweep
 
 PAPER = PendulumParams()
@@ -445,6 +450,74 @@ def test_a_step_too_long_to_work_through_that_must_pass_the_speed_bound_is_refus
     assert stepper.stats.as_dict() == before    # no work spent on it
     stepper.step(1.0)   # the run goes on from the state it kept
     assert stepper.steps == 2
+
+
+# The case on the sweep: ω0² = 9.8 s⁻², no damping, τ/I = 1e8 rad/s² for h = 0.3 s.
+SWEEP_AHEAD = (9.8, 0.0, 1.0, 0.0, 0.0, 10.0, 0.3)
+SWEEP_AHEAD_MESSAGE = ahead_message('0.3', '0', '1e+08', '1e+08', '0', '3e+07')
+
+
+@pytest.mark.parametrize('jit', [False, True])
+def test_the_sweep_refuses_ahead_what_simulate_and_the_stepper_refuse_ahead(jit: bool) -> None:
+    # Before, the numpy sweep worked through the guard's substeps for more than 30 s and the
+    # compiled one for 4 s, each refusing only after the step ('dphi reached 3e+07 rad/s').
+    if jit:
+        pytest.importorskip('numba')
+    params = PendulumParams.from_omega0_sq(9.8, 0.0, 1.0)
+    exact = f'^{re.escape(SWEEP_AHEAD_MESSAGE)}$'
+    with pytest.raises(IntegratorError, match=exact):
+        simulate(params, 0.0, 0.0, 10.0, 0.3, torque=1e8 * params.inertia)
+    with pytest.raises(IntegratorError, match=exact):
+        Stepper(params, 0.0, 0.0, 0.3).step(1e8 * params.inertia)
+    with pytest.raises(IntegratorError, match=exact):
+        sweep(*SWEEP_AHEAD, torque=1e8, jit=jit)
+    # Among pendulums that go on, the one refused ahead is refused alike.
+    with pytest.raises(IntegratorError, match=exact):
+        sweep(9.8, 0.0, 1.0, [0.5, 0.0, 1.0], 0.0, 10.0, 0.3, torque=[1.0, 1e8, -1.0],
+              jit=jit)
+
+
+@pytest.mark.parametrize(('gamma', 'n'), [(0.0, 1.0), (0.5, 0.0), (100.0, 0.01), (0.1, 2.0)])
+def test_the_check_ahead_decided_once_per_step_and_torque_is_the_full_check(gamma: float,
+                                                                           n: float) -> None:
+    # AheadCheck skips the test below the run's speed bound where a step from the bound is not
+    # too long to work through: it must refuse exactly what the full rule refuses, in any order
+    # of (h, torque) and state, beyond the bound too.
+    params = PAPER.with_changes(gamma=gamma, n=n)
+    prob = Problem(params.omega0_sq, gamma, n)
+    check = AheadCheck(prob, False)
+    lim = run_speed_limit(gamma, n, params.omega0_sq)
+    refused = 0
+    for h in (1e-3, 0.3, 1e-3):
+        for ain in (0.0, 1e5, -1e8, 1e8, 1e5):
+            for v in (0.0, -0.5 * lim, lim, -2.0 * lim, 3.0 * lim, 0.9 * lim):
+                try:
+                    if fallback_refused(v, h, ain, prob.w2, prob.omega0):
+                        check_speed_ahead(v, ain, h, gamma, n, prob.w2, 0.0)
+                    full = ''
+                except IntegratorError as exc:
+                    full = str(exc)
+                    refused += 1
+                try:
+                    check(v, h, ain, 0.0)
+                    got = ''
+                except IntegratorError as exc:
+                    got = str(exc)
+                assert got == full, (h, ain, v)
+    assert refused > 0
+
+
+def test_the_numpy_sweep_refuses_the_step_ahead_in_bounded_time() -> None:
+    # The timeout guard: the sweep runs in a process of its own (before: more than 40 s).
+    code = ('from pendulum_sim.core.sweep import sweep\n'
+            'from pendulum_sim.core import IntegratorError\n'
+            'try:\n'
+            f'    sweep(*{SWEEP_AHEAD!r}, torque=1e8)\n'
+            'except IntegratorError as exc:\n'
+            '    print(exc)\n')
+    r = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                       timeout=60)
+    assert (r.returncode, r.stdout, r.stderr) == (0, SWEEP_AHEAD_MESSAGE + '\n', '')
 
 
 @pytest.mark.parametrize(('gamma', 'n'), [(0.0, 1.0), (0.5, 0.0), (1e-4, 1.0), (0.1, 2.0),

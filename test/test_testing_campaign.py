@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from dask_harness import dask_cluster as start_dask_cluster
 
 from pendulum_sim.testing.campaign.cli import main
 from pendulum_sim.testing.campaign.episode import RUN_COLUMNS, run_episode
@@ -444,40 +445,12 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[by
     """Start ``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1.
 
     Yield the scheduler's address and the two worker processes (no nanny: the process is the
-    worker, so a signal to it is a worker dying).
+    worker, so a signal to it is a worker dying), with the campaign tutorial's Dask settings.
     """
-    scheduler_file = tmp_path / 'scheduler.json'
-    dask = str(BIN / 'dask')
-    procs = [subprocess.Popen([dask, 'scheduler', '--host', '127.0.0.1', '--port', '0',
-                               '--no-dashboard', '--scheduler-file', str(scheduler_file)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        end = time.monotonic() + 60
-        while not scheduler_file.is_file() or not scheduler_file.read_text().strip():
-            assert procs[0].poll() is None and time.monotonic() < end, 'no scheduler'
-            time.sleep(0.05)
-        for _ in range(2):   # as the campaign tutorial starts them (its Dask settings)
-            procs.append(subprocess.Popen(
-                [dask, 'worker', '--scheduler-file', str(scheduler_file), '--nthreads', '1',
-                 '--host', '127.0.0.1', '--no-dashboard', '--no-nanny'],
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                env={**os.environ, 'DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED': 'False',
-                     'DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL': '200ms'}))
-        address = json.loads(scheduler_file.read_text())['address']
-        from distributed import Client
-
-        with Client(address, timeout='30s') as client:
-            client.wait_for_workers(2, timeout=60)
-        yield address, procs[1:]
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in reversed(procs):
-            try:
-                p.wait(3)   # a worker closing gracefully may wait on its scheduler: not needed
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+    env = {**os.environ, 'DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED': 'False',
+           'DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL': '200ms'}
+    with start_dask_cluster(tmp_path, nanny=False, env=env) as running:
+        yield running.address, running.workers
 
 
 def _profiling(dask_worker: Any) -> bool:

@@ -115,8 +115,8 @@ def raises(t: float, position: float, velocity: float) -> float:
     (lambda t, p, v: 'full', "the controller returned 'full' at t = 0 s; a command is a number"),
     (lambda t, p, v: '0.5', "the controller returned '0.5' at t = 0 s; a command is a number"),
     (lambda t, p, v: 10**400 if t > 0.015 else 0.0,
-     'the controller returned an int of 401 digits at t = 0.02 s (OverflowError: too large '
-     'for a float); a command must be finite'),
+     'law raised OverflowError: the controller returned an int of 401 digits at t = 0.02 s, '
+     'too large for a float; a command must be finite'),
 ])
 def test_a_failing_controller_fails_the_run_with_the_reason(law: object, msg: str) -> None:
     with pytest.raises(ControllerFailed, match=re.escape(msg)):

@@ -28,8 +28,11 @@ sweep takes these steps without leaving compiled code (``decisions.kernel_source
   runs).
 
 It declines (returns ``done`` False; the sweep then hands the step to ``Engine.careful``, which
-takes it from the same state) only where the fallback refuses the step by its work bound (so the
-user gets that IntegratorError from the one place that raises it) and where a result is not finite:
+takes it from the same state) only where the fallback would refuse the whole step by its work
+bound (``implicit.fallback_refused``: then ``Engine.check_ahead`` first refuses a step that must
+end beyond the speed bound, before any work, as the Stepper does), where the fallback refuses the
+rest of a step by that bound (so the user gets that IntegratorError from the one place that
+raises it) and where a result is not finite:
 Python raises OverflowError or ValueError (a power beyond float64, the sine of inf) where compiled
 code gives inf or NaN, and which of the two happened decides the Python path (``Engine.careful``'s
 ``except`` or ``Engine._settle``), so those rare steps are taken by Python (inside a trial substep
@@ -84,6 +87,9 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
     Returns ``(done, φ₁, φ'₁)``; ``done`` False where ``Engine.careful`` must take the step
     (see the module docstring), the counters then untouched.
     """
+    if fallback_refused(v, h, ain, w2, math.sqrt(w2)):
+        # Too long to work through: Engine.check_ahead decides first (the module docstring).
+        return False, p, v
     subs = fbs = turns = 0
     # Friction holds the pendulum (Engine.careful's first branch): Coulomb sticking or
     # break-away, the near-Coulomb creep (guarded: creep_state decides on n and γ).

@@ -29,9 +29,10 @@ PARALLEL_MIN = 512
 """Pendulums below which a run is taken by the serial kernel (threads cost more to wake)."""
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
-CarefulFn = Callable[[Any, int, float], None]
-"""``careful(group, j, h)``: take the step of h of the group's pendulum j on the careful path,
-in place in the group's state arrays ``p``, ``v``, ``e``."""
+CarefulFn = Callable[[Any, int, float, int], None]
+"""``careful(group, j, h, done)``: take the step of h of the group's pendulum j, after ``done``
+steps of the run, on the careful path, in place in the group's state arrays ``p``, ``v``,
+``e``."""
 
 
 def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, every: int,
@@ -71,7 +72,7 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
     """Run groups that share one kernel in its calls, over their columns put side by side.
 
     The groups' state arrays ``p``, ``v``, ``e`` become views of the joint ones, so that the
-    kernel and the careful path (``careful(group, j, h)``) write the same floats.
+    kernel and the careful path (``careful(group, j, h, done)``) write the same floats.
     """
     one = len(grps) == 1
     sizes = [grp.sl.stop - grp.sl.start for grp in grps]
@@ -129,7 +130,7 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
         left = []
         for j in handed.tolist():
             grp, jl = where(j)
-            careful(grp, jl, h)
+            careful(grp, jl, h, base + int(k[j]))
             handed_back += 1
             k[j] += 1
             done = base + int(k[j])

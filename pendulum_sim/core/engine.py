@@ -41,7 +41,7 @@ from .guard import FALLBACK, GuardStats, StabilityGuard, safe_speed_range
 from .implicit import dirk_safe, fallback, fallback_refused
 from .law import DampingFn
 from .methods import Advance, Method
-from .model import FloatArray, check_speed_ahead
+from .model import FloatArray, check_speed_ahead, run_speed_limit
 from .problem import Problem
 from .split import SplitSteps
 from .stiff import OVERFLOW, TO_GUARD, stiff_cover, stiff_pair
@@ -96,6 +96,35 @@ def _explicit(tableau: Tableau) -> bool:
     return tableau.explicit
 
 
+class AheadCheck:
+    """Refuse at once a step too long to work through (``implicit.fallback_refused``) that must
+    end beyond the speed bound (``model.check_speed_ahead``): ``check(φ', h, a_in, t)``.
+
+    Below the run's speed bound (``model.run_speed_limit``) no step of (h, a_in) is too long
+    where one at the bound is not (the fallback's work grows with |φ'|): that is decided once
+    per (h, a_in), so most careful steps skip the test. Unguarded steps are not checked.
+    """
+
+    def __init__(self, prob: Problem, unguarded: bool) -> None:
+        w2, gamma, n = prob.w2, prob.gamma, prob.n
+        self.w2, self.gamma, self.n, self.unguarded = w2, gamma, n, unguarded
+        self.omega0 = prob.omega0
+        self.v_run = run_speed_limit(gamma, n, w2)
+        self._free: tuple[float, float, bool] = (math.nan, math.nan, False)
+
+    def __call__(self, v: float, h: float, ain: float, t: float) -> None:
+        """Raise the refusal (IntegratorError) for the step of h from φ' = ``v`` at ``t``."""
+        if self.unguarded:
+            return
+        fh, fa, free = self._free
+        if fh != h or fa != ain:
+            free = not fallback_refused(self.v_run, h, ain, self.w2, self.omega0)
+            self._free = (h, ain, free)
+        if not (free and abs(v) <= self.v_run) and fallback_refused(v, h, ain, self.w2,
+                                                                      self.omega0):
+            check_speed_ahead(v, ain, h, self.gamma, self.n, self.w2, t)
+
+
 class Engine:
     """The decisions and the careful path for one pendulum's (ω0², γ, n) and method.
 
@@ -143,6 +172,8 @@ class Engine:
         self.rtol, self.atol = rtol, atol
         self._stiff_steps: Any = None  # the pair of :meth:`stiff` (stiff_pair), on first use
         self._pair: tuple[ErrStepFn, ErrStepFn] | None = None  # the adaptive method's
+        self.check_ahead = AheadCheck(prob, self.unguarded)
+        self._last = (math.nan, math.nan, math.nan)  # (φ₁, φ'₁, E₁/I) of the last energy check
 
     def fresh_advance(self) -> Advance:
         """Return this method's :class:`~pendulum_sim.core.methods.Advance` with fresh memory."""
@@ -172,12 +203,6 @@ class Engine:
         return embedded.dense_run(self.problem, self.method.tableau, self.pair_steps(),
                                   self.plain.from_rest, p, v, t_out, ain, self.rtol,
                                   self.atol, stats, budget)
-
-    def check_ahead(self, v: float, h: float, ain: float, t: float) -> None:
-        """Refuse at once a step too long to work through (``implicit.fallback_refused``)
-        that must end beyond the speed bound (``model.check_speed_ahead``)."""
-        if not self.unguarded and fallback_refused(v, h, ain, self.w2, self.omega0):
-            check_speed_ahead(v, ain, h, self.gamma, self.n, self.w2, t)
 
     # ------------------------------------------------------------------ fast path
     def fast_range(self, h: float, ain: float) -> tuple[float, float]:
@@ -231,10 +256,13 @@ class Engine:
             p1, v1, w = self.last_resort(p, v, h, ain)
         if self.energy_check and ain == 0.0:
             w2 = self.w2
-            e0 = specific_energy(v, math.sin(0.5 * p), w2)
+            lp, lv, le = self._last
+            e0 = le if (p == lp and v == lv) else specific_energy(v, math.sin(0.5 * p), w2)
             e1 = specific_energy(v1, math.sin(0.5 * p1), w2)
             if energy_rose(e0, e1, w2):
                 p1, v1, w = self.redo_energy(p, v, h, e0, stats)
+            else:
+                self._last = (p1, v1, e1)
         return self._settle(p, v, h, ain, p1, v1, w, stats)
 
     def implicit_advance(self, p: float, v: float, h: float, ain: float,
@@ -350,6 +378,7 @@ class Engine:
 
 __all__ = [
     'ENERGY_TOL',
+    'AheadCheck',
     'Engine',
     'accuracy_speed',
     'ain_bound',

@@ -447,8 +447,9 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard
 
 
 def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
-             stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool) -> int:
-    """Advance one group by a step of hh: the plain step, the decisions, the careful path.
+             stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
+             t: float) -> int:
+    """Advance one group by a step of hh from t: the plain step, the decisions, the careful path.
 
     Returns how many steps the careful path took.
     """
@@ -487,14 +488,18 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
         ok &= ~rose
     else:
         e1 = grp.e
-    return _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1)
+    return _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1, t)
 
 
 def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float, w2: float,
                  gamma: float, engines: dict[tuple[float, ...], Engine],
                  stats: dict[int, GuardStats], meth: Any, guard: bool,
-                 energy_check: bool) -> tuple[float, float]:
-    """Take the step of the group's pendulum ``j`` on the engine's careful path; return it."""
+                 energy_check: bool, t: float) -> tuple[float, float]:
+    """Take the step of the group's pendulum ``j`` from t on the engine's careful path.
+
+    As the Stepper does, :meth:`Engine.check_ahead` first refuses a step too long to work
+    through that must end beyond the speed bound. Returns (φ₁, φ'₁).
+    """
     n = float(grp.nn[j]) if isinstance(grp.nn, np.ndarray) else grp.n
     cf = float(grp.cf[j])
     # Pendulums with the same (ω0², γ, n, f/I) share an Engine; a zero's sign is kept apart.
@@ -507,16 +512,19 @@ def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float,
     st = stats.get(i)
     if st is None:
         st = stats[i] = GuardStats()
+    eng.check_ahead(v, hh, ain, t)
     p1, v1, _ = eng.careful(p, v, hh, ain, st)
     return p1, v1
 
 
 def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
-             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray) -> int:
+             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray, t: float) -> int:
     """Redo every step the fast path refused (``~ok``) on the careful path; keep the states.
 
-    Returns how many steps that was.
+    The batched ones (:func:`_batched`) are inside the guard's safe speed range, so short
+    enough to work through (``Engine.check_ahead`` has nothing to refuse there). Returns how
+    many steps that was.
     """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     refused = np.flatnonzero(~ok)
@@ -537,7 +545,7 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
                                           vv[refused].tolist(), *(c.tolist() for c in consts),
                                           strict=True):
             pj, vj = _careful_one(grp, j, pj, vj, hh, aj, w2j, gj, engines, stats, meth, guard,
-                                  energy_check)
+                                  energy_check, t)
             ps.append(pj)
             vs.append(vj)
         p1[refused], v1[refused] = ps, vs
@@ -769,7 +777,7 @@ class Sweep:
                 for _ in range(0 if self.jit else count):
                     for grp in groups:
                         self._handed_back += _advance(grp, hh, self._engines, stats, meth,
-                                                      self.guard, self.energy_check)
+                                                      self.guard, self.energy_check, done * h)
                         self._check_speed(grp, t_end if done + 1 == total else (done + 1) * h)
                     done += 1
                     if record_every is not None and (done % record_every == 0 or done == total):
@@ -802,11 +810,12 @@ class Sweep:
         """
         meth = METHODS[self.method]
 
-        def careful(grp: _Group, j: int, h: float) -> None:
+        def careful(grp: _Group, j: int, h: float, done: int) -> None:
             w2 = float(grp.w2_col[j])
             p1, v1 = _careful_one(grp, j, float(grp.p[j]), float(grp.v[j]), h,
                                   float(grp.ain_col[j]), w2, float(grp.gamma_col[j]),
-                                  self._engines, stats, meth, self.guard, self.energy_check)
+                                  self._engines, stats, meth, self.guard, self.energy_check,
+                                  done * self.h)
             grp.p[j], grp.v[j] = p1, v1
             if grp.check[j]:
                 grp.e[j] = specific_energy(v1, math.sin(0.5 * p1), w2)

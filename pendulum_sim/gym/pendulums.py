@@ -144,10 +144,10 @@ class Pendulums:
 
 
 def check(config: Any) -> None:
-    """Refuse a joint configuration the environments cannot step (batch.batchable's reason)."""
-    from pendulum_sim.testing.batch import _why_not
+    """Refuse a joint configuration the environments cannot step (``batchable_config``'s why)."""
+    from pendulum_sim.testing.batch import batchable_config
 
-    why = _why_not(config)
+    why = batchable_config(config)
     if why:
         raise GymError(f'the environment steps the joint of effort commands with an ideal '
                        f'sensor and an explicit method; this scene cannot: {why}')

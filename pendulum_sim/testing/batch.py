@@ -38,11 +38,28 @@ def batchable(values: Mapping[str, Value]) -> str:
     """Return why the episode with parameters ``values`` cannot be batched ('' if it can)."""
     from pendulum_sim.node.parameters import joint_config
 
-    return _why_not(joint_config(values, epoch_ns(values)))
+    return batchable_config(joint_config(values, epoch_ns(values)))
 
 
-def _why_not(c: Any) -> str:
-    """Return why the episode with the joint configuration ``c`` cannot be batched."""
+def batchable_config(c: Any) -> str:
+    """Return why the joint configuration ``c`` cannot be batched ('' if it can).
+
+    The batch's one rule (the module docstring): effort commands, an ideal sensor, no
+    command or sensor delay, a command timeout longer than a period, no disturbance pulse, an
+    explicit method the sweep has. The Gymnasium environments step the same joints and refuse
+    the others with this reason (``pendulum_sim.gym``).
+
+    Parameters
+    ----------
+    c : pendulum_sim.node.joint.JointConfig
+        The simulated joint's configuration (typed ``Any``: the testing package imports the
+        node's modules only where it uses them).
+
+    Returns
+    -------
+    str
+        The first condition it fails, in words, or ``''``.
+    """
     from pendulum_sim.core.sweep import SWEEP_METHODS
 
     checks = [
@@ -88,7 +105,7 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]], periods: i
         raise TestingError(f'run_batch needs one target per episode: got {given.size} for '
                            f'{len(episodes)} episodes')
     configs = [joint_config(v, epoch_ns(v)) for v in episodes]
-    batch = [i for i, c in enumerate(configs) if not _why_not(c)]
+    batch = [i for i, c in enumerate(configs) if not batchable_config(c)]
     if batch:
         first = configs[batch[0]]
         same = (first.h, first.period_steps, first.method, first.guard, first.epoch_ns)
@@ -206,3 +223,6 @@ def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value
 def _whole_ns(h: float) -> bool:
     """Return True when h is a whole number of nanoseconds (the joint's exact stamp grid)."""
     return abs(h * 1e9 - round(h * 1e9)) < 1e-6
+
+
+__all__ = ['BatchLaw', 'batchable', 'batchable_config', 'run_batch']

@@ -215,9 +215,9 @@ def answer_reason(value: object, t: float) -> ControllerFailed:
         return ControllerFailed(f'the controller returned {value} at t = {t:.9g} s; a command '
                                 'must be finite')
     if isinstance(value, int) and not isinstance(value, bool):   # too large for a float
-        return ControllerFailed(f'the controller returned an int of {len(str(abs(value)))} '
-                                f'digits at t = {t:.9g} s (OverflowError: too large for a '
-                                'float); a command must be finite')
+        return ControllerFailed(f'law raised OverflowError: the controller returned an int of '
+                                f'{len(str(abs(value)))} digits at t = {t:.9g} s, too large '
+                                'for a float; a command must be finite')
     shown = repr(value)
     shown = shown if len(shown) <= 60 else shown[:57] + '...'
     return ControllerFailed(f'the controller returned {shown} at t = {t:.9g} s; a command '

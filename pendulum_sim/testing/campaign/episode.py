@@ -28,7 +28,7 @@ from ..target import bind_target
 from ..vector import is_vectorised
 from .scenarios import episode_scenario
 from .spec import CampaignSpec, load_controller, parse_spec
-from .watch import watched
+from .watch import loop_done, watched
 
 # Columns that say where and when an episode ran: not part of its result.
 RUN_COLUMNS = ('worker_host', 'worker_pid', 'wall_time_s')
@@ -147,8 +147,11 @@ def run_episode(text: str, episode: int, out: str | None,
             values = episode_values(spec, drawn.values)
             if foxglove_port:
                 values['foxglove_port'] = foxglove_port
-            run = run_in_process(law, values, spec.periods,
-                                 drawn.target).with_target(drawn.target)
+            try:
+                run = run_in_process(law, values, spec.periods,
+                                     drawn.target).with_target(drawn.target)
+            finally:
+                loop_done()
     except TestingError as exc:
         reason = str(exc).splitlines()[0]
         run = failed_run(exc)
@@ -177,8 +180,11 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
             params.append(exc)
     ok = [i for i, p in enumerate(params) if not isinstance(p, TestingError)]
     results: list[Any] = list(params)
-    batch = run_batch(law, [params[i] for i in ok], spec.periods,
-                      targets=[drawn[i].target for i in ok])
+    try:
+        batch = run_batch(law, [params[i] for i in ok], spec.periods,
+                          targets=[drawn[i].target for i in ok])
+    finally:
+        loop_done()
     for i, res in zip(ok, batch, strict=True):
         results[i] = res
     rows = []

@@ -13,8 +13,11 @@ the child is started again for the rest:
   by SIGNAL`` for a signal), or ``episode process exited with C`` outside the law;
 - ``worker killed: memory``: the child's resident memory passed the worker's memory limit
   (Dask's ``memory_limit``; none, no watch);
-- ``law did not answer within N s``: one call of the law took longer than the campaign's
-  ``episode_timeout``.
+- ``law did not answer within N s``: the episode's closed loop ran longer than the campaign's
+  ``episode_timeout`` (wall-clock, from the first call of the law to the loop's end), most of
+  it in calls of the law (one call that never returns, or many that each take long);
+  ``episode did not end within N s`` where most of it was spent outside the law. A batch of a
+  vectorised law has the same limit as one episode.
 
 A batch that ends so is run again one episode at a time, so only the faulty episodes fail.
 Messages are pickles with an 8-byte length, on the child's stdin and stdout.
@@ -129,10 +132,12 @@ class Sandbox:
                     return ('message', receive(fd))
                 except EOFError:
                     return ('ended', self._why_ended(in_law or self.clock.since() > 0.0))
-            since = self.clock.since()
-            if since > 0.0 and time.monotonic() - since > timeout:
+            began, now = self.clock.episode_since(), time.monotonic()
+            if began > 0.0 and now - began > timeout:
+                law = self.clock.law_time(now) > 0.5 * (now - began)   # most of it the law's
                 self._kill()
-                return ('ended', f'law did not answer within {timeout:g} s')
+                return ('ended', f'law did not answer within {timeout:g} s' if law else
+                        f'episode did not end within {timeout:g} s')
             if self.memory_limit is not None:
                 try:
                     rss = self._ps.memory_info().rss
@@ -257,8 +262,14 @@ def main() -> None:
 
 def serve(stdin: int, stdout: IO[bytes]) -> None:
     """Read (text, episodes, out, foxglove_port), send each finished episode's rows, then
-    None; repeat."""
+    None; repeat.
+
+    Each episode's end is marked on the law's clock before its row goes out, also where its
+    closed loop did not (``watch.loop_done``), so no limit runs between episodes.
+    """
     from .episode import batched, cached_spec, fault_row, run_episode, run_episodes
+
+    clock = CLOCK[0] if CLOCK else None
 
     while True:
         text, episodes, out, foxglove_port = receive(stdin)
@@ -272,6 +283,8 @@ def serve(stdin: int, stdout: IO[bytes]) -> None:
                     raise
                 rows = [fault_row(spec, episodes[0], f'the episode raised {type(exc).__name__}:'
                                   f' {exc}'.splitlines()[0])]
+            if clock is not None:
+                clock.end_episode()
             send(stdout, rows)
         else:
             for i in episodes:
@@ -280,6 +293,8 @@ def serve(stdin: int, stdout: IO[bytes]) -> None:
                 except Exception as exc:   # a defect outside the law: this episode's alone
                     row = fault_row(spec, i, f'the episode raised {type(exc).__name__}: '
                                     f'{exc}'.splitlines()[0])
+                if clock is not None:
+                    clock.end_episode()
                 send(stdout, [row])
         send(stdout, None)
 

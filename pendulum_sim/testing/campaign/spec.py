@@ -39,7 +39,7 @@ OPERATORS: dict[str, Callable[[float, float], bool]] = {
     '<=': operator.le, '>=': operator.ge, '==': operator.eq, '!=': operator.ne,
     '<': operator.lt, '>': operator.gt}
 MAX_EPISODES = 10_000_000
-EPISODE_TIMEOUT = 60.0   # s a call of the law may take, unless the file says
+EPISODE_TIMEOUT = 60.0   # wall-clock s one episode may take, unless the file says
 MAX_DEPTH = 32           # nesting of lists and mappings in a campaign file
 MAX_NODES = 10_000       # values in a campaign file, its aliases expanded
 SHOWN = 60               # characters of a value shown in a message
