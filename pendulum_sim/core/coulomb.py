@@ -60,20 +60,34 @@ def friction_work(cf: float, sign: float, p0: float, p1: float) -> float:
     return math.copysign(cf, sign) * (p1 - p0)
 
 
+def rest_direction(p: float, ain: float, w2: float, gamma: float, n: float,
+                   cf: float = 0.0) -> float:
+    """Return where the pendulum at rest at φ = ``p`` goes: 0.0 (it sticks) or ±1.0.
+
+    The rest rule, the one decision every family takes at rest: it sticks while the force
+    F = a_in − ω0² sin φ stays within the Coulomb level, |F| <= c (``model.coulomb_level`` of
+    γ, n and the friction ``cf`` = c_f), and otherwise breaks away in the direction of F.
+    """
+    force = ain - w2 * math.sin(p)
+    if abs(force) <= coulomb_level(gamma, n, cf):
+        return 0.0
+    return 1.0 if force > 0.0 else -1.0
+
+
 def rest_step(branch: Any, p: float, v: float, h: float, ain: float, w2: float, gamma: float,
               n: float, cf: float = 0.0) -> StepResult:
     """Take a step of h from rest (or within round-off of it, φ' = ``v``) under Coulomb friction.
 
-    The pendulum sticks while |a_in − ω0² sin φ| <= c (``model.coulomb_level`` of γ, n and the
-    friction ``cf`` = c_f); otherwise it breaks away on the branch of the law in the direction
-    of the force (``branch(φ, φ', h, a_in, ω0², γ, s, n)``: the method's branch step,
-    ``explicit.step_source_with_n``) under :func:`moving_input`, and stops again if that step
-    reversed. Returns (φ₁, φ'₁, w), w with the friction's work (:func:`friction_work`).
+    The pendulum sticks while |a_in − ω0² sin φ| <= c (:func:`rest_direction`: the Coulomb
+    level of γ, n and the friction ``cf`` = c_f); otherwise it breaks away on the branch of
+    the law in the direction of the force (``branch(φ, φ', h, a_in, ω0², γ, s, n)``: the
+    method's branch step, ``explicit.step_source_with_n``) under :func:`moving_input`, and
+    stops again if that step reversed. Returns (φ₁, φ'₁, w), w with the friction's work
+    (:func:`friction_work`).
     """
-    force = ain - w2 * math.sin(p)
-    if abs(force) <= coulomb_level(gamma, n, cf):
+    sign = rest_direction(p, ain, w2, gamma, n, cf)
+    if sign == 0.0:
         return p, 0.0, 0.0
-    sign = 1.0 if force > 0.0 else -1.0
     p1, v1, w, _ = branch(p, v, h, moving_input(ain, sign, cf), w2, gamma, sign, n)
     if v1 * sign < 0.0:
         return p, 0.0, 0.0  # the break-away reversed within the step: it stops again
@@ -229,4 +243,5 @@ def creep(prob: Problem, p: float, v: float, h: float, ain: float) -> StepResult
 
 
 __all__ = ['CREEP_RELAX', 'creep', 'creep_rate', 'creep_speed', 'creep_state', 'friction_step',
-           'friction_work', 'from_rest', 'moving_input', 'rest_step', 'settle_shift', 'stuck']
+           'friction_work', 'from_rest', 'moving_input', 'rest_direction', 'rest_step',
+           'settle_shift', 'stuck']
