@@ -25,8 +25,6 @@ from pendulum_sim.core.guard import GuardStats
 from pendulum_sim.core.law import damping_derivative
 from pendulum_sim.core.model import run_speed_limit
 from pendulum_sim.core.problem import Problem
-from pendulum_sim.core.split import SplitSteps
-from pendulum_sim.core.tableaus import RK4
 
 
 def _by_embedded_cover(prob: Problem, p: float, v: float, h: float,
@@ -35,11 +33,10 @@ def _by_embedded_cover(prob: Problem, p: float, v: float, h: float,
     tol = STIFF_TOL * (h * max(prob.omega0, 1.0)) ** 4
     d = damping_derivative(prob.gamma, prob.n, v)
     first = min(h, 1.0 / d) if d > 0.0 else h
-    rest = SplitSteps(prob, RK4, lambda *a: (math.nan, math.nan, math.nan)).from_rest
     st = GuardStats()
     try:
         p1, v1, w, _ = embedded.cover(prob, STIFF_PAIR, embedded.pair_steps(STIFF_PAIR, prob.n),
-                                      rest, p, v, h, ain, tol, tol, first, st,
+                                      p, v, h, ain, tol, tol, first, st,
                                       STIFF_MAX_TRIALS)
     except embedded.CoverFailed:
         return stiff.TO_GUARD, p, v, 0.0, st.substeps, st.reversals

@@ -2,10 +2,13 @@
 
 At rest the net force per unit inertia is F = a_in − ω0² sin φ. Under Coulomb friction (n = 0,
 or a friction c_f = f/I beside the power law) the pendulum sticks while |F| <= c, the Coulomb
-level c = c_f (+ γ where n = 0) of ``model.coulomb_level`` (:func:`from_rest`). While it moves in
-the direction s the friction is the constant −s c_f: a step on one side of a reversal is the
-power law's step under the input a_in − s c_f (:func:`moving_input`), and the friction's work
-per unit inertia is c_f |Δφ| = s c_f (φ₁ − φ₀) (:func:`friction_work`).
+level c = c_f (+ γ where n = 0) of ``model.coulomb_level``: :func:`rest_direction`, the rest
+rule every family takes (the explicit steps by :func:`rest_step`, the adaptive cover
+``embedded.cover`` and the implicit steps ``engine.slide`` directly). While it moves in the
+direction s the friction is the constant −s c_f: a step on one side of a reversal is the power
+law's step under the input a_in − s c_f (:func:`moving_input`), and the friction's work per
+unit inertia is c_f |Δφ| = s c_f (φ₁ − φ₀) (:func:`friction_work`); every family takes these
+two.
 
 A law γ φ'|φ'|^(n−1) with 0 < n < 1 has
 no static friction, but where it dominates, it holds the pendulum at the creep speed where
@@ -20,11 +23,12 @@ of the law there). Where that time is far below the step, the velocity is slaved
 slope γ n |φ'|^(n−1) is unbounded at rest and beyond any explicit step.
 
 Each decision is one function written to compile (floats and the generated steps and laws in, a
-tuple out, no exception on its path: :func:`rest_step`, :func:`creep_state`, :func:`settle_shift`,
+tuple out, no exception on its path: :func:`rest_direction`, :func:`rest_step`,
+:func:`creep_state`, :func:`settle_shift`,
 :func:`friction_step`, :func:`stuck`): the Stepper's careful path calls them in Python
 (``split.py``, ``engine.py``), and the compiled sweep's careful step calls the very same functions
-compiled by numba (``compiled_careful.py``). :func:`from_rest`, :func:`creep` and
-:func:`creep_speed` are their forms on a :class:`~pendulum_sim.core.problem.Problem`.
+compiled by numba (``compiled_careful.py``). :func:`creep` and :func:`creep_speed` are their
+forms on a :class:`~pendulum_sim.core.problem.Problem`.
 """
 from __future__ import annotations
 
@@ -60,20 +64,34 @@ def friction_work(cf: float, sign: float, p0: float, p1: float) -> float:
     return math.copysign(cf, sign) * (p1 - p0)
 
 
+def rest_direction(p: float, ain: float, w2: float, gamma: float, n: float,
+                   cf: float = 0.0) -> float:
+    """Return where the pendulum at rest at φ = ``p`` goes: 0.0 (it sticks) or ±1.0.
+
+    The rest rule, the one decision every family takes at rest: it sticks while the force
+    F = a_in − ω0² sin φ stays within the Coulomb level, |F| <= c (``model.coulomb_level`` of
+    γ, n and the friction ``cf`` = c_f), and otherwise breaks away in the direction of F.
+    """
+    force = ain - w2 * math.sin(p)
+    if abs(force) <= coulomb_level(gamma, n, cf):
+        return 0.0
+    return 1.0 if force > 0.0 else -1.0
+
+
 def rest_step(branch: Any, p: float, v: float, h: float, ain: float, w2: float, gamma: float,
               n: float, cf: float = 0.0) -> StepResult:
     """Take a step of h from rest (or within round-off of it, φ' = ``v``) under Coulomb friction.
 
-    The pendulum sticks while |a_in − ω0² sin φ| <= c (``model.coulomb_level`` of γ, n and the
-    friction ``cf`` = c_f); otherwise it breaks away on the branch of the law in the direction
-    of the force (``branch(φ, φ', h, a_in, ω0², γ, s, n)``: the method's branch step,
-    ``explicit.step_source_with_n``) under :func:`moving_input`, and stops again if that step
-    reversed. Returns (φ₁, φ'₁, w), w with the friction's work (:func:`friction_work`).
+    The pendulum sticks while |a_in − ω0² sin φ| <= c (:func:`rest_direction`: the Coulomb
+    level of γ, n and the friction ``cf`` = c_f); otherwise it breaks away on the branch of
+    the law in the direction of the force (``branch(φ, φ', h, a_in, ω0², γ, s, n)``: the
+    method's branch step, ``explicit.step_source_with_n``) under :func:`moving_input`, and
+    stops again if that step reversed. Returns (φ₁, φ'₁, w), w with the friction's work
+    (:func:`friction_work`).
     """
-    force = ain - w2 * math.sin(p)
-    if abs(force) <= coulomb_level(gamma, n, cf):
+    sign = rest_direction(p, ain, w2, gamma, n, cf)
+    if sign == 0.0:
         return p, 0.0, 0.0
-    sign = 1.0 if force > 0.0 else -1.0
     p1, v1, w, _ = branch(p, v, h, moving_input(ain, sign, cf), w2, gamma, sign, n)
     if v1 * sign < 0.0:
         return p, 0.0, 0.0  # the break-away reversed within the step: it stops again
@@ -85,12 +103,6 @@ def rest_step(branch: Any, p: float, v: float, h: float, ain: float, w2: float, 
 def stuck(coulomb: bool, v: float, v1: float) -> bool:
     """Return True where a step from φ' = ``v`` came to rest under Coulomb friction (a stick)."""
     return coulomb and v1 == 0.0 and v != 0.0
-
-
-def from_rest(prob: Problem, branch: Any, p: float, h: float, ain: float,
-              v: float = 0.0) -> StepResult:
-    """Return :func:`rest_step` for the pendulum ``prob`` (``branch``: exponent an argument)."""
-    return rest_step(branch, p, v, h, ain, prob.w2, prob.gamma, prob.n, prob.friction)
 
 
 def creep_rate(force: float, gamma: float, n: float) -> float:
@@ -229,4 +241,5 @@ def creep(prob: Problem, p: float, v: float, h: float, ain: float) -> StepResult
 
 
 __all__ = ['CREEP_RELAX', 'creep', 'creep_rate', 'creep_speed', 'creep_state', 'friction_step',
-           'friction_work', 'from_rest', 'moving_input', 'rest_step', 'settle_shift', 'stuck']
+           'friction_work', 'moving_input', 'rest_direction', 'rest_step',
+           'settle_shift', 'stuck']

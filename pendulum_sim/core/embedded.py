@@ -22,6 +22,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import numpy.typing as npt
 
+from .coulomb import friction_work, moving_input, rest_direction, stuck
 from .error_control import accepted, error_norm, min_step, step_factor
 from .errors import IntegratorError
 from .explicit import ErrStepFn, compile_step
@@ -38,8 +39,6 @@ from .tableaus import Extrapolation, Tableau
 IntArray = npt.NDArray[np.intp]
 
 StepResult = tuple[float, float, float]
-FromRest = Callable[[float, float, float], StepResult]
-"""Coulomb friction at rest: ``(φ, h, a_in) → (φ₁, φ'₁, w)`` (``coulomb.from_rest``)."""
 Fallback = Callable[[float, float, float, float], StepResult]
 """The step a cover could not take: ``(φ, φ', h, a_in) → (φ₁, φ'₁, w)`` (the implicit one)."""
 
@@ -134,28 +133,32 @@ class StepTooSmall(CoverFailed):
 
 
 def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, ErrStepFn],
-          rest: FromRest, p: float, v: float, h: float, ain: float, rtol: float, atol: float,
+          p: float, v: float, h: float, ain: float, rtol: float, atol: float,
           h_try: float, stats: GuardStats, max_trials: int = 0,
           trace: list[float] | None = None,
           stops: Sequence[float] = (), per: float = 0.0,
           budget: int = 0) -> tuple[float, float, float, float]:
     """Advance (φ, φ') by h with error-controlled substeps; return (φ₁, φ'₁, w, next trial).
 
-    ``tab`` is the embedded pair and ``steps`` its compiled steps (:func:`pair_steps`),
-    ``rest`` the Coulomb step from rest; every trial after the first counts as a substep in
-    ``stats``; with ``max_trials`` > 0, :class:`TooManySubsteps`
-    is raised once that many trials did not cover h (with ``per`` > 0: once they exceed
-    ``max_trials`` for every ``per`` of time covered, and one more); :class:`StepTooSmall` where
-    the error control asks for less than :func:`min_step`. ``trace``, if given, receives
-    ``t, φ, φ', w`` after every accepted substep (t from the start of h): the mesh of
-    :func:`dense_run`. ``stops`` (increasing, inside (0, h)) are times a substep must land on,
-    as if h were covered by one call per stretch between them, the trial-step memory carried.
+    ``tab`` is the embedded pair and ``steps`` its compiled steps (:func:`pair_steps`); every
+    trial after the first counts as a substep in ``stats``; with ``max_trials`` > 0,
+    :class:`TooManySubsteps` is raised once that many trials did not cover h (with ``per`` > 0:
+    once they exceed ``max_trials`` for every ``per`` of time covered, and one more);
+    :class:`StepTooSmall` where the error control asks for less than :func:`min_step`. At rest
+    under Coulomb friction the rest rule (``coulomb.rest_direction``) decides: the pendulum
+    sticks for the rest of h, or breaks away with the force on that branch (a trial that turns
+    back within itself is halved). Moving in the direction s, the friction beside the law is
+    the input ``coulomb.moving_input`` and its work ``coulomb.friction_work`` is counted.
+    ``trace``, if given, receives ``t, φ, φ', w`` after every accepted substep (t from the
+    start of h): the mesh of :func:`dense_run`. ``stops`` (increasing, inside (0, h)) are
+    times a substep must land on, as if h were covered by one call per stretch between them,
+    the trial-step memory carried.
     With ``budget`` > 0, :class:`BudgetSpent` is raised once ``stats`` counts more substeps
     (the run's work bound, ``model.MAX_RUN_TRIALS``).
     """
     trials = 0
     plain, branch = steps
-    w2, g, n = prob.w2, prob.gamma, prob.n
+    w2, g, n, cf = prob.w2, prob.gamma, prob.n, prob.friction
     coulomb, nonsmooth = prob.coulomb, prob.nonsmooth
     q = 1.0 / (tab.error_order + 1)
     # Beyond the speed a run may reach (``model.run_speed_limit``) a trial is rejected like one
@@ -169,9 +172,13 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
         while done >= target:
             target = next(ahead, h)
         if coulomb and v == 0.0:
-            p, v, w = rest(p, h - done, ain)
-            w_total += w
-            break
+            # At rest the rest rule decides: stick for the rest of h, or break away with the
+            # force, the trials then on the branch of that direction.
+            sign = rest_direction(p, ain, w2, g, n, cf)
+            if sign == 0.0:
+                break
+        else:
+            sign = 1.0 if v > 0.0 else -1.0
         trials += 1
         if trials > 1:
             stats.substeps += 1
@@ -182,26 +189,34 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
                                   (done, p, v, w_total))
         last = hh >= target - done
         step_h = target - done if last else hh
-        sign = 1.0 if v > 0.0 else -1.0
-        fn = branch if (nonsmooth and v != 0.0) else plain
+        fn = branch if (nonsmooth and (v != 0.0 or coulomb)) else plain
+        a = moving_input(ain, sign, cf)  # moving in the direction s (a_in itself where c_f = 0)
         try:
-            p1, v1, w, a0, ep, ev = fn(p, v, step_h, ain, w2, g, sign)
+            p1, v1, w, a0, ep, ev = fn(p, v, step_h, a, w2, g, sign)
             err = error_norm(p, v, p1, v1, ep, ev, rtol, atol, vmax)
         except (OverflowError, ValueError):
             err = math.inf  # a trial step that overflows is rejected like any other
-        if accepted(err):
+        if accepted(err) and coulomb and v == 0.0 and v1 * sign < 0.0:
+            # A break-away that turned back within the trial: a shorter trial resolves it.
+            hh = 0.5 * step_h
+            if hh < min_step(h):
+                raise StepTooSmall(f'adaptive step fell below {hh:.3g} s',
+                                   (done, p, v, w_total))
+        elif accepted(err):
             if nonsmooth and v1 * v < 0.0:
                 # Cut at the reversal: the branch continuation's φ'(θ step_h) = 0.
-                def accel(pp: float, vv: float, sg: float = sign) -> float:
-                    return branch_accel(pp, vv, ain, sg, g, n, w2)
+                def accel(pp: float, vv: float, sg: float = sign, a: float = a) -> float:
+                    return branch_accel(pp, vv, a, sg, g, n, w2)
 
                 def at(hh: float, p0: float = p, v0: float = v, sg: float = sign,
-                       fn: ErrStepFn = fn) -> tuple[float, float, float]:
-                    pa, va, wa, _, _, _ = fn(p0, v0, hh, ain, w2, g, sg)
+                       fn: ErrStepFn = fn, a: float = a) -> tuple[float, float, float]:
+                    pa, va, wa, _, _, _ = fn(p0, v0, hh, a, w2, g, sg)
                     return pa, va, wa
 
                 th, pm, _, wm = locate_reversal(at, accel, v, v1, a0, accel(p1, v1), step_h,
                                                 CUT_TOL, CUT_ITERATIONS)
+                if cf != 0.0:
+                    wm += friction_work(cf, sign, p, pm)
                 stats.reversals += 1
                 p, v = pm, 0.0
                 w_total += wm
@@ -210,11 +225,10 @@ def cover(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, E
                     trace += (done, p, v, w_total)
                 hh = max(th * step_h, 1e-6 * h)
                 # Leave rest on the side the forces push to (a kink: the pair restarts small;
-                # with Coulomb friction the next trial decides sticking).
+                # with Coulomb friction the rest rule decides sticking first).
                 continue
-            if coulomb and (v1 < 0.0 < v or v < 0.0 < v1) and abs(
-                    ain - w2 * math.sin(p1)) <= g:
-                v1 = 0.0
+            if cf != 0.0:
+                w += friction_work(cf, sign, p, p1)
             done = target if last else done + step_h
             p, v = p1, v1
             w_total += w
@@ -241,23 +255,23 @@ class Cover:
         The embedded pair (e.g. ``dopri5``) and its compiled steps (:func:`pair_steps`).
     rtol, atol : float
         Tolerances of the error control.
-    rest, fallback : callable
-        The Coulomb step from rest, and the step that takes what the cover could not.
+    fallback : callable
+        The step that takes what the cover could not.
     """
 
     def __init__(self, prob: Problem, tab: Tableau | Extrapolation,
-                 steps: tuple[ErrStepFn, ErrStepFn], rtol: float, atol: float, rest: FromRest,
+                 steps: tuple[ErrStepFn, ErrStepFn], rtol: float, atol: float,
                  fallback: Fallback) -> None:
         self.prob, self.tab, self.steps = prob, tab, steps
         self.rtol, self.atol = rtol, atol
-        self.rest, self.fallback = rest, fallback
+        self.fallback = fallback
         self.h_try = 0.0  # the next trial substep, carried from step to step
 
     def __call__(self, p: float, v: float, h: float, ain: float,
                  stats: GuardStats) -> tuple[float, float, float]:
         """Cover one step of h; the fallback takes what the cover could not (or not finitely)."""
         try:
-            p1, v1, w, self.h_try = cover(self.prob, self.tab, self.steps, self.rest, p, v, h,
+            p1, v1, w, self.h_try = cover(self.prob, self.tab, self.steps, p, v, h,
                                           ain, self.rtol, self.atol, self.h_try, stats,
                                           max_trials=MAX_TRIALS)
         except CoverFailed as failed:
@@ -269,6 +283,8 @@ class Cover:
         if not (math.isfinite(p1) and math.isfinite(v1)):
             stats.fallbacks += 1
             return self.fallback(p, v, h, ain)
+        if stuck(self.prob.coulomb, v, v1):
+            stats.sticks += 1
         return p1, v1, w
 
 
@@ -298,7 +314,7 @@ def dense_capable(error_controlled: bool, coulomb: bool) -> bool:
 
 
 def dense_run(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepFn, ErrStepFn],
-              rest: FromRest, p: float, v: float, t_out: FloatArray, ain: float, rtol: float,
+              p: float, v: float, t_out: FloatArray, ain: float, rtol: float,
               atol: float, stats: GuardStats,
               budget: int = 0) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Integrate over [0, t_out[-1]] in one cover; return φ, φ', w at ``t_out``.
@@ -325,7 +341,7 @@ def dense_run(prob: Problem, tab: Tableau | Extrapolation, steps: tuple[ErrStepF
     trace: list[float] = [0.0, p, v, 0.0]
     stops = () if m else t_out[1:-1].tolist()
     span = float(t_out[-1])
-    cover(prob, tab, steps, rest, p, v, span, ain, rtol, atol, 0.0, stats,
+    cover(prob, tab, steps, p, v, span, ain, rtol, atol, 0.0, stats,
           max_trials=MAX_TRIALS, trace=trace, stops=stops, per=span / (len(t_out) - 1),
           budget=budget)
     # Counted as one cover per output interval would count them: the first trial of each

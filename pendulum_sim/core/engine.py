@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from typing import Any
 
 from . import embedded
-from .coulomb import friction_work, moving_input, stuck
+from .coulomb import friction_work, moving_input, rest_direction, stuck
 from .decisions import (
     ENERGY_TOL,
     accuracy_speed,
@@ -43,6 +44,7 @@ from .law import DampingFn
 from .methods import Advance, Method
 from .model import FloatArray, check_speed_ahead, run_speed_limit
 from .problem import Problem
+from .reversal import CUT_ITERATIONS, CUT_TOL, branch_accel, locate_reversal
 from .split import SplitSteps
 from .stiff import OVERFLOW, TO_GUARD, stiff_cover, stiff_pair
 from .tableaus import RK4, Tableau
@@ -53,41 +55,62 @@ def guard_for(tableau: Tableau) -> StabilityGuard:
     return StabilityGuard(tableau)
 
 
-def check_friction(method: Method, friction: float) -> None:
-    """Refuse a friction beside the power law for a method that cannot take it (IntegratorError).
+StepFn = Callable[[float, float, float, float], tuple[float, float, float]]
+"""An implicit step ``(φ, φ', h, a_in) → (φ₁, φ'₁, w)`` that knows only the power law."""
 
-    The explicit family's steps take it (``coulomb.moving_input`` on either side of a
-    reversal, the Coulomb rest of ``coulomb.rest_step``); the others' do not yet.
+
+def slide(prob: Problem, step: StepFn, p: float, v: float, h: float, ain: float,
+          stats: GuardStats | None = None) -> tuple[float, float, float]:
+    """Take an implicit ``step`` of h with the friction beside the law; return (φ₁, φ'₁, w).
+
+    The implicit family's own DIRK steps (:meth:`Engine.implicit_advance`) and the L-stable
+    fallback (:func:`moving_fallback`) take the friction the way the explicit family's steps
+    do. At rest the rest rule decides (``coulomb.rest_direction``): the joint sticks, or breaks
+    away in the direction of the force. Moving in the direction s, the friction is the input
+    ``coulomb.moving_input`` (constant over a step that does not reverse) and its work
+    ``coulomb.friction_work`` is counted. A step that reverses is split at the reversal
+    (counted in ``stats`` where given), located on the step's own φ'(θh) = 0
+    (``reversal.locate_reversal``, the embedded cover's cut), and the rest of it is taken from
+    rest by the same rule; a break-away that reverses within its step stops again
+    (``coulomb.rest_step``'s rule). Without friction, ``step`` itself.
     """
-    if friction > 0.0 and not method.family.fast_path:
-        raise IntegratorError(f'friction > 0 is taken by the explicit methods (euler, midpoint, '
-                              f'rk4), not by {method.name}; got friction/I = {friction:g} rad/s^2')
+    cf = prob.friction
+    if cf == 0.0:
+        return step(p, v, h, ain)
+    w2, g, n = prob.w2, prob.gamma, prob.n
+    if v == 0.0:
+        sign = rest_direction(p, ain, w2, g, n, cf)
+        if sign == 0.0:
+            return p, 0.0, 0.0
+    else:
+        sign = 1.0 if v > 0.0 else -1.0
+    a = moving_input(ain, sign, cf)
+    p1, v1, w = step(p, v, h, a)
+    if v1 * sign >= 0.0:
+        return p1, v1, w + friction_work(cf, sign, p, p1)
+    if v == 0.0:
+        return p, 0.0, 0.0  # the break-away reversed within the step: it stops again
+
+    def accel(pp: float, vv: float) -> float:
+        return branch_accel(pp, vv, a, sign, g, n, w2)
+
+    th, pm, _, wm = locate_reversal(lambda hh: step(p, v, hh, a), accel, v, v1, accel(p, v),
+                                    accel(p1, v1), h, CUT_TOL, CUT_ITERATIONS)
+    wm += friction_work(cf, sign, p, pm)
+    if stats is not None:
+        stats.reversals += 1
+    p2, v2, w2_ = slide(prob, step, pm, 0.0, (1.0 - th) * h, ain, stats)
+    return p2, v2, wm + w2_
 
 
 def moving_fallback(prob: Problem, p: float, v: float, h: float,
                     ain: float) -> tuple[float, float, float]:
     """Return the L-stable fallback's step (``implicit.fallback``) with the friction beside it.
 
-    The friction of the direction of motion is an input (``coulomb.moving_input``) and its work
-    is counted (``coulomb.friction_work``); a step that reverses under it ends at rest (its
-    kinetic energy ½ φ'₁² counted as dissipated: the rest rule decides the next step), since
-    its friction would have turned with the motion. From rest it sticks while the force stays
-    within the Coulomb level (``Problem.level``) and breaks away with the force otherwise.
-    Without friction, ``fallback`` itself.
+    :func:`slide` over the fallback: the friction of the direction of motion an input, the
+    step split at a reversal, the rest rule at rest. Without friction, ``fallback`` itself.
     """
-    cf = prob.friction
-    if cf == 0.0:
-        return fallback(prob, p, v, h, ain)
-    sign = v
-    if v == 0.0:
-        sign = ain - prob.w2 * math.sin(p)
-        if abs(sign) <= prob.level:
-            return p, 0.0, 0.0
-    p1, v1, w = fallback(prob, p, v, h, moving_input(ain, sign, cf))
-    w += friction_work(cf, sign, p, p1)
-    if v1 * sign < 0.0:
-        return p1, 0.0, w + 0.5 * v1 * v1
-    return p1, v1, w
+    return slide(prob, functools.partial(fallback, prob), p, v, h, ain)
 
 
 @functools.lru_cache(maxsize=64)
@@ -146,7 +169,6 @@ class Engine:
     def __init__(self, w2: float, gamma: float, n: float, method: Method, guard: bool = True,
                  energy_check: bool = True, rtol: float = 1e-8, atol: float = 1e-10,
                  jit: bool = False, friction: float = 0.0) -> None:
-        check_friction(method, friction)
         prob = self.problem = Problem(w2, gamma, n, friction)
         self.w2, self.gamma, self.n, self.cf = w2, gamma, n, friction
         self.jit = jit  # the adaptive method's steps compiled by numba (``jit.py``)
@@ -182,7 +204,7 @@ class Engine:
         if not self.method.family.error_controlled:
             return self.implicit_advance
         return embedded.Cover(self.problem, self.method.tableau, self.pair_steps(), self.rtol,
-                              self.atol, self.plain.from_rest, self.last_resort)
+                              self.atol, self.last_resort)
 
     def pair_steps(self) -> tuple[ErrStepFn, ErrStepFn]:
         """Return the adaptive method's embedded steps (plain and branch law), made once."""
@@ -201,7 +223,7 @@ class Engine:
         if not self.dense_capable:
             raise IntegratorError(f'{self.method.name} has no dense output here')
         return embedded.dense_run(self.problem, self.method.tableau, self.pair_steps(),
-                                  self.plain.from_rest, p, v, t_out, ain, self.rtol,
+                                  p, v, t_out, ain, self.rtol,
                                   self.atol, stats, budget)
 
     # ------------------------------------------------------------------ fast path
@@ -267,10 +289,11 @@ class Engine:
 
     def implicit_advance(self, p: float, v: float, h: float, ain: float,
                          stats: GuardStats) -> tuple[float, float, float]:
-        """Take the implicit method's own DIRK step of h (``dirk.py``)."""
+        """Take the implicit method's own DIRK step of h (``dirk.py``; friction: :func:`slide`)."""
         tab = self.method.tableau
         assert isinstance(tab, Tableau)  # an 'implicit' method is a DIRK tableau
-        p1, v1, w = dirk_safe(self.problem, tab, p, v, h, ain)
+        prob = self.problem
+        p1, v1, w = slide(prob, functools.partial(dirk_safe, prob, tab), p, v, h, ain, stats)
         return self._settle(p, v, h, ain, p1, v1, w, stats)
 
     def _settle(self, p: float, v: float, h: float, ain: float, p1: float, v1: float, w: float,
@@ -382,12 +405,12 @@ __all__ = [
     'Engine',
     'accuracy_speed',
     'ain_bound',
-    'check_friction',
     'compile_fast_step',
     'energy_rose',
     'guard_for',
     'moving_fallback',
     'reversal_suspect',
+    'slide',
     'specific_energy',
     'stiff_transient',
 ]

@@ -179,11 +179,6 @@ class SplitSteps:
         self.laws = compile_laws(prob.n)
         self.last_resort = last_resort
 
-    def from_rest(self, p: float, h: float, ain: float,
-                  v: float = 0.0) -> tuple[float, float, float]:
-        """Coulomb friction at rest: stick, or break away (``coulomb.rest_step``)."""
-        return rest_step(self.branch_n, p, v, h, ain, self.w2, self.gamma, self.n, self.cf)
-
     def friction(self, p: float, v: float, h: float, ain: float,
                  creeps: bool) -> tuple[bool, float, float, float]:
         """Return ``coulomb.friction_step``: (taken, φ₁, φ'₁, w) where friction holds.

@@ -83,8 +83,8 @@ SPECS: tuple[Spec, ...] = (
          'applies from the next step, the state is kept.', low=0.0, high=10.0, unit='1'),
     Spec('friction', 0.0, 'Coulomb friction torque in N m beside the power law (>= 0): '
          '-friction sgn(dphi), and at rest the joint sticks while |gravity + effort| <= '
-         'friction. Explicit integrators (euler, midpoint, rk4). Live: applies from the next '
-         'step, the state is kept.', low=0.0, high=1e6, unit='N m'),
+         'friction. Every integrator. Live: applies from the next step, the state is kept.',
+         low=0.0, high=1e6, unit='N m'),
     Spec('phi0', 0.0, 'Initial angle in rad. Live: used by the next ~/reset.', unit='rad'),
     Spec('dphi0', 0.0, 'Initial angular velocity in rad/s. Live: used by the next ~/reset.',
          unit='rad/s'),
@@ -256,10 +256,6 @@ def _check_rest(values: Mapping[str, Value], params: PendulumParams) -> str | No
     if values['integrator'] not in METHODS:
         known = ', '.join(sorted(METHODS))
         return f"integrator must be one of {known}, got '{values['integrator']}'"
-    if params.friction > 0.0 and not METHODS[str(values['integrator'])].family.fast_path:
-        explicit = ', '.join(sorted(k for k, m in METHODS.items() if m.family.fast_path))
-        return (f"friction > 0 needs an explicit integrator ({explicit}), got friction = "
-                f"{params.friction:g} N m with integrator '{values['integrator']}'")
     reason = joint_name_refusal(str(values['joint_name']))
     if reason is not None:
         return reason
