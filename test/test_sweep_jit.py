@@ -202,7 +202,7 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
         eng = Engine(w2, gamma, n, METHODS[method])
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
-        args = (p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach, eng.energy_check,
+        args = (p, v, h, ain, w2, gamma, n, eng.cf, eng.v_acc, eng.reach, eng.energy_check,
                 eng.nonsmooth, eng.coulomb, consts)
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
         got = compiled[0](*compiled[1:], *args, counts)
@@ -243,8 +243,9 @@ def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:
     compiled = _compiled(method, eng.n)
     consts = np.array(guard_for(TABLEAUS[method]).constants)
     counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-    got = compiled[0](*compiled[1:], p, v, h, 0.0, eng.w2, eng.gamma, eng.n, eng.v_acc,
-                      eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb, consts, counts)
+    got = compiled[0](*compiled[1:], p, v, h, 0.0, eng.w2, eng.gamma, eng.n, eng.cf,
+                      eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb,
+                      consts, counts)
     assert got == (False, p, v) and not counts.any()
 
 
@@ -415,8 +416,9 @@ def test_a_stiff_step_the_substeps_cannot_cover_goes_to_the_guard_compiled() -> 
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-        got = compiled[0](*compiled[1:], p, v, h, ain, w2, gamma, n, eng.v_acc, eng.reach,
-                          eng.energy_check, eng.nonsmooth, eng.coulomb, consts, counts)
+        got = compiled[0](*compiled[1:], p, v, h, ain, w2, gamma, n, eng.cf, eng.v_acc,
+                          eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb, consts,
+                          counts)
         assert got == (True, *want[:2])
         assert tuple(counts.tolist()) == _stats(st)
         assert st.substeps >= STIFF_MAX_TRIALS and st.reversals > 0
@@ -581,6 +583,55 @@ def test_friction_steps_run_compiled_as_the_stepper_takes_them() -> None:
     assert (b.phi[2], b.dphi[2]) == (1.0, 0.0)  # held at rest: |τ/I − ω0² sin φ| <= γ
     stiff = sweep(W2, 1e4, 1.0, 1.0, 3.0, 0.01, h, jit=True)
     assert stiff.substeps[0] > 0 and stiff.handed_back == 0  # the guard substeps compiled too
+
+
+# (γ, n, f/I, φ0, φ'0, τ/I) at h = 20 ms: a Coulomb friction beside the law of every kind of
+# text (n = 0, the smooth whole n = 1 and 3, whose texts otherwise leave out the Coulomb and
+# reversal tests, the shared text of 1.5), sticking and breaking away, with and without input,
+# and stiff γ (the guard's substeps; at γ = 1e4 the fallback, which beside a friction is the
+# Python path's, handed back).
+BESIDE = list(itertools.product([0.0, 0.5, 30.0, 1e4], [0.0, 1.0, 1.5, 3.0], [0.4, 3.0],
+                                [0.3, 2.5], [0.0, 4.0], [0.0, 1.7]))
+
+
+def test_a_friction_beside_the_law_runs_compiled_as_the_stepper_takes_it() -> None:
+    gam, nn, fr, p0, v0, tau = (np.array(col) for col in zip(*BESIDE, strict=True))
+    h, steps = 2e-2, 60
+    a = sweep(W2, gam, nn, p0, v0, steps * h, h, torque=tau, friction=fr)
+    b = sweep(W2, gam, nn, p0, v0, steps * h, h, torque=tau, friction=fr, jit=True)
+    for i, (g, n, f, x0, dx0, ain) in enumerate(BESIDE):
+        st = Stepper(PendulumParams.from_omega0_sq(W2, g, n, f), x0, dx0, h)
+        for _ in range(steps):
+            st.step(ain)
+        want = tuple(getattr(st.stats, k) for k in COUNTERS)
+        for res in (a, b):
+            assert tuple(int(getattr(res, k)[i]) for k in COUNTERS) == want, BESIDE[i]
+        assert (b.phi[i], b.dphi[i]) == (st.phi, st.dphi), BESIDE[i]
+        assert abs(a.phi[i] - st.phi) <= 1e-12 and abs(a.dphi[i] - st.dphi) <= 1e-12
+    whole = nn != 1.5
+    assert a.phi[whole].tobytes() == b.phi[whole].tobytes()
+    assert a.dphi[whole].tobytes() == b.dphi[whole].tobytes()
+    # Sticks, reversals and the guard's substeps were taken compiled; only the fallback's
+    # steps beside the friction (stiff γ = 1e4) went to Engine.careful.
+    assert min(b.sticks.sum(), b.reversals.sum(), b.substeps.sum()) > 20
+    assert b.handed_back == b.fallbacks.sum() > 0
+    assert not b.fallbacks[gam < 1e4].any()
+    tame = gam < 1e4
+    c = sweep(W2, gam[tame], nn[tame], p0[tame], v0[tame], steps * h, h, torque=tau[tame],
+              friction=fr[tame], jit=True)
+    assert c.handed_back == 0
+    assert c.phi.tobytes() == b.phi[tame].tobytes()
+
+
+def test_a_friction_text_keeps_the_coulomb_and_reversal_tests() -> None:
+    tab = TABLEAUS['rk4']
+    for n in (1.0, 2.0, 3.0):
+        plain = kernel_source(tab, n).split('def kernel')[1]
+        beside = kernel_source(tab, n, True).split('def kernel')[1]
+        assert 'coulomb and v == 0.0' not in plain and 'coulomb and v == 0.0' in beside
+        assert 'nonsmooth and (' in beside
+        assert 'copysign(cf, v0)' in beside and 'cf' not in plain.replace('careful', '')
+    assert Problem(W2, 1.0, 3.0, 0.5).coulomb and Problem(W2, 1.0, 3.0, 0.5).nonsmooth
 
 
 def _call_twice(f: Any, x: float) -> float:

@@ -6,7 +6,9 @@ same order, calling the very functions the engine calls, written to compile, so 
 sweep takes these steps without leaving compiled code (``decisions.kernel_source``):
 
 - friction holding the pendulum (``coulomb.friction_step``): Coulomb sticking and break-away
-  at rest (n = 0), the creep of a near-Coulomb law (0 < n < 1);
+  at rest (n = 0), the creep of a near-Coulomb law (0 < n < 1); beside a Coulomb friction
+  c_f > 0 (``Problem.friction``) the rest rule inside the guard's substeps, as
+  ``SplitSteps.friction`` leaves it;
 - the stability guard's count of substeps (``guard.substep_count``, the function
   ``StabilityGuard.substeps`` itself runs: the real-axis count, the bisection on the method's
   stability polynomial, the cap, the angle count) and ``Engine.guarded``'s loop of substeps,
@@ -32,7 +34,9 @@ takes it from the same state) only where the fallback would refuse the whole ste
 bound (``implicit.fallback_refused``: then ``Engine.check_ahead`` first refuses a step that must
 end beyond the speed bound, before any work, as the Stepper does), where the fallback refuses the
 rest of a step by that bound (so the user gets that IntegratorError from the one place that
-raises it) and where a result is not finite:
+raises it), where the fallback would take a friction beside the law (``engine.moving_fallback``
+splits at a reversal through closures: it stays the one Python implementation) and where a
+result is not finite:
 Python raises OverflowError or ValueError (a power beyond float64, the sine of inf) where compiled
 code gives inf or NaN, and which of the two happened decides the Python path (``Engine.careful``'s
 ``except`` or ``Engine._settle``), so those rare steps are taken by Python (inside a trial substep
@@ -53,7 +57,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .coulomb import friction_step, stuck
+from .coulomb import friction_step, moving_input, stuck
 from .decisions import energy_rose, specific_energy
 from .dirk import damping_formula
 from .energy_redo import redo
@@ -75,14 +79,16 @@ def finite(p: float, v: float) -> bool:
 
 def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branch: Any,
                  p: float, v: float, h: float, ain: float, w2: float, gamma: float, n: float,
-                 v_acc: float, reach: float, check: bool, nonsmooth: bool, coulomb: bool,
-                 guard: Any, counts: Any) -> tuple[bool, float, float]:
+                 cf: float, v_acc: float, reach: float, check: bool, nonsmooth: bool,
+                 coulomb: bool, guard: Any, counts: Any) -> tuple[bool, float, float]:
     """Take ``Engine.careful``'s step of h from (φ, φ') for a guarded explicit method.
 
     The generated functions come first, all with the exponent an argument: the method's plain
     and branch steps (``plain``, ``branch``), the two laws (``laws``), the stiff transient's
     pair with error estimate (``pair_plain``, ``pair_branch``: ``stiff.stiff_pair``).
-    ``reach`` is ``Problem.reach``, ``guard`` the guard's ``StabilityGuard.constants``,
+    ``cf`` is the friction c_f beside the law (``Problem.friction``; 0.0 for none: the step
+    is then the one it was without it), ``reach`` is ``Problem.reach``, ``guard`` the guard's
+    ``StabilityGuard.constants``,
     ``counts`` the pendulum's counters (:data:`COUNTERS`; what the step did is added there).
     Returns ``(done, φ₁, φ'₁)``; ``done`` False where ``Engine.careful`` must take the step
     (see the module docstring), the counters then untouched.
@@ -91,15 +97,16 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
         # Too long to work through: Engine.check_ahead decides first (the module docstring).
         return False, p, v
     subs = fbs = turns = 0
-    # Friction holds the pendulum (Engine.careful's first branch): Coulomb sticking or
-    # break-away, the near-Coulomb creep (guarded: creep_state decides on n and γ).
-    # No friction beside the law (cf = 0.0): the compiled sweep refuses one.
-    held, p1, v1, _ = friction_step(branch, laws, p, v, h, ain, w2, gamma, n, coulomb, True,
-                                    0.0)
+    # Friction holds the pendulum (Engine.careful's first branch, SplitSteps.friction):
+    # Coulomb sticking or break-away, the near-Coulomb creep (guarded: creep_state decides on
+    # n and γ). Beside a friction (cf > 0) the guard's substeps take the rest and no creep.
+    bare = cf == 0.0
+    held, p1, v1, _ = friction_step(branch, laws, p, v, h, ain, w2, gamma, n,
+                                    coulomb and bare, bare, cf)
     if not held:
         _, _, _, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
         stiff = False
-        if abs(v) > v_acc:  # decisions.stiff_source, |φ'|^n by the law's power rule
+        if bare and abs(v) > v_acc:  # decisions.stiff_source, |φ'|^n by the power rule
             pw = power_formula(abs(v), n)
             if not pw < math.inf:  # Python's damping law raises OverflowError here
                 return False, p, v
@@ -112,8 +119,8 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
                 return False, p, v
         if code == TO_GUARD:  # Engine.guarded (after a stiff cover that failed: from the start)
             done, p1, v1, gsubs, fbs, gturns = guarded(plain, branch, laws, p, v, h, ain, w2,
-                                                       gamma, n, reach, nonsmooth, coulomb,
-                                                       guard)
+                                                       gamma, n, cf, reach, nonsmooth,
+                                                       coulomb, guard)
             if not done:
                 return False, p, v
             subs += gsubs
@@ -142,32 +149,36 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
 
 
 def guarded(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
-            w2: float, gamma: float, n: float, reach: float, nonsmooth: bool, coulomb: bool,
-            guard: Any) -> tuple[bool, float, float, int, int, int]:
+            w2: float, gamma: float, n: float, cf: float, reach: float, nonsmooth: bool,
+            coulomb: bool, guard: Any) -> tuple[bool, float, float, int, int, int]:
     """Return ``Engine.guarded``'s step: (done, φ₁, φ'₁, substeps, fallbacks, reversals).
 
     The fewest stable substeps (``guard.substep_count``), re-judged after each one, each a
     ``split.micro_step`` (a split it cannot finish handed to the fallback, as
     ``SplitSteps.micro`` does); beyond the guard's cap the fallback takes what is left.
-    ``done`` False where a substep is not finite or the fallback refuses.
+    ``done`` False where a substep is not finite or the fallback refuses, and where the
+    fallback would take friction beside the law (c_f = ``cf`` > 0: ``engine.moving_fallback``,
+    the Python path's one implementation, takes that step).
     """
-    force = abs(ain) + w2
+    force = abs(ain) + cf + w2
     omega0 = math.sqrt(w2)
     left = h
     taken = fbs = turns = 0
     while left > 0.0:
-        m = substep_count(left, w2, gamma, n, p, v, force, abs(ain - w2 * math.sin(p)), guard)
+        m = substep_count(left, w2, gamma, n, p, v, force,
+                          abs(moving_input(ain, v, cf) - w2 * math.sin(p)), guard)
         if m == FALLBACK:
-            if fallback_refused(v, left, ain, w2, omega0):
+            if cf != 0.0 or fallback_refused(v, left, ain, w2, omega0):
                 return False, p, v, 0, 0, 0
             p, v, _ = fallback_run(p, v, left, ain, w2, gamma, n, omega0, damping_formula)
             return True, p, v, max(taken - 1, 0), fbs + 1, turns
         hh = left / m
         done, p1, v1, _, k, pm, vm, _, rest = micro_step(plain, branch, laws, p, v, hh, ain, w2,
                                                          gamma, n, reach, nonsmooth, coulomb,
-                                                         True, 0.0)
+                                                         True, cf)
         if not done:
-            if k < 0 or fallback_refused(vm, rest, ain, w2, omega0):  # split.NOT_FINITE
+            # split.NOT_FINITE; the fallback beside a friction is the Python path's
+            if k < 0 or cf != 0.0 or fallback_refused(vm, rest, ain, w2, omega0):
                 return False, p, v, 0, 0, 0
             # The fallback takes the rest of the split step (SplitSteps.micro).
             p1, v1, _ = fallback_run(pm, vm, rest, ain, w2, gamma, n, omega0, damping_formula)

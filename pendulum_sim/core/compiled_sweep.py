@@ -8,7 +8,8 @@ run is done. A refused step is taken by the compiled careful path
 (``compiled_careful.careful_step``: Coulomb friction at rest, the near-Coulomb creep, the guard's
 substeps, the reversal split, the fallback, the stiff transient's error-controlled substeps, the
 energy redo) where the group's ``use_careful`` is set; the steps it declines (the fallback's
-refusal by its work bound, a result that is not finite) are handed back to the one careful path
+refusal by its work bound, a result that is not finite, the fallback beside a Coulomb friction)
+are handed back to the one careful path
 (``engine.Engine.careful``, through the sweep's callback; counted as ``handed_back``), and the run
 goes on from the next step. Each pendulum thus takes exactly the steps the numpy sweep and the
 ``Stepper`` take (parity tests: ``test_sweep_jit.py``), in another order across pendulums: they do
@@ -87,7 +88,7 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
     if not one:
         for grp, a, b in zip(grps, offs[:-1], offs[1:], strict=True):
             grp.p, grp.v, grp.e = P[a:b], V[a:b], E[a:b]
-    cols = [joint(name) for name in ('ain_col', 'w2_col', 'gamma_col')]
+    cols = [joint(name) for name in ('ain_col', 'w2_col', 'gamma_col', 'cf')]
     nn = np.concatenate([np.broadcast_to(grp.nn, (size,))
                          for grp, size in zip(grps, sizes, strict=True)])
     decide = [joint(name) for name in

@@ -241,9 +241,9 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
     return define('\n'.join(lines) + '\n', 'fast', env, f'<fast {tableau.name}>')
 
 
-KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'NN', 'LO',
-               'HI', 'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base', 'every',
-               'total', 'RP', 'RV', 'COUNTS', 'CAREFUL', 'GUARD')
+KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'CF', 'NN',
+               'LO', 'HI', 'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base',
+               'every', 'total', 'RP', 'RV', 'COUNTS', 'CAREFUL', 'GUARD')
 """The arguments of a compiled sweep run (:func:`kernel_source`), arrays in capitals."""
 
 
@@ -274,10 +274,10 @@ def next_record(done: int, every: int, total: int) -> int:
 
 
 @functools.lru_cache(maxsize=256)
-def kernel_source(tableau: Tableau, n: float) -> str:
+def kernel_source(tableau: Tableau, n: float, friction: bool = False) -> str:
     """Return the sweep's run of many steps for one exponent, over arrays, as source text.
 
-    ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, NN, LO, HI, REACH, V_ACC, CHECK,
+    ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, CF, NN, LO, HI, REACH, V_ACC, CHECK,
     NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, COUNTS, CAREFUL, GUARD)``
     advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
     ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
@@ -302,6 +302,12 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     The texts are the ``*_SRC`` above, as in :func:`compile_fast_step`;
     the exponent is read per pendulum (``NN[i]``), so one text serves every exponent whose law
     it spells alike, in one call.
+    With ``friction`` the text serves pendulums with a Coulomb friction c_f = ``CF[i]`` beside
+    the law: a moving step takes it as the input ``coulomb.moving_input`` of its direction
+    (``a_in − copysign(c_f, φ'₀)``, the numpy sweep's floats), and the Coulomb rest and the
+    reversal test are kept whatever the exponent (friction makes every law stick and kink at
+    φ' = 0); the careful step gets the input a_in itself and c_f. Without it (``CF`` all
+    zero) the text is as it was, the friction never read.
     The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
     with the exponent an argument (``explicit.step_source_with_n``), ``laws``, the two laws
     themselves (``law.laws_source``), and ``pair_plain`` and ``pair_branch``, the steps of
@@ -316,9 +322,9 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     # n = 0, no kink for odd whole n, no stiff transient for n <= 1).
     special = n in (0.0, 0.5) or whole(n)
     tests = []
-    if not special or n == 0.0:
+    if friction or not special or n == 0.0:
         tests += ['            if ok and coulomb and v == 0.0:', '                ok = False']
-    if not (special and smooth_law(n)):
+    if friction or not (special and smooth_law(n)):
         tests += [f'            if ok and nonsmooth and ({REVERSAL_SRC}):',
                   '                ok = False']
     if not special or n > 1.0:
@@ -351,7 +357,8 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '    rows = RP.shape[0]',
              '    for j in prange(IDX.shape[0]):',
              '        i = IDX[j]',
-             '        ain = AIN[i]', '        w2 = W2[i]', '        gamma = GAMMA[i]',
+             '        a_in = AIN[i]', '        w2 = W2[i]', '        gamma = GAMMA[i]',
+             '        cf = CF[i]' if friction else '        ain = a_in',
              '        lo = LO[i]', '        hi = HI[i]', '        reach = REACH[i]',
              '        v_acc = V_ACC[i]', '        check = CHECK[i]',
              '        nonsmooth = NONSMOOTH[i]', '        coulomb = COULOMB[i]',
@@ -359,7 +366,10 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '        p0 = P[i]', '        v0 = V[i]', '        e = E[i]', '        k = K[i]',
              '        stale = False',
              '        nxt = next_record(base + k, every, total)',
-             '        while k < count:', *(pad + line for line in body),
+             '        while k < count:',
+             *([pad + '    ain = a_in if cf == 0.0 else a_in - copysign(cf, v0)']
+               if friction else []),
+             *(pad + line for line in body),
              '            v = v0', '            a0 = a_0', '            av = abs(v)',
              '            ok = lo <= av <= hi and -INF < p1 < INF and -INF < v1 < INF',
              *tests,
@@ -367,9 +377,10 @@ def kernel_source(tableau: Tableau, n: float) -> str:
              '            if not ok:',
              '                if not use_careful:', '                    break',
              '                done, p1, v1 = careful_step(',
-             '                    plain, branch, laws, pair_plain, pair_branch, p0, v0, h, ain,',
-             '                    w2, gamma, n, v_acc, reach, check, nonsmooth, coulomb, GUARD,',
-             '                    COUNTS[i])',
+             '                    plain, branch, laws, pair_plain, pair_branch, p0, v0, h, a_in,',
+             '                    w2, gamma, n, ' + ('cf' if friction else '0.0')
+             + ', v_acc, reach, check, nonsmooth, coulomb,',
+             '                    GUARD, COUNTS[i])',
              '                if not done:', '                    break',
              '                if check:', *renew,
              '            p0 = p1', '            v0 = v1', '            k += 1',
@@ -383,16 +394,18 @@ def kernel_source(tableau: Tableau, n: float) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def compile_kernel(tableau: Tableau, n: float, careful_step: Any) -> Any:
+def compile_kernel(tableau: Tableau, n: float, careful_step: Any, friction: bool = False) -> Any:
     """Return the Python function of :func:`kernel_source` (``jit.compile_kernel`` compiles it).
 
-    ``careful_step`` is ``compiled_careful.careful_step``. Run as Python, ``prange`` is
+    ``careful_step`` is ``compiled_careful.careful_step``; ``friction`` as for
+    :func:`kernel_source`. Run as Python, ``prange`` is
     ``range``: the same steps, one pendulum after another.
     """
     env: dict[str, object] = dict(SCALAR_ENV, INF=math.inf, ENERGY_TOL=ENERGY_TOL,
                                   prange=range, record_row=record_row,
                                   next_record=next_record, careful_step=careful_step)
-    return define(kernel_source(tableau, n), 'kernel', env, f'<kernel {tableau.name}>')
+    return define(kernel_source(tableau, n, friction), 'kernel', env,
+                  f'<kernel {tableau.name}>')
 
 
 def ain_bound(ain: float) -> float:

@@ -225,13 +225,6 @@ def _input_bounds(tau: FloatArray, fr: FloatArray) -> FloatArray:
     return ain_bounds(np.abs(tau) + fr)
 
 
-def _refuse_compiled_friction(fr: FloatArray) -> None:
-    """Refuse a friction beside the law on the compiled sweep, which does not take it yet."""
-    if fr.any():
-        raise IntegratorError('sweep(jit=True) does not take friction > 0 yet; run it with '
-                              'jit=False (the numpy sweep takes it)')
-
-
 def _one(arrs: dict[str, FloatArray], i: int, check: Any, only: str | None = None) -> Any:
     """Run one scalar check; on failure re-raise its message with the pendulum's index."""
     try:
@@ -670,11 +663,11 @@ class Sweep:
         self._groups = _groups(self._nn, self._gam, self._om2, method, self.guard,
                                order.size if self.jit else BLOCK, self._fr)
         if self.jit:
-            _refuse_compiled_friction(self._fr)
             tab = METHODS[method].tableau
             assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
             for grp in self._groups:
-                grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n, careful_step))
+                grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n, careful_step,
+                                                               grp.any_friction))
                 # The compiled careful step serves the guarded laws (compiled_careful.py).
                 grp.use_careful = self.guard
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
@@ -909,15 +902,15 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         pendulum, in parallel over the pendulums, the careful path compiled too
         (``compiled_careful.py``: Coulomb sticking and break-away, the near-Coulomb creep, the
         guard's substeps, the reversal split, the fallback, the stiff transient's substeps, the
-        energy redo) and every refused step it declines (the fallback's refusal by its work bound,
-        a result that is not finite) taken by ``Engine.careful`` (``compiled_sweep.py``; counted in
+        energy redo, a friction beside the law) and every refused step it declines (the
+        fallback's refusal by its work bound, a result that is not finite, the fallback beside a
+        friction) taken by ``Engine.careful`` (``compiled_sweep.py``; counted in
         ``SweepResult.handed_back``).
 
     friction : float or array_like, shape (N,)
         The Coulomb friction beside the law per unit inertia, f/I in rad/s² (>= 0): −(f/I)
         sgn φ', and at rest a pendulum sticks while |τ/I − ω0² sin φ| <= f/I (+ γ where
-        n = 0), as ``PendulumParams.friction`` in the Stepper. The numpy sweep only (``jit``
-        refuses it), whose careful path is then ``Engine.careful`` in Python.
+        n = 0), as ``PendulumParams.friction`` in the Stepper; compiled (``jit``) as well.
 
     Returns
     -------
