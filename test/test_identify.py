@@ -10,6 +10,7 @@ from identify_records import records
 from scipy.integrate import solve_ivp
 
 from pendulum_sim.core import PendulumParams, simulate
+from pendulum_sim.core.jit import available as jit_available
 from pendulum_sim.identify import IdentifyError, compare, compare_records, fit, prepare
 
 COMPARED = ('viscous', 'quadratic', 'coulomb')
@@ -152,6 +153,20 @@ def test_power_plus_coulomb_recovers_the_law_and_the_friction() -> None:
     assert free.params['friction'] is None and free.params['friction_accel'] is not None
     assert free.reasons['friction'].startswith('friction = friction_accel * inertia (N m) '
                                                'needs the inertia')
+
+
+@pytest.mark.skipif(not jit_available(), reason='needs numba (the jit extra)')
+def test_power_plus_coulomb_fits_alike_on_the_compiled_sweep() -> None:
+    """The compiled sweep takes the friction beside the law: the fit it drives ends where the
+    numpy sweep's does (their simulations differ where numpy's power and the C library's pow
+    differ in the last bit, so the optimum agrees to far below its standard error)."""
+    t, y = friction_swing(0.25, 1.5, 0.15, 8.0)
+    a = fit(t, y, model='power+coulomb', jit=False)
+    b = fit(t, y, model='power+coulomb', jit=True)
+    for k in ('omega0', 'gamma', 'n', 'friction_accel', 'phi_offset'):
+        assert b.params[k] == pytest.approx(a.params[k], rel=1e-8, abs=1e-12), k
+        assert abs(b.params[k] - a.params[k]) < 1e-4 * a.stderr[k], k  # type: ignore[operator]
+    assert b.rms_residual == pytest.approx(a.rms_residual, rel=1e-9)
 
 
 def test_friction_beside_the_law_beats_the_law_alone_on_bic() -> None:

@@ -21,12 +21,15 @@ DEFAULT_EXPONENTS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 """The spellings a warm-up compiles by default: Coulomb, 0.5, 1, 2, 3 and every other real n."""
 
 
-def warm_up(exponents: Iterable[float] = DEFAULT_EXPONENTS, method: str = 'rk4') -> float:
+def warm_up(exponents: Iterable[float] = DEFAULT_EXPONENTS, method: str = 'rk4',
+            friction: bool = False) -> float:
     """Compile the compiled sweep for the damping laws of ``exponents``; return the seconds.
 
     One exponent stands for all that the law spells alike (``law.power_source``: 0, 0.5 and
     each whole n up to 8 their own, every other n one spelling), so ``(1.5,)`` serves every
-    non-integer exponent. ``method`` is one of the sweep's methods.
+    non-integer exponent. ``method`` is one of the sweep's methods. With ``friction`` the runs
+    of those laws beside a Coulomb friction (their own texts: ``decisions.kernel_source``) are
+    compiled as well.
 
     Raises
     ------
@@ -45,6 +48,8 @@ def warm_up(exponents: Iterable[float] = DEFAULT_EXPONENTS, method: str = 'rk4')
     for n in spelled.values():
         # A moving pendulum with damping: the run and the careful step it calls compile.
         sweep(9.8, 1.0, n, 1.0, 0.5, 1e-3, 1e-3, method=method, jit=True)
+        if friction:
+            sweep(9.8, 1.0, n, 1.0, 0.5, 1e-3, 1e-3, method=method, jit=True, friction=0.5)
     return time.perf_counter() - t0
 
 

@@ -410,7 +410,7 @@ def fit(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
         a free swing).
     model : str
         ``'viscous'``, ``'quadratic'``, ``'coulomb'``, ``'power'`` or ``'power+coulomb'``
-        (the power law beside the core's Coulomb ``friction``; simulated on the numpy sweep).
+        (the power law beside the core's Coulomb ``friction``).
     known : dict, optional
         Values to hold fixed: ``omega0``, ``gamma``, ``n``, ``phi_offset``, and ``inertia``
         (kg m², which turns the Coulomb deceleration into a friction torque).
