@@ -104,12 +104,12 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
     held, p1, v1, _ = friction_step(branch, laws, p, v, h, ain, w2, gamma, n,
                                     coulomb and bare, bare, cf)
     if not held:
-        _, _, _, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
         stiff = False
         if bare and abs(v) > v_acc:  # decisions.stiff_source, |φ'|^n by the power rule
             pw = power_formula(abs(v), n)
             if not pw < math.inf:  # Python's damping law raises OverflowError here
                 return False, p, v
+            _, _, _, a0 = plain(p, v, h, ain, w2, gamma, 1.0, n)
             stiff = abs(a0) > 0.5 * gamma * pw
         code = TO_GUARD
         if stiff:  # Engine.stiff: the error-controlled substeps
