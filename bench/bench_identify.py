@@ -7,9 +7,8 @@ Run: ``.venv/bin/python bench/bench_identify.py`` (``--seconds``, ``--rate``, ``
 
 1. the compile: :func:`pendulum_sim.core.warm_up.warm_up` for the exponents of every law
    ``compare`` fits (paid once per process; not part of the timings below);
-2. which models ``compare`` offers and which it refuses, with its reason (``power+coulomb``
-   until the core has a friction torque; the benchmark fits it as soon as ``compare`` offers
-   it);
+2. which models ``compare`` offers and which it refuses, with its reason (none: all five,
+   ``power+coulomb`` on the compiled sweep beside a friction as well);
 3. ``compare`` over every offered model, its wall time beside the 10 s target;
 4. for each law, the fit by hand a user would write: ``scipy.optimize.least_squares`` (trf,
    its own 2-point Jacobian) with ``solve_ivp`` (RK45, rtol 1e-8, atol 1e-10, ``t_eval`` the
@@ -151,9 +150,10 @@ def main() -> None:
     for name, why in refused.items():
         print(f'refused: {name}: {why}')
     if jit:
-        secs = warm_up(exponents(models))
-        print(f'compile (first call; warm_up{exponents(models)}, once per process): '
-              f'{secs:.2f} s, not counted below')
+        friction = any(LAWS[m].friction for m in models)   # power+coulomb: its own texts
+        secs = warm_up(exponents(models), friction=friction)
+        print(f'compile (first call; warm_up({exponents(models)}, friction={friction}), once '
+              f'per process): {secs:.2f} s, not counted below')
     else:
         print('compile: none (numpy sweep; --no-jit or numba missing)')
 
