@@ -189,6 +189,36 @@ def test_the_vector_env_is_n_scalar_envs_bit_for_bit_with_next_step_autoreset() 
     assert np.array(theirs_r).tobytes() == got_r.tobytes()
 
 
+def test_the_vector_env_takes_the_joints_coulomb_friction_as_the_scalar_env() -> None:
+    # A friction torque beside the law (issue 26) drawn per episode: the vector env's one
+    # sweep gives each pendulum the scalar env's states, bit for bit.
+    spaces = {**MIXED, 'friction': {'distribution': 'uniform', 'low': 0.05, 'high': 0.3}}
+    n, steps = 6, 40
+    vec = gymnasium.make_vec(SWING, num_envs=n, vectorization_mode='vector_entry_point',
+                             parameters=spaces, max_episode_steps=steps)
+    rng = np.random.default_rng(4)
+    actions = rng.uniform(-0.3, 0.3, (steps, n, 1))
+    obs, _ = vec.reset(seed=5)
+    drawn = [e.values['friction'] for e in vec.unwrapped.runner.episodes]
+    seen = [obs]
+    for a in actions[:-1]:
+        seen.append(vec.step(a)[0])
+    got = np.array(seen)
+    for i in range(n):
+        env = gymnasium.make(SWING, parameters=spaces, max_episode_steps=steps)
+        mine = [env.reset(seed=5 + i)[0]]
+        for a in actions[:-1]:
+            mine.append(env.step(a[i])[0])
+        assert np.array(mine).tobytes() == got[:, i].tobytes(), i
+    assert len(set(drawn)) == n and min(drawn) > 0.0
+    bare = gymnasium.make_vec(SWING, num_envs=n, vectorization_mode='vector_entry_point',
+                              parameters=MIXED, max_episode_steps=steps)
+    other = [bare.reset(seed=5)[0]]
+    for a in actions[:-1]:
+        other.append(bare.step(a)[0])
+    assert np.array(other).tobytes() != got.tobytes()   # the friction made a difference
+
+
 def test_near_the_speed_bound_the_joint_decides_and_still_in_step() -> None:
     """With max_velocity 1.2 rad/s each period at risk is the joint's own (its velocity limit)."""
     def bang(obs: Any) -> Any:

@@ -41,6 +41,7 @@ class Pendulums:
         self._om2 = np.zeros(size)
         self._gam = np.zeros(size)
         self._n = np.ones(size)
+        self._fr = np.zeros(size)   # the Coulomb friction beside the law, f/I
         self._inv_i = np.ones(size)
         self.limit = np.zeros(size)
         self._vmax = np.full(size, np.inf)
@@ -65,6 +66,7 @@ class Pendulums:
         self.configs[i] = config
         self.phi[i], self.vel[i], self.effort[i] = config.phi0, config.dphi0, 0.0
         self._om2[i], self._gam[i], self._n[i] = p.omega0_sq, p.gamma, p.n
+        self._fr[i] = p.friction_accel   # f/I: the Stepper's float
         self._inv_i[i] = 1.0 / p.inertia
         self.limit[i] = config.max_effort
         self._vmax[i] = SimulatedJoint._speed_bound(config)
@@ -101,7 +103,7 @@ class Pendulums:
                 if self._sweep is None or not np.array_equal(swept, self._swept):
                     self._sweep = Sweep(self._om2[swept], self._gam[swept], self._n[swept],
                                         self.phi[swept], self.vel[swept], h, method=method,
-                                        torque=ain, guard=guard)
+                                        torque=ain, guard=guard, friction=self._fr[swept])
                     self._swept = swept
                     res = self._sweep.advance(k * h)
                 else:

@@ -140,6 +140,7 @@ def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value
     om2 = np.array([c.params.omega0_sq for c in configs])
     gam = np.array([c.params.gamma for c in configs])
     nn = np.array([c.params.n for c in configs])
+    fr = np.array([c.params.friction_accel for c in configs])   # f/I: the Stepper's float
     inv_i = np.array([1.0 / c.params.inertia for c in configs])
     limit = np.array([c.max_effort for c in configs])
     vmax = np.array([c.max_velocity for c in configs])
@@ -199,7 +200,8 @@ def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value
             ain = tau[live] * inv_i[live]
             if prepared is None or not np.array_equal(live, prepared_for):
                 prepared = prepare(om2[live], gam[live], nn[live], phi[live], vel[live], h,
-                                   method=first.method, torque=ain, guard=first.guard)
+                                   method=first.method, torque=ain, guard=first.guard,
+                                   friction=fr[live])
                 prepared_for = live
                 res = prepared.advance(k * h)
             else:
