@@ -40,6 +40,8 @@ trial step that pays for itself after some 2–5 × 10⁵ trial steps, over one 
 from __future__ import annotations
 
 import functools
+import hashlib
+import sys
 import types
 from typing import Any
 
@@ -127,18 +129,103 @@ def _twin(fn: Any, deep: bool = False) -> Any:
            for name, value in fn.__globals__.items()
            if name != '__builtins__' and value is not fn}
     env['__builtins__'] = fn.__globals__.get('__builtins__', __builtins__)
+    if '__name__' not in env:
+        module = types.ModuleType(generated_module_name(fn))
+        sys.modules.setdefault(module.__name__, module)
+        module.__dict__.update(env)
+        env = module.__dict__
     return types.FunctionType(fn.__code__, env, fn.__name__)
+
+
+def generated_module_name(fn: Any) -> str:
+    """Return the module name of a generated function (``codegen.define``) compiled by numba.
+
+    numba names compiled code by module, qualified name and a counter of its process, and
+    links equal names as one function: two generated functions of one name (``f``, ``plain``)
+    compiled in two processes could meet under one name in a third that loads both from the
+    disk cache (``jit_cache.py``). The name is therefore the function's own: a digest of its
+    code and of the constants it reads from its namespace; the module is registered in
+    ``sys.modules`` (numba imports it when it loads the function's environment).
+    """
+    consts = sorted((name, repr(value)) for name, value in fn.__globals__.items()
+                    if name in fn.__code__.co_names and isinstance(value, (bool, int, float, str)))
+    key = repr((_code_key(fn.__code__), consts)).encode()
+    return f'pendulum_sim_generated_{hashlib.sha256(key).hexdigest()[:24]}'
+
+
+def _code_key(code: types.CodeType) -> tuple[Any, ...]:
+    """Return what identifies ``code`` across processes (its nested code objects by content)."""
+    consts = tuple(_code_key(c) if isinstance(c, types.CodeType) else repr(c)
+                   for c in code.co_consts)
+    return code.co_qualname, code.co_code, consts, code.co_names, code.co_varnames
 
 
 @functools.cache
 def numba_twin(fn: Any) -> Any:
-    """Return ``fn`` compiled by numba with everything it calls compiled (:func:`_twin` deep)."""
+    """Return ``fn`` compiled by numba with everything it calls compiled (:func:`_twin` deep).
+
+    One of the :func:`passed_values` is compiled by :func:`_static_dispatcher`'s class.
+    """
     import numba
 
     form = _formula(fn)
     if form is not fn:
         return numba.njit(form)
+    if fn in passed_values():
+        return _static_dispatcher()(py_func=_twin(fn, deep=True), locals={},
+                                    targetoptions={'nopython': True, 'boundscheck': None})
     return numba.njit(_twin(fn, deep=True))
+
+
+@functools.cache
+def passed_values() -> tuple[Any, ...]:
+    """Return the functions the careful path passes as arguments to the functions it calls.
+
+    The stage law of the fallback and the energy redo (``dirk.damping_formula``), passed by
+    ``compiled_careful.careful_step``: a compiled function passed as a value is typed by its
+    dispatcher and called directly, its value never read, but numba lowers that value as the
+    address of the Python object (a "dynamic global"), which keeps the caller out of numba's
+    disk cache (``jit_cache.py``); compiled by :func:`_static_dispatcher`'s class it is not.
+    """
+    from .dirk import damping_formula
+
+    return (damping_formula,)
+
+
+@functools.cache
+def _static_dispatcher() -> Any:
+    """Return numba's CPU dispatcher class whose value in compiled code is a null pointer.
+
+    Its numba type is a ``numba.types.Dispatcher`` (typed, called and linked as any compiled
+    function) whose constant is lowered as a null pointer instead of the Python object's
+    address, so a function passing it stays cacheable. Only for functions that compiled code
+    calls and passes on, never converts to a first-class function nor returns to Python.
+    """
+    from numba.core import types as nbtypes
+    from numba.core.datamodel.models import OpaqueModel
+    from numba.core.datamodel.registry import register_default
+    from numba.core.imputils import lower_constant
+    from numba.core.registry import CPUDispatcher
+
+    lower: Any = lower_constant
+
+    class StaticType(nbtypes.Dispatcher):  # type: ignore[misc, unused-ignore]
+        """The type of a :func:`_static_dispatcher` function."""
+
+    register_default(StaticType)(OpaqueModel)
+
+    @lower(StaticType)  # type: ignore[untyped-decorator, unused-ignore]
+    def _null(context: Any, builder: Any, ty: Any, pyval: Any) -> Any:
+        return context.get_constant_null(nbtypes.pyobject)
+
+    class StaticDispatcher(CPUDispatcher):  # type: ignore[misc, unused-ignore]
+        """A compiled function whose value compiled code does not read (a null pointer)."""
+
+        @property
+        def _numba_type_(self) -> Any:
+            return StaticType(self)
+
+    return StaticDispatcher
 
 
 FIRST_CLASS_CALLS = ('careful_step',)
@@ -222,11 +309,16 @@ def compile_kernel(fn: Any) -> tuple[Any, Any]:
 
     kernels = _KERNELS.get(fn.__code__)
     if kernels is None:
-        twin = _kernel_twin(fn)
-        serial = numba.njit(twin)
-        twin = _kernel_twin(fn)
-        twin.__globals__['prange'] = numba.prange
-        kernels = _KERNELS[fn.__code__] = (numba.njit(parallel=True)(twin), serial)
+        from .jit_cache import cached_kernels
+
+        kernels = cached_kernels(fn)
+        if kernels is None:  # no writable cache directory: compiled in memory
+            twin = _kernel_twin(fn)
+            serial = numba.njit(twin)
+            twin = _kernel_twin(fn)
+            twin.__globals__['prange'] = numba.prange
+            kernels = (numba.njit(parallel=True)(twin), serial)
+        _KERNELS[fn.__code__] = kernels
     return kernels
 
 
