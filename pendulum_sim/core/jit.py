@@ -28,10 +28,11 @@ the guard's substeps, the reversal split, the fallback, the stiff transient's er
 substeps, the energy redo, from the functions ``Engine.careful`` runs, their overflow guards
 compiled as the bare formulas by :func:`_formula`), and the few it declines (the fallback's
 refusal by its work bound, a result that is not finite) by ``engine.Engine.careful``. The run's
-plain step is inlined in its loop; the careful path is compiled once per process whatever the
-law texts (:func:`first_class_twin`): the generated functions a text passes to it are typed by
-their signature (first-class functions) and called through their addresses, so a further text
-compiles only its run and its generated functions.
+plain step is inlined in its loop; the careful path is compiled once whatever the law texts
+(:func:`first_class_twin`): the generated functions a text passes to it are typed by their
+signature (first-class functions) and called through their addresses, so a further text
+compiles only its run and its generated functions. All of it is kept on disk for later
+processes (``jit_cache.py``): only the first process on a machine compiles it.
 
 Compiling a method's two steps (plain and branch law) for one exponent costs 0.7–2.3 s, once per
 process (the compiled steps are cached per method, exponent and law); at 2–11 µs saved per
@@ -46,6 +47,7 @@ import types
 from typing import Any
 
 from .errors import IntegratorError
+from .jit_cache import FUNCTION_ARGS, attach, kernel_module
 from .law import damping_derivative, slope_formula
 
 SIGNATURE = 'UniTuple(float64, 6)(float64, float64, float64, float64, float64, float64, float64)'
@@ -230,7 +232,7 @@ def _static_dispatcher() -> Any:
 
 FIRST_CLASS_CALLS = ('careful_step',)
 """The functions a sweep's run calls with its generated functions as arguments: compiled by
-:func:`first_class_twin`, once per process whatever the law texts."""
+:func:`first_class_twin`, once whatever the law texts."""
 
 
 def _first_class(ty: Any) -> Any:
@@ -300,7 +302,9 @@ def compile_kernel(fn: Any) -> tuple[Any, Any]:
     runs of a few pendulums, where waking the other threads costs more than the steps.
     Compiled once per source text (the runs of all exponents a text serves share it), on first
     call, for the array types of that call; the :data:`FIRST_CLASS_CALLS` it makes (the
-    careful step) once per process (:func:`first_class_twin`).
+    careful step) once (:func:`first_class_twin`). Served by the disk cache
+    (``jit_cache.cached_kernels``: loaded where a process compiled it before), compiled in
+    memory where the cache directory cannot be written.
     """
     if not available():
         raise IntegratorError(f'compiled steps need numba, which is not installed: '
@@ -309,10 +313,10 @@ def compile_kernel(fn: Any) -> tuple[Any, Any]:
 
     kernels = _KERNELS.get(fn.__code__)
     if kernels is None:
-        from .jit_cache import cached_kernels
-
-        kernels = cached_kernels(fn)
-        if kernels is None:  # no writable cache directory: compiled in memory
+        env = kernel_module(fn)
+        if env is not None:
+            kernels = _cached_kernels(env)
+        else:  # no writable cache directory: compiled in memory
             twin = _kernel_twin(fn)
             serial = numba.njit(twin)
             twin = _kernel_twin(fn)
@@ -328,3 +332,53 @@ def _kernel_twin(fn: Any) -> Any:
     for name in FIRST_CLASS_CALLS:
         twin.__globals__[name] = first_class_twin(fn.__globals__[name])
     return twin
+
+
+class CachedRun:
+    """A cached sweep run called as the uncached one: its generated functions passed last."""
+
+    def __init__(self, dispatcher: Any, functions: tuple[Any, ...], py_func: Any) -> None:
+        self.dispatcher = dispatcher
+        self.functions = functions
+        self.py_func = py_func
+
+    def __call__(self, *args: Any) -> Any:
+        return self.dispatcher(*args, *self.functions)
+
+    def __getattr__(self, name: str) -> Any:
+        """Read the dispatcher's other attributes (``signatures``, ``stats``) through."""
+        return getattr(self.dispatcher, name)
+
+
+def _cached_kernels(env: dict[str, Any]) -> tuple[CachedRun, CachedRun]:
+    """Return (parallel, serial) of the run of ``env`` (``jit_cache.kernel_module``), cached.
+
+    The run and its generated functions (``jit_cache.FUNCTION_ARGS``) are compiled with numba's
+    disk cache (``jit_cache.attach``), the run's careful step (:data:`FIRST_CLASS_CALLS`,
+    :func:`first_class_twin`) too; the run takes those functions as first-class arguments.
+    """
+    import numba
+
+    functions = []
+    for name in FUNCTION_ARGS:
+        disp = numba.njit(_twin(env[name], deep=True))
+        attach(disp, 'functions')
+        functions.append(disp)
+    runs = []
+    for parallel in (True, False):
+        twin = _twin(env['kernel'], deep=True)
+        for name in FIRST_CLASS_CALLS:
+            twin.__globals__[name] = first_class_twin(env[name])
+            attach(twin.__globals__[name], 'careful')
+        # The names the run now takes as arguments: kept for who reads its namespace.
+        twin.__globals__.update(zip(FUNCTION_ARGS, functions, strict=True))
+        # Two compiled forms of one function: numba names (and links) them by their names.
+        twin.__qualname__ = 'kernel_parallel' if parallel else 'kernel_serial'
+        if parallel:
+            twin.__globals__['prange'] = numba.prange
+        disp = _first_class_dispatcher()(
+            py_func=twin, locals={},
+            targetoptions={'nopython': True, 'boundscheck': None, 'parallel': parallel})
+        attach(disp, 'parallel' if parallel else 'serial')
+        runs.append(CachedRun(disp, tuple(functions), twin))
+    return runs[0], runs[1]

@@ -5,13 +5,13 @@ keyed by the file's contents and the signature, but it cannot keep a function de
 generated text by ``exec`` (it has no file) nor one that embeds the address of a Python object
 (a compiled function used as a value: numba's "dynamic globals"). The compiled sweep's run is
 both (``decisions.kernel_source``, the generated functions it hands to the careful step), so
-:func:`cached_kernels` writes the text to a module file of the cache directory (named by the
-hash of the text), defines the run and its generated functions from that file, and compiles
-them with numba's cache pointed there (:func:`attach`):
+:func:`kernel_module` writes the text to a module file of the cache directory (named by the
+hash of the text) and defines the run and its generated functions from that file, and
+``jit.compile_kernel`` compiles them with numba's cache pointed there (:func:`attach`):
 
 - the run takes the generated functions its careful step needs (``plain``, ``branch``,
   ``laws``, ``pair_plain``, ``pair_branch``) as arguments, first-class functions of one
-  signature each (:data:`FUNCTION_ARGS`, passed by :class:`CachedRun` at each call), instead
+  signature each (:data:`FUNCTION_ARGS`, passed by ``jit.CachedRun`` at each call), instead
   of reading them as globals: the same text, its header extended by those five names, the
   same arithmetic;
 - the careful step (``compiled_careful.careful_step``, ``jit.first_class_twin``) is cached
@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from .codegen import source_of
+from .decisions import KERNEL_ARGS
 
 ENV_VAR = 'PENDULUM_SIM_JIT_CACHE'
 """The environment variable that names the cache directory (:func:`cache_root`)."""
@@ -202,31 +203,20 @@ def attach(dispatcher: Any, part: str) -> bool:
     return True
 
 
-class CachedRun:
-    """A cached sweep run called as the uncached one: the generated functions passed last."""
+def kernel_module(fn: Any) -> dict[str, Any] | None:
+    """Return the namespace of a sweep run's module file: the run and its generated functions.
 
-    def __init__(self, dispatcher: Any, functions: tuple[Any, ...], py_func: Any) -> None:
-        self.dispatcher = dispatcher
-        self.functions = functions
-        self.py_func = py_func
-
-    def __call__(self, *args: Any) -> Any:
-        return self.dispatcher(*args, *self.functions)
-
-
-def cached_kernels(fn: Any) -> tuple[CachedRun, CachedRun] | None:
-    """Return a sweep run's (parallel, serial) pair served by the disk cache, or None.
-
-    ``fn`` is the run ``decisions.compile_kernel`` defined; None where the cache directory is
-    not writable or the text is not the one this module knows how to extend (then the caller
-    compiles in memory).
+    ``fn`` is the run ``decisions.compile_kernel`` defined; its text, its header extended by
+    :data:`FUNCTION_ARGS`, is written to a module file of the cache directory
+    (:func:`module_file`) and imported from there, in a module of its own (registered in
+    ``sys.modules``: numba imports it where it loads the functions' environment) holding the
+    names the run reads. None where the cache directory is not writable or the text is not
+    the one this module knows how to extend (then the caller compiles in memory).
     """
     directory = cache_dir()
     text = source_of(fn)
     if directory is None or text is None:
         return None
-    from .decisions import KERNEL_ARGS
-
     header = f'def kernel({", ".join(KERNEL_ARGS)}):'
     if text.count(header) != 1:
         return None
@@ -234,7 +224,6 @@ def cached_kernels(fn: Any) -> tuple[CachedRun, CachedRun] | None:
     path = module_file(directory, text)
     module = sys.modules.get(f'pendulum_sim_jit_{path.stem}')
     if module is None:
-        # Imported from the file: its namespace the run's (the names the text reads).
         module = types.ModuleType(f'pendulum_sim_jit_{path.stem}')
         module.__dict__.update((name, value) for name, value in fn.__globals__.items()
                                if name not in ('__builtins__', '__name__'))
@@ -245,39 +234,8 @@ def cached_kernels(fn: Any) -> tuple[CachedRun, CachedRun] | None:
     if not all(isinstance(env.get(name), types.FunctionType)
                for name in (*FUNCTION_ARGS, 'kernel')):
         return None
-    return _compile(env, directory)
+    return env
 
 
-def _compile(env: dict[str, Any], directory: Path) -> tuple[CachedRun, CachedRun]:
-    """Compile the run of ``env`` (defined from a module file) and its functions, cached."""
-    import numba
-
-    from .jit import FIRST_CLASS_CALLS, _first_class_dispatcher, _twin, first_class_twin
-
-    functions = []
-    for name in FUNCTION_ARGS:
-        disp = numba.njit(_twin(env[name], deep=True))
-        attach(disp, 'functions')
-        functions.append(disp)
-    runs = []
-    for parallel in (True, False):
-        twin = _twin(env['kernel'], deep=True)
-        for name in FIRST_CLASS_CALLS:
-            twin.__globals__[name] = first_class_twin(env[name])
-            attach(twin.__globals__[name], 'careful')
-        # The names the run now takes as arguments: kept for who reads its namespace.
-        twin.__globals__.update(zip(FUNCTION_ARGS, functions, strict=True))
-        # Two compiled forms of one function: numba names (and links) them by their names.
-        twin.__qualname__ = 'kernel_parallel' if parallel else 'kernel_serial'
-        if parallel:
-            twin.__globals__['prange'] = numba.prange
-        disp = _first_class_dispatcher()(
-            py_func=twin, locals={},
-            targetoptions={'nopython': True, 'boundscheck': None, 'parallel': parallel})
-        attach(disp, 'parallel' if parallel else 'serial')
-        runs.append(CachedRun(disp, tuple(functions), twin))
-    return runs[0], runs[1]
-
-
-__all__ = ['ENV_VAR', 'EVENTS', 'FUNCTION_ARGS', 'CachedRun', 'JitCacheWarning', 'attach',
-           'cache_dir', 'cache_root', 'cached_kernels', 'module_file', 'write_atomic']
+__all__ = ['ENV_VAR', 'EVENTS', 'FUNCTION_ARGS', 'JitCacheWarning', 'attach', 'cache_dir',
+           'cache_root', 'kernel_module', 'module_file', 'write_atomic']
