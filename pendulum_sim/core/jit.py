@@ -334,6 +334,33 @@ def _kernel_twin(fn: Any) -> Any:
     return twin
 
 
+@functools.cache
+def _first_class_function() -> Any:
+    """Return numba's CPU dispatcher class whose functions are typed first-class from Python.
+
+    Passed from Python to a compiled function, one of these is typed
+    ``numba.types.FunctionType`` of its one signature (:func:`_first_class`, compiled for
+    float64 arguments where it has none), so the call matches the compiled overload at once,
+    as a function typed by its own dispatcher type would not (numba would search for a
+    conversion in Python at every call).
+    """
+    from numba.core import types as nbtypes
+    from numba.core.registry import CPUDispatcher
+
+    class FirstClassFunction(CPUDispatcher):  # type: ignore[misc, unused-ignore]
+        """A compiled function of one signature, a first-class function when passed."""
+
+        @property
+        def _numba_type_(self) -> Any:
+            ty = self.__dict__.get('_first_class_type')
+            if ty is None:
+                ty = self.__dict__['_first_class_type'] = _first_class(
+                    nbtypes.Dispatcher(self))
+            return ty
+
+    return FirstClassFunction
+
+
 class CachedRun:
     """A cached sweep run called as the uncached one: its generated functions passed last."""
 
@@ -361,7 +388,8 @@ def _cached_kernels(env: dict[str, Any]) -> tuple[CachedRun, CachedRun]:
 
     functions = []
     for name in FUNCTION_ARGS:
-        disp = numba.njit(_twin(env[name], deep=True))
+        disp = _first_class_function()(py_func=_twin(env[name], deep=True), locals={},
+                                       targetoptions={'nopython': True, 'boundscheck': None})
         attach(disp, 'functions')
         functions.append(disp)
     runs = []
