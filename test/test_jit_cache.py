@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -17,8 +18,18 @@ from typing import Any
 
 import pytest
 
+from pendulum_sim.core.compiled_careful import careful_step
+from pendulum_sim.core.decisions import compile_kernel
 from pendulum_sim.core.jit import available
-from pendulum_sim.core.jit_cache import ENV_VAR, module_file, write_atomic
+from pendulum_sim.core.jit_cache import (
+    ENV_VAR,
+    JitCacheWarning,
+    cache_dir,
+    kernel_module,
+    module_file,
+    write_atomic,
+)
+from pendulum_sim.core.tableaus import TABLEAUS
 
 pytestmark = pytest.mark.skipif(not available(), reason='numba is not installed (jit extra)')
 
@@ -111,3 +122,18 @@ def test_a_module_file_is_named_by_its_text_and_rewritten_whole(tmp_path: Path) 
     assert module_file(tmp_path, 'x = 1\n') == path and path.read_text() == 'x = 1\n'
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         [path.name, module_file(tmp_path, 'x = 2\n').name])  # no temporary files left
+
+
+def test_a_cache_directory_removed_under_a_process_leaves_the_run_in_memory(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The directory was writable when first used, then removed and a file put in its place:
+    # the run's module file cannot be written, so the run is compiled in memory (None here),
+    # after the warning, not a crash.
+    monkeypatch.setenv(ENV_VAR, str(tmp_path / 'jit'))
+    directory = cache_dir()
+    assert directory is not None and directory.is_dir()
+    shutil.rmtree(tmp_path / 'jit')
+    (tmp_path / 'jit').write_text('')
+    fn = compile_kernel(TABLEAUS['rk4'], 2.0, careful_step)
+    with pytest.warns(JitCacheWarning, match=f'the jit cache {directory} is not writable'):
+        assert kernel_module(fn) is None

@@ -99,12 +99,18 @@ def _writable(path: str) -> Path | None:
         os.makedirs(path, exist_ok=True)
         tempfile.TemporaryFile(dir=path).close()
     except OSError as exc:
-        EVENTS['unwritable'] += 1
-        warnings.warn(f'pendulum_sim: the jit cache {path} is not writable ({exc.strerror}); '
-                      f'compiling in memory (set {ENV_VAR} to a writable directory)',
-                      JitCacheWarning, stacklevel=4)
+        _warn_unwritable(path, exc)
         return None
     return Path(path)
+
+
+def _warn_unwritable(path: str, exc: Exception) -> None:
+    """Count and warn that ``path`` cannot be written: the compiled paths stay in memory."""
+    EVENTS['unwritable'] += 1
+    reason = exc.strerror if isinstance(exc, OSError) else str(exc)
+    warnings.warn(f'pendulum_sim: the jit cache {path} is not writable ({reason}); '
+                  f'compiling in memory (set {ENV_VAR} to a writable directory)',
+                  JitCacheWarning, stacklevel=5)
 
 
 def write_atomic(path: Path, text: str) -> None:
@@ -198,8 +204,13 @@ def attach(dispatcher: Any, part: str) -> bool:
     if directory is None:
         return False
     if id(dispatcher) not in _ATTACHED:
+        try:
+            cache = _cache_class(str(directory / part))(dispatcher.py_func)
+        except (OSError, RuntimeError) as exc:  # the folder went away or cannot be made
+            _warn_unwritable(str(directory / part), exc)
+            return False
         _ATTACHED.add(id(dispatcher))
-        dispatcher._cache = _cache_class(str(directory / part))(dispatcher.py_func)
+        dispatcher._cache = cache
     return True
 
 
@@ -221,7 +232,11 @@ def kernel_module(fn: Any) -> dict[str, Any] | None:
     if text.count(header) != 1:
         return None
     text = text.replace(header, f'def kernel({", ".join(KERNEL_ARGS + FUNCTION_ARGS)}):')
-    path = module_file(directory, text)
+    try:
+        path = module_file(directory, text)
+    except OSError as exc:  # the directory was removed or made read-only since
+        _warn_unwritable(str(directory), exc)
+        return None
     module = sys.modules.get(f'pendulum_sim_jit_{path.stem}')
     if module is None:
         module = types.ModuleType(f'pendulum_sim_jit_{path.stem}')
