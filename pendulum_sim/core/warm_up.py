@@ -1,8 +1,8 @@
 """Compile the compiled sweep's paths before the clock starts: the ``jit`` warm-up.
 
 A ``jit=True`` sweep compiles the careful path once and a run per spelling of the damping law
-(``decisions.kernel_source``), in a serial and a parallel form: 20–45 s on a 2-core machine
-for the first spelling, 3–10 s for each further one. The compiled code is kept on disk
+(``decisions.kernel_source``), in a serial and a parallel form: 25–45 s on a 2-core machine
+for the first spelling, 10–15 s for each further one. The compiled code is kept on disk
 (``jit_cache.py``), so only the first process on a machine pays this; a later process loads it
 (about 1 s for the first sweep, imports included). :func:`warm_up` takes one compiled step of
 each form for each spelling asked for, so a following sweep of those laws (any ω0², γ, state,
