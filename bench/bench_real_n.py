@@ -13,8 +13,11 @@ of all steps here at 2.7 branch substeps each; the one-by-one share the steps sp
 reversal, about 170 scalar branch substeps each). With ``--jit`` (numba, the ``jit`` extra)
 also the compiled sweep (after a first call that compiles) beside a bare compiled RK4 kernel
 (``bench_sweep_jit.bare_rk4``: per exponent for integer n, the n = 1.5 kernel over all for
-distinct n) over the same pendulums, and the first ``jit=True`` sweep of a
-fresh process (its compile time: the compiled paths are not cached on disk). Asserts nothing.
+distinct n) over the same pendulums, and the first ``jit=True`` sweep of a fresh process twice
+on one new, empty cache directory (``jit_cache.py``, ``PENDULUM_SIM_JIT_CACHE``): the first
+process compiles (cache cold), the second loads what the first compiled (cache warm); timed in
+each process from before its imports to the sweep's end (``--first`` prints these two alone).
+Asserts nothing.
 """
 from __future__ import annotations
 
@@ -24,6 +27,7 @@ import os
 import platform
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -61,15 +65,25 @@ def timed(args: dict[str, Any], steps: int, repeats: int, jit: bool) -> tuple[fl
     return best, res
 
 
-def first_jit_fresh(size: int) -> str:
-    """Return the first ``jit=True`` sweep of a fresh process, timed in that process."""
+def first_jit_fresh(size: int, cache: str) -> str:
+    """Return the first ``jit=True`` sweep of a fresh process on ``cache``, timed in it."""
     code = ('import time; t0 = time.perf_counter(); import sys; sys.path.insert(0, "bench");'
             'from bench_real_n import population; from pendulum_sim.core.sweep import sweep;'
             f'sweep(**population({size}, "distinct n in [1, 3]"), t_end=0.01, h=1e-3, jit=True);'
             'print(f"{time.perf_counter() - t0:.1f}")')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
-                         check=True, cwd=Path(__file__).resolve().parent.parent)
+                         check=True, cwd=Path(__file__).resolve().parent.parent,
+                         env=dict(os.environ, PENDULUM_SIM_JIT_CACHE=cache))
     return out.stdout.strip()
+
+
+def first_jit_figures(size: int) -> None:
+    """Print the first ``jit=True`` sweep of a fresh process, cache cold, then cache warm."""
+    with tempfile.TemporaryDirectory() as cache:
+        print(f'first jit=True sweep of a fresh process, cache cold (distinct n, N = {size}): '
+              f'{first_jit_fresh(size, cache)} s', flush=True)
+        print(f'first jit=True sweep of a second process, cache warm (distinct n, N = {size}): '
+              f'{first_jit_fresh(size, cache)} s', flush=True)
 
 
 def main() -> int:
@@ -78,7 +92,12 @@ def main() -> int:
     parser.add_argument('--steps', type=int, default=500)
     parser.add_argument('--repeats', type=int, default=2)
     parser.add_argument('--jit', action='store_true')
+    parser.add_argument('--first', action='store_true',
+                        help='print the first jit=True sweeps of fresh processes alone')
     args = parser.parse_args()
+    if args.first:
+        first_jit_figures(2000)
+        return 0
     print(f'# sweep, h = 1 ms, {args.steps} steps, tau = 0, '
           f'{platform.processor() or platform.machine()}, {os.cpu_count()} cores', flush=True)
     for size in args.sizes:
@@ -130,8 +149,7 @@ def main() -> int:
                       f'bare compiled RK4 {ref:6.0f} ns, ratio {comp / ref:.2f}, handed back '
                       f'{res.handed_back}', flush=True)
     if args.jit:
-        print(f'first jit=True sweep of a fresh process (distinct n, N = 2000): '
-              f'{first_jit_fresh(2000)} s', flush=True)
+        first_jit_figures(2000)
     return 0
 
 

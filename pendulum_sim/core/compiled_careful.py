@@ -49,8 +49,8 @@ pendulum's counters (:data:`COUNTERS`) only where it was taken. Parity tests
 The generated functions (``plain``, ``branch``, ``laws``, ``pair_plain``, ``pair_branch``, one
 set per law text) are arguments, never names of this module: compiled by
 ``jit.first_class_twin`` they are first-class functions of one signature each, so
-:func:`careful_step` and everything under it is compiled once per process, whatever the law
-texts.
+:func:`careful_step` and everything under it is compiled once, whatever the law texts, and
+kept on disk for the next process (``jit_cache.py``).
 """
 from __future__ import annotations
 

@@ -2,9 +2,9 @@
 
 With ``jit=True`` a :class:`~pendulum_sim.core.sweep.Sweep` advances each group of pendulums (one
 exponent n) by its compiled run (``decisions.kernel_source``, compiled by ``jit.compile_kernel``
-once per law text, the careful step it calls once per process): every pendulum takes fast steps,
-its state in registers, in parallel over the pendulums, until a step is refused or the piece of the
-run is done. A refused step is taken by the compiled careful path
+once per law text, the careful step it calls once, both kept on disk by ``jit_cache.py``): every
+pendulum takes fast steps, its state in registers, in parallel over the pendulums, until a step is
+refused or the piece of the run is done. A refused step is taken by the compiled careful path
 (``compiled_careful.careful_step``: Coulomb friction at rest, the near-Coulomb creep, the guard's
 substeps, the reversal split, the fallback, the stiff transient's error-controlled substeps, the
 energy redo) where the group's ``use_careful`` is set; the steps it declines (the fallback's

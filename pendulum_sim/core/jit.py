@@ -28,10 +28,11 @@ the guard's substeps, the reversal split, the fallback, the stiff transient's er
 substeps, the energy redo, from the functions ``Engine.careful`` runs, their overflow guards
 compiled as the bare formulas by :func:`_formula`), and the few it declines (the fallback's
 refusal by its work bound, a result that is not finite) by ``engine.Engine.careful``. The run's
-plain step is inlined in its loop; the careful path is compiled once per process whatever the
-law texts (:func:`first_class_twin`): the generated functions a text passes to it are typed by
-their signature (first-class functions) and called through their addresses, so a further text
-compiles only its run and its generated functions.
+plain step is inlined in its loop; the careful path is compiled once whatever the law texts
+(:func:`first_class_twin`): the generated functions a text passes to it are typed by their
+signature (first-class functions) and called through their addresses, so a further text
+compiles only its run and its generated functions. All of it is kept on disk for later
+processes (``jit_cache.py``): only the first process on a machine compiles it.
 
 Compiling a method's two steps (plain and branch law) for one exponent costs 0.7–2.3 s, once per
 process (the compiled steps are cached per method, exponent and law); at 2–11 µs saved per
@@ -40,10 +41,13 @@ trial step that pays for itself after some 2–5 × 10⁵ trial steps, over one 
 from __future__ import annotations
 
 import functools
+import hashlib
+import sys
 import types
 from typing import Any
 
 from .errors import IntegratorError
+from .jit_cache import FUNCTION_ARGS, attach, kernel_module
 from .law import damping_derivative, slope_formula
 
 SIGNATURE = 'UniTuple(float64, 6)(float64, float64, float64, float64, float64, float64, float64)'
@@ -127,23 +131,108 @@ def _twin(fn: Any, deep: bool = False) -> Any:
            for name, value in fn.__globals__.items()
            if name != '__builtins__' and value is not fn}
     env['__builtins__'] = fn.__globals__.get('__builtins__', __builtins__)
+    if '__name__' not in env:
+        module = types.ModuleType(generated_module_name(fn))
+        sys.modules.setdefault(module.__name__, module)
+        module.__dict__.update(env)
+        env = module.__dict__
     return types.FunctionType(fn.__code__, env, fn.__name__)
+
+
+def generated_module_name(fn: Any) -> str:
+    """Return the module name of a generated function (``codegen.define``) compiled by numba.
+
+    numba names compiled code by module, qualified name and a counter of its process, and
+    links equal names as one function: two generated functions of one name (``f``, ``plain``)
+    compiled in two processes could meet under one name in a third that loads both from the
+    disk cache (``jit_cache.py``). The name is therefore the function's own: a digest of its
+    code and of the constants it reads from its namespace; the module is registered in
+    ``sys.modules`` (numba imports it when it loads the function's environment).
+    """
+    consts = sorted((name, repr(value)) for name, value in fn.__globals__.items()
+                    if name in fn.__code__.co_names and isinstance(value, (bool, int, float, str)))
+    key = repr((_code_key(fn.__code__), consts)).encode()
+    return f'pendulum_sim_generated_{hashlib.sha256(key).hexdigest()[:24]}'
+
+
+def _code_key(code: types.CodeType) -> tuple[Any, ...]:
+    """Return what identifies ``code`` across processes (its nested code objects by content)."""
+    consts = tuple(_code_key(c) if isinstance(c, types.CodeType) else repr(c)
+                   for c in code.co_consts)
+    return code.co_qualname, code.co_code, consts, code.co_names, code.co_varnames
 
 
 @functools.cache
 def numba_twin(fn: Any) -> Any:
-    """Return ``fn`` compiled by numba with everything it calls compiled (:func:`_twin` deep)."""
+    """Return ``fn`` compiled by numba with everything it calls compiled (:func:`_twin` deep).
+
+    One of the :func:`passed_values` is compiled by :func:`_static_dispatcher`'s class.
+    """
     import numba
 
     form = _formula(fn)
     if form is not fn:
         return numba.njit(form)
+    if fn in passed_values():
+        return _static_dispatcher()(py_func=_twin(fn, deep=True), locals={},
+                                    targetoptions={'nopython': True, 'boundscheck': None})
     return numba.njit(_twin(fn, deep=True))
+
+
+@functools.cache
+def passed_values() -> tuple[Any, ...]:
+    """Return the functions the careful path passes as arguments to the functions it calls.
+
+    The stage law of the fallback and the energy redo (``dirk.damping_formula``), passed by
+    ``compiled_careful.careful_step``: a compiled function passed as a value is typed by its
+    dispatcher and called directly, its value never read, but numba lowers that value as the
+    address of the Python object (a "dynamic global"), which keeps the caller out of numba's
+    disk cache (``jit_cache.py``); compiled by :func:`_static_dispatcher`'s class it is not.
+    """
+    from .dirk import damping_formula
+
+    return (damping_formula,)
+
+
+@functools.cache
+def _static_dispatcher() -> Any:
+    """Return numba's CPU dispatcher class whose value in compiled code is a null pointer.
+
+    Its numba type is a ``numba.types.Dispatcher`` (typed, called and linked as any compiled
+    function) whose constant is lowered as a null pointer instead of the Python object's
+    address, so a function passing it stays cacheable. Only for functions that compiled code
+    calls and passes on, never converts to a first-class function nor returns to Python.
+    """
+    from numba.core import types as nbtypes
+    from numba.core.datamodel.models import OpaqueModel
+    from numba.core.datamodel.registry import register_default
+    from numba.core.imputils import lower_constant
+    from numba.core.registry import CPUDispatcher
+
+    lower: Any = lower_constant
+
+    class StaticType(nbtypes.Dispatcher):  # type: ignore[misc, unused-ignore]
+        """The type of a :func:`_static_dispatcher` function."""
+
+    register_default(StaticType)(OpaqueModel)
+
+    @lower(StaticType)  # type: ignore[untyped-decorator, unused-ignore]
+    def _null(context: Any, builder: Any, ty: Any, pyval: Any) -> Any:
+        return context.get_constant_null(nbtypes.pyobject)
+
+    class StaticDispatcher(CPUDispatcher):  # type: ignore[misc, unused-ignore]
+        """A compiled function whose value compiled code does not read (a null pointer)."""
+
+        @property
+        def _numba_type_(self) -> Any:
+            return StaticType(self)
+
+    return StaticDispatcher
 
 
 FIRST_CLASS_CALLS = ('careful_step',)
 """The functions a sweep's run calls with its generated functions as arguments: compiled by
-:func:`first_class_twin`, once per process whatever the law texts."""
+:func:`first_class_twin`, once whatever the law texts."""
 
 
 def _first_class(ty: Any) -> Any:
@@ -213,7 +302,9 @@ def compile_kernel(fn: Any) -> tuple[Any, Any]:
     runs of a few pendulums, where waking the other threads costs more than the steps.
     Compiled once per source text (the runs of all exponents a text serves share it), on first
     call, for the array types of that call; the :data:`FIRST_CLASS_CALLS` it makes (the
-    careful step) once per process (:func:`first_class_twin`).
+    careful step) once (:func:`first_class_twin`). Served by the disk cache
+    (``jit_cache.cached_kernels``: loaded where a process compiled it before), compiled in
+    memory where the cache directory cannot be written.
     """
     if not available():
         raise IntegratorError(f'compiled steps need numba, which is not installed: '
@@ -222,11 +313,16 @@ def compile_kernel(fn: Any) -> tuple[Any, Any]:
 
     kernels = _KERNELS.get(fn.__code__)
     if kernels is None:
-        twin = _kernel_twin(fn)
-        serial = numba.njit(twin)
-        twin = _kernel_twin(fn)
-        twin.__globals__['prange'] = numba.prange
-        kernels = _KERNELS[fn.__code__] = (numba.njit(parallel=True)(twin), serial)
+        env = kernel_module(fn)
+        if env is not None:
+            kernels = _cached_kernels(env)
+        else:  # no writable cache directory: compiled in memory
+            twin = _kernel_twin(fn)
+            serial = numba.njit(twin)
+            twin = _kernel_twin(fn)
+            twin.__globals__['prange'] = numba.prange
+            kernels = (numba.njit(parallel=True)(twin), serial)
+        _KERNELS[fn.__code__] = kernels
     return kernels
 
 
@@ -236,3 +332,81 @@ def _kernel_twin(fn: Any) -> Any:
     for name in FIRST_CLASS_CALLS:
         twin.__globals__[name] = first_class_twin(fn.__globals__[name])
     return twin
+
+
+@functools.cache
+def _first_class_function() -> Any:
+    """Return numba's CPU dispatcher class whose functions are typed first-class from Python.
+
+    Passed from Python to a compiled function, one of these is typed
+    ``numba.types.FunctionType`` of its one signature (:func:`_first_class`, compiled for
+    float64 arguments where it has none), so the call matches the compiled overload at once,
+    as a function typed by its own dispatcher type would not (numba would search for a
+    conversion in Python at every call).
+    """
+    from numba.core import types as nbtypes
+    from numba.core.registry import CPUDispatcher
+
+    class FirstClassFunction(CPUDispatcher):  # type: ignore[misc, unused-ignore]
+        """A compiled function of one signature, a first-class function when passed."""
+
+        @property
+        def _numba_type_(self) -> Any:
+            ty = self.__dict__.get('_first_class_type')
+            if ty is None:
+                ty = self.__dict__['_first_class_type'] = _first_class(
+                    nbtypes.Dispatcher(self))
+            return ty
+
+    return FirstClassFunction
+
+
+class CachedRun:
+    """A cached sweep run called as the uncached one: its generated functions passed last."""
+
+    def __init__(self, dispatcher: Any, functions: tuple[Any, ...], py_func: Any) -> None:
+        self.dispatcher = dispatcher
+        self.functions = functions
+        self.py_func = py_func
+
+    def __call__(self, *args: Any) -> Any:
+        return self.dispatcher(*args, *self.functions)
+
+    def __getattr__(self, name: str) -> Any:
+        """Read the dispatcher's other attributes (``signatures``, ``stats``) through."""
+        return getattr(self.dispatcher, name)
+
+
+def _cached_kernels(env: dict[str, Any]) -> tuple[CachedRun, CachedRun]:
+    """Return (parallel, serial) of the run of ``env`` (``jit_cache.kernel_module``), cached.
+
+    The run and its generated functions (``jit_cache.FUNCTION_ARGS``) are compiled with numba's
+    disk cache (``jit_cache.attach``), the run's careful step (:data:`FIRST_CLASS_CALLS`,
+    :func:`first_class_twin`) too; the run takes those functions as first-class arguments.
+    """
+    import numba
+
+    functions = []
+    for name in FUNCTION_ARGS:
+        disp = _first_class_function()(py_func=_twin(env[name], deep=True), locals={},
+                                       targetoptions={'nopython': True, 'boundscheck': None})
+        attach(disp, 'functions')
+        functions.append(disp)
+    runs = []
+    for parallel in (True, False):
+        twin = _twin(env['kernel'], deep=True)
+        for name in FIRST_CLASS_CALLS:
+            twin.__globals__[name] = first_class_twin(env[name])
+            attach(twin.__globals__[name], 'careful')
+        # The names the run now takes as arguments: kept for who reads its namespace.
+        twin.__globals__.update(zip(FUNCTION_ARGS, functions, strict=True))
+        # Two compiled forms of one function: numba names (and links) them by their names.
+        twin.__qualname__ = 'kernel_parallel' if parallel else 'kernel_serial'
+        if parallel:
+            twin.__globals__['prange'] = numba.prange
+        disp = _first_class_dispatcher()(
+            py_func=twin, locals={},
+            targetoptions={'nopython': True, 'boundscheck': None, 'parallel': parallel})
+        attach(disp, 'parallel' if parallel else 'serial')
+        runs.append(CachedRun(disp, tuple(functions), twin))
+    return runs[0], runs[1]

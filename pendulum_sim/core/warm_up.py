@@ -1,17 +1,22 @@
 """Compile the compiled sweep's paths before the clock starts: the ``jit`` warm-up.
 
-A process's first ``jit=True`` sweep compiles the careful path once and a run per spelling of
-the damping law (``decisions.kernel_source``): tens of seconds on a small machine, paid inside
-whatever the user times. :func:`warm_up` pays it up front: it takes one compiled step for one
-pendulum per spelling asked for, so a following sweep of those laws (any ω0², γ, state, torque
-and any exponent of those spellings) starts at once. The compiled paths are kept for the
-process, not on disk: every new process (a campaign worker too) pays the compile again.
+A ``jit=True`` sweep compiles the careful path once and a run per spelling of the damping law
+(``decisions.kernel_source``), in a serial and a parallel form: 25–45 s on a 2-core machine
+for the first spelling, 10–15 s for each further one. The compiled code is kept on disk
+(``jit_cache.py``), so only the first process on a machine pays this; a later process loads it
+(about 1 s for the first sweep, imports included). :func:`warm_up` takes one compiled step of
+each form for each spelling asked for, so a following sweep of those laws (any ω0², γ, state,
+torque, number of pendulums and any exponent of those spellings) starts at once: called before
+the clock starts, it pays the compile (first process) or the load (later ones) there.
 """
 from __future__ import annotations
 
 import time
 from collections.abc import Iterable
 
+import numpy as np
+
+from .compiled_sweep import PARALLEL_MIN
 from .errors import IntegratorError
 from .jit import INSTALL_HINT, available
 from .law import power_source
@@ -23,7 +28,7 @@ DEFAULT_EXPONENTS = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 
 def warm_up(exponents: Iterable[float] = DEFAULT_EXPONENTS, method: str = 'rk4',
             friction: bool = False) -> float:
-    """Compile the compiled sweep for the damping laws of ``exponents``; return the seconds.
+    """Compile (or load from the disk cache) the compiled sweep for ``exponents``; return seconds.
 
     One exponent stands for all that the law spells alike (``law.power_source``: 0, 0.5 and
     each whole n up to 8 their own, every other n one spelling), so ``(1.5,)`` serves every
@@ -46,10 +51,13 @@ def warm_up(exponents: Iterable[float] = DEFAULT_EXPONENTS, method: str = 'rk4',
         spelled.setdefault(power_source(float(n), 'n'), float(n))
     t0 = time.perf_counter()
     for n in spelled.values():
-        # A moving pendulum with damping: the run and the careful step it calls compile.
-        sweep(9.8, 1.0, n, 1.0, 0.5, 1e-3, 1e-3, method=method, jit=True)
-        if friction:
-            sweep(9.8, 1.0, n, 1.0, 0.5, 1e-3, 1e-3, method=method, jit=True, friction=0.5)
+        # Moving pendulums with damping: the runs and the careful step they call compile, the
+        # serial run for one pendulum, the parallel one for PARALLEL_MIN (compiled_sweep.py);
+        # with ``friction`` the runs beside a Coulomb friction as well.
+        for size in (1, PARALLEL_MIN):
+            for fr in (0.0, 0.5) if friction else (0.0,):
+                sweep(9.8, np.ones(size), n, 1.0, 0.5, 1e-3, 1e-3, method=method, jit=True,
+                      friction=fr)
     return time.perf_counter() - t0
 
 
