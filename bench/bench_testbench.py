@@ -20,7 +20,8 @@
     episodes of ``pd_batch`` (γ and φ0 drawn; with ``--vector-n`` also n ~ uniform(1.2, 1.6)),
     ``pendulum_campaign --workers 1`` end to end (its start-up, the cluster, the episode
     process, metrics, the SQLite store, the table, figures and summary) beside ``run_batch``
-    alone on the same episodes' parameters, and their ratio.
+    alone on the same episodes' parameters, and their ratio; with ``--vector-jit`` also both
+    on the compiled sweep (the campaign's ``jit: true``).
 
     ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py
     ROS_DOMAIN_ID=150 .venv/bin/python bench/bench_testbench.py --skip-ros --skip-campaign
@@ -217,8 +218,13 @@ requirements: ['settling_time < 3.0']
 """
 
 
-def vector_campaign(episodes: int, with_n: bool) -> tuple[float, float]:
-    """Return the episodes per second of run_batch alone and of pendulum_campaign end to end."""
+def vector_campaign(episodes: int, with_n: bool, jit: bool = False) -> tuple[float, float]:
+    """Return the episodes per second of run_batch alone and of pendulum_campaign end to end.
+
+    With ``jit`` both on the compiled sweep (the campaign's ``jit: true``; run_batch after
+    ``warm_up_batch``, as the campaign's episode process does before its clock starts).
+    """
+    from pendulum_sim.testing.batch import warm_up_batch
     from pendulum_sim.testing.campaign.episode import episode_values
     from pendulum_sim.testing.campaign.scenarios import episode_scenario
     from pendulum_sim.testing.campaign.spec import parse_spec
@@ -227,12 +233,17 @@ def vector_campaign(episodes: int, with_n: bool) -> tuple[float, float]:
     if with_n:
         text = text.replace('requirements:', '  n: {distribution: uniform, low: 1.2, '
                             'high: 1.6}\nrequirements:')
+    if jit:
+        text = text.replace('seed: 1', 'seed: 1\njit: true')
     spec = parse_spec(text)
     drawn = [episode_scenario(spec, i) for i in range(episodes)]
     values = [episode_values(spec, d.values) for d in drawn]
-    run_batch(pd_batch, values[:64], 5, targets=[d.target for d in drawn[:64]])   # warm-up
+    if jit:
+        warm_up_batch(values)
+    run_batch(pd_batch, values[:64], 5, targets=[d.target for d in drawn[:64]],   # warm-up
+              jit=jit)
     start = time.perf_counter()
-    run_batch(pd_batch, values, spec.periods, targets=[d.target for d in drawn])
+    run_batch(pd_batch, values, spec.periods, targets=[d.target for d in drawn], jit=jit)
     alone = episodes / (time.perf_counter() - start)
     del values
     with tempfile.TemporaryDirectory() as tmp:
@@ -265,6 +276,8 @@ def main() -> int:
     parser.add_argument('--vector-episodes', type=int, default=10_000)
     parser.add_argument('--vector-n', action='store_true',
                         help='(e) also with n drawn (slow until the core batches real n)')
+    parser.add_argument('--vector-jit', action='store_true',
+                        help='(e) also with jit: true (the compiled sweep, numba)')
     parser.add_argument('--only-vector', action='store_true', help='run (e) alone')
     parser.add_argument('--skip-ros', action='store_true')
     parser.add_argument('--skip-campaign', action='store_true',
@@ -279,11 +292,15 @@ def main() -> int:
     scalar = scalar_rate(args.scalar_episodes)
     print(f'(a) in-process, scalar : {scalar:9.2f} episodes/s (10 s episodes, h = 1 ms, '
           '100 Hz)', flush=True)
-    for with_n in (False, True) if args.vector_n else (False,):
+    cases = [(False, False), (True, False)] if args.vector_n else [(False, False)]
+    if args.vector_jit:
+        cases += [(with_n, True) for with_n, _ in cases]
+    for with_n, jit in cases:
         load = os.getloadavg()[0]
-        alone, campaign = vector_campaign(args.vector_episodes, with_n)
+        alone, campaign = vector_campaign(args.vector_episodes, with_n, jit)
         drawn = 'gamma, phi0 and n' if with_n else 'gamma and phi0'
-        print(f'(e) {args.vector_episodes} episodes of pd_batch, {drawn} drawn (load average '
+        drawn += ' drawn, jit: true (compiled sweep)' if jit else ' drawn'
+        print(f'(e) {args.vector_episodes} episodes of pd_batch, {drawn} (load average '
               f'{load:.2f} before, {os.getloadavg()[0]:.2f} after): run_batch {alone:8.1f} '
               f'episodes/s, pendulum_campaign --workers 1 end to end {campaign:8.1f} '
               f'episodes/s = {campaign / alone:.2f} x run_batch = {campaign / scalar:.1f} x (a)',

@@ -9,9 +9,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pendulum_sim.core.jit import available as jit_available
 from pendulum_sim.testing import TestingError, vectorised
 from pendulum_sim.testing.batch import batchable, run_batch
 from pendulum_sim.testing.campaign.episode import RUN_COLUMNS, run_episode, run_episodes
+from pendulum_sim.testing.campaign.spec import parse_spec
+from pendulum_sim.testing.errors import CampaignError
 from pendulum_sim.testing.examples import pd, pd_batch
 from pendulum_sim.testing.loop import ClosedLoopRun, run_in_process
 from pendulum_sim.testing.scene import scene_values
@@ -196,3 +199,28 @@ def test_a_batched_campaign_has_the_rows_of_the_scalar_episodes(
             if key not in RUN_COLUMNS:
                 assert repr(a[key]) == repr(b[key]), key
     assert {r['passed'] for r in batched} == {True, False}
+
+
+@pytest.mark.skipif(not jit_available(), reason='needs numba (the jit extra)')
+def test_a_compiled_campaign_has_the_rows_of_the_numpy_one() -> None:
+    # jit: true puts a vectorised law's batches on the compiled sweep, warmed up (or loaded
+    # from the disk cache) before the clock starts: the same rows, the integer laws and the
+    # Coulomb law here, to the bit, a friction beside them included.
+    text = CAMPAIGN.format(law='pd_batch').replace(
+        'requirements:', '  friction: [0.0, 0.03]\nrequirements:')
+    numpy_rows = run_episodes(text, list(range(24)), None)
+    compiled = run_episodes(text.replace('episodes: 24', 'episodes: 24\njit: true'),
+                            list(range(24)), None)
+    for a, b in zip(numpy_rows, compiled, strict=True):
+        for key in a:
+            if key not in RUN_COLUMNS:
+                assert repr(a[key]) == repr(b[key]), key
+    assert {r['friction'] for r in compiled} == {0.0, 0.03}
+
+
+@pytest.mark.parametrize(('value', 'message'), [
+    ("'yes'", "jit must be true or false, got 'yes'"), ('1', 'jit must be true or false, got 1')])
+def test_the_jit_key_is_a_bool(value: str, message: str) -> None:
+    text = CAMPAIGN.format(law='pd_batch').replace('episodes: 24', f'episodes: 24\njit: {value}')
+    with pytest.raises(CampaignError, match=re.escape(message)):
+        parse_spec(text)

@@ -19,6 +19,7 @@ and ``test/test_testing_batch.py`` holds them to each other.
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -88,11 +89,14 @@ def _scalar(law: BatchLaw, target: float | None) -> Callable[[float, float, floa
 
 
 def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]], periods: int,
-              targets: Sequence[float] | None = None) -> list[ClosedLoopRun | TestingError]:
+              targets: Sequence[float] | None = None,
+              jit: bool = False) -> list[ClosedLoopRun | TestingError]:
     """Run one episode per parameter set in ``episodes``; return each run or its failure.
 
     ``targets`` (one per episode) reach a law that takes a keyword ``target`` as an array of
-    the live episodes' targets; a law without it gets none.
+    the live episodes' targets; a law without it gets none. With ``jit`` the batch's pendulums
+    are the compiled sweep (``Sweep(..., jit=True)``, numba: the same steps, see
+    ``pendulum_sim.core.sweep``); :func:`warm_up_batch` compiles it beforehand.
     """
     from pendulum_sim.core.errors import PendulumError
     from pendulum_sim.core.sweep import Sweep
@@ -113,9 +117,10 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]], periods: i
                                       configs[i].guard, configs[i].epoch_ns) == same]
     redo = sorted(set(range(len(episodes))) - set(batch))
     if batch:
+        prepare = functools.partial(Sweep, jit=True) if jit else Sweep
         redo += _lockstep(law, [configs[i] for i in batch], [episodes[i] for i in batch],
                           None if given is None else given[batch],
-                          batch, periods, results, Sweep, PendulumError)
+                          batch, periods, results, prepare, PendulumError)
     for i in sorted(redo):
         try:
             results[i] = run_in_process(
@@ -123,6 +128,23 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]], periods: i
         except TestingError as exc:
             results[i] = exc
     return [r if r is not None else TestingError('not run') for r in results]
+
+
+def warm_up_batch(episodes: Sequence[Mapping[str, Value]]) -> float:
+    """Compile (or load from the disk cache) the compiled sweep ``run_batch(..., jit=True)``
+    takes for these episodes: their damping laws, integrator and friction
+    (``pendulum_sim.core.warm_up``); return the seconds. Called before the clock starts.
+    """
+    from pendulum_sim.core.warm_up import warm_up
+    from pendulum_sim.node.parameters import joint_config
+
+    configs = [joint_config(v, epoch_ns(v)) for v in episodes]
+    seconds = 0.0
+    for method in sorted({c.method for c in configs if not batchable_config(c)}):
+        mine = [c for c in configs if c.method == method]
+        seconds += warm_up(sorted({c.params.n for c in mine}), method,
+                           friction=any(c.params.friction > 0.0 for c in mine))
+    return seconds
 
 
 def _lockstep(law: BatchLaw, configs: list[Any], values: list[Mapping[str, Value]],
@@ -227,4 +249,4 @@ def _whole_ns(h: float) -> bool:
     return abs(h * 1e9 - round(h * 1e9)) < 1e-6
 
 
-__all__ = ['BatchLaw', 'batchable', 'batchable_config', 'run_batch']
+__all__ = ['BatchLaw', 'batchable', 'batchable_config', 'run_batch', 'warm_up_batch']

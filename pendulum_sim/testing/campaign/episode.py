@@ -166,7 +166,7 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
 
     ``wall_time_s`` of each row is the batch's time divided by its size.
     """
-    from ..batch import run_batch
+    from ..batch import run_batch, warm_up_batch
 
     started = time.perf_counter()
     spec = cached_spec(text)
@@ -180,9 +180,12 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
             params.append(exc)
     ok = [i for i, p in enumerate(params) if not isinstance(p, TestingError)]
     results: list[Any] = list(params)
+    if spec.jit and ok:   # compiled (or loaded from the disk cache) before the clock starts
+        warm_up_batch([params[i] for i in ok])
+        started = time.perf_counter()
     try:
         batch = run_batch(law, [params[i] for i in ok], spec.periods,
-                          targets=[drawn[i].target for i in ok])
+                          targets=[drawn[i].target for i in ok], jit=spec.jit)
     finally:
         loop_done()
     for i, res in zip(ok, batch, strict=True):

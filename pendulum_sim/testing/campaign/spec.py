@@ -30,7 +30,7 @@ from ..scene import FORCED
 from ..target import PLACEHOLDER, has_placeholder, takes_target
 
 KEYS = ('controller', 'scene', 'episodes', 'seed', 'periods', 'target', 'parameters',
-        'requirements', 'episode_timeout')
+        'requirements', 'episode_timeout', 'jit')
 REQUIRED = ('controller', 'episodes', 'periods', 'target')
 DISTRIBUTIONS: dict[str, tuple[str, ...]] = {'uniform': ('low', 'high'),
                                              'normal': ('mean', 'std'),
@@ -101,6 +101,7 @@ class CampaignSpec:
     requirements: tuple[Requirement, ...]
     text: str
     episode_timeout: float = EPISODE_TIMEOUT
+    jit: bool = False   # a vectorised law's batches on the compiled sweep (numba)
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -373,14 +374,29 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
     timeout = _number('episode_timeout', data.get('episode_timeout', EPISODE_TIMEOUT))
     if timeout <= 0.0:
         raise CampaignError(f'episode_timeout must be > 0 s, got {timeout:g}')
+    jit = _jit(data.get('jit', False))
     spec = CampaignSpec(
         controller=controller, scene=scene,
         episodes=_integer('episodes', data['episodes'], 1, MAX_EPISODES),
         seed=_integer('seed', data.get('seed', 0), 0, 2**63 - 1),
         periods=_integer('periods', data['periods'], 1, 10_000_000),
         target=target, parameters=tuple(spaces),
-        requirements=tuple(_requirement(r) for r in reqs), text=text, episode_timeout=timeout)
+        requirements=tuple(_requirement(r) for r in reqs), text=text, episode_timeout=timeout,
+        jit=jit)
     return spec
+
+
+def _jit(value: object) -> bool:
+    """Return the ``jit`` key: True runs a vectorised law's batches on the compiled sweep."""
+    if not isinstance(value, bool):
+        raise CampaignError(f'jit must be true or false, got {shown(value)}')
+    if value:
+        from pendulum_sim.core.jit import INSTALL_HINT, available
+
+        if not available():
+            raise CampaignError(f'jit: true needs numba, which is not installed: '
+                                f'{INSTALL_HINT}')
+    return value
 
 
 def read_spec(path: str | Path) -> CampaignSpec:
