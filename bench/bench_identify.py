@@ -7,10 +7,11 @@ Run: ``.venv/bin/python bench/bench_identify.py`` (``--seconds``, ``--rate``, ``
 
 1. the compile: :func:`pendulum_sim.core.warm_up.warm_up` for the exponents of every law
    ``compare`` fits (paid once per process; not part of the timings below);
-2. which models ``compare`` offers and which it refuses, with its reason (``power+coulomb``
-   until the core has a friction torque; the benchmark fits it as soon as ``compare`` offers
-   it);
-3. ``compare`` over every offered model, its wall time beside the 10 s target;
+2. which models ``compare`` offers (all five, ``laws.COMPARED``) and any it refuses, with its
+   reason;
+3. ``compare`` over every offered model, its wall time beside the 10 s target (on the compiled
+   sweep but for the laws with a friction, which run on the numpy sweep until the compiled one
+   takes it: ``fit.COMPILED_FRICTION``, printed);
 4. for each law, the fit by hand a user would write: ``scipy.optimize.least_squares`` (trf,
    its own 2-point Jacobian) with ``solve_ivp`` (RK45, rtol 1e-8, atol 1e-10, ``t_eval`` the
    samples) as the model, the same parameters, started from ``compare``'s first start, stopped
@@ -39,7 +40,7 @@ from pendulum_sim.core import PendulumParams, simulate
 from pendulum_sim.core.jit import available as jit_available
 from pendulum_sim.core.warm_up import warm_up
 from pendulum_sim.identify import LAWS, MODELS, IdentifyError, compare, prepare
-from pendulum_sim.identify.fit import _starts
+from pendulum_sim.identify.fit import COMPILED_FRICTION, _starts
 from pendulum_sim.identify.laws import get_law
 
 MAX_NFEV = 60
@@ -150,6 +151,9 @@ def main() -> None:
     print(f'models compare offers: {", ".join(models)}')
     for name, why in refused.items():
         print(f'refused: {name}: {why}')
+    if jit and not COMPILED_FRICTION:
+        print('numpy sweep for the laws with a friction (fit.COMPILED_FRICTION is False): '
+              + ', '.join(m for m in models if LAWS[m].friction))
     if jit:
         secs = warm_up(exponents(models))
         print(f'compile (first call; warm_up{exponents(models)}, once per process): '

@@ -37,6 +37,10 @@ N_UNDETERMINED = 1.0
 cannot tell viscous from quadratic damping)."""
 KNOWN = ('omega0', 'gamma', 'n', 'phi_offset', 'inertia')
 """What ``known`` may fix."""
+COMPILED_FRICTION = False
+"""Whether the core's compiled sweep takes a friction beside the law (``sweep(jit=True,
+friction=...)``). Until it does, a law that fits one (``power+coulomb``) runs on the numpy
+sweep whatever ``jit`` says; ``_use_jit`` is the one place that decides."""
 
 
 @dataclass(frozen=True)
@@ -349,12 +353,15 @@ def _friction(law: Law, known: dict[str, float], params: dict[str, Value],
                                'deceleration in rad/s^2')
 
 
-def _use_jit(jit: bool | None) -> bool:
+def _use_jit(jit: bool | None, law: Law) -> bool:
+    """Say whether ``law`` is simulated on the compiled sweep (``COMPILED_FRICTION``)."""
     if jit is None:
-        return jit_available()
-    if not isinstance(jit, bool):
+        use = jit_available()
+    elif not isinstance(jit, bool):
         raise IdentifyError(f'jit must be True, False or None, got {jit!r}')
-    return jit
+    else:
+        use = jit
+    return use and (COMPILED_FRICTION or not law.friction)
 
 
 Progress = Callable[[int, int], None]
@@ -366,7 +373,7 @@ def fit_records(records: Sequence[Record], *, model: str = 'power',
     """Fit ``model`` to each prepared record, all starts of all records in one lockstep."""
     law = get_law(model)
     fixed = _check_known(known)
-    use_jit = _use_jit(jit)
+    use_jit = _use_jit(jit, law)
     out: list[Fit | None] = [None] * len(records)
     problems: list[Problem] = []
     owner: list[int] = []
@@ -410,7 +417,8 @@ def fit(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
         a free swing).
     model : str
         ``'viscous'``, ``'quadratic'``, ``'coulomb'``, ``'power'`` or ``'power+coulomb'``
-        (the power law beside the core's Coulomb ``friction``; simulated on the numpy sweep).
+        (the power law beside the core's Coulomb ``friction``; simulated on the numpy sweep
+        until the compiled one takes a friction, ``COMPILED_FRICTION``).
     known : dict, optional
         Values to hold fixed: ``omega0``, ``gamma``, ``n``, ``phi_offset``, and ``inertia``
         (kg m², which turns the Coulomb deceleration into a friction torque).
@@ -447,9 +455,10 @@ def compare(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
             models: Sequence[str] | None = None, known: Mapping[str, float] | None = None,
             jit: bool | None = None, progress: Callable[[str], None] | None = None
             ) -> list[Fit]:
-    """Fit each model (default: viscous, quadratic, coulomb, power) and rank them by BIC.
+    """Fit each model (default: all five, ``laws.COMPARED``) and rank them by BIC.
 
-    ``power+coulomb`` is fitted where ``models`` names it (``laws.COMPARED``).
+    ``models`` names the laws to fit instead, of viscous, quadratic, coulomb, power and
+    power+coulomb.
     """
     rec = prepare(t, position, velocity, effort)
     return compare_records([rec], models=models, known=known, jit=jit, progress=progress)[0]
