@@ -7,9 +7,10 @@ Run: ``.venv/bin/python bench/bench_identify.py`` (``--seconds``, ``--rate``, ``
 
 1. the compile: :func:`pendulum_sim.core.warm_up.warm_up` for the exponents of every law
    ``compare`` fits (paid once per process; not part of the timings below);
-2. which models ``compare`` offers and which it refuses, with its reason (none: all five,
-   ``power+coulomb`` on the compiled sweep beside a friction as well);
-3. ``compare`` over every offered model, its wall time beside the 10 s target;
+2. which models ``compare`` offers (all five, ``laws.COMPARED``) and any it refuses, with its
+   reason;
+3. ``compare`` over every offered model (all five), its wall time beside the 10 s target, on
+   the compiled sweep (``power+coulomb`` beside a friction too);
 4. for each law, the fit by hand a user would write: ``scipy.optimize.least_squares`` (trf,
    its own 2-point Jacobian) with ``solve_ivp`` (RK45, rtol 1e-8, atol 1e-10, ``t_eval`` the
    samples) as the model, the same parameters, started from ``compare``'s first start, stopped
@@ -152,8 +153,8 @@ def main() -> None:
     if jit:
         friction = any(LAWS[m].friction for m in models)   # power+coulomb: its own texts
         secs = warm_up(exponents(models), friction=friction)
-        print(f'compile (first call; warm_up({exponents(models)}, friction={friction}), once '
-              f'per process): {secs:.2f} s, not counted below')
+        print(f'compile or load from the disk cache (first call; warm_up({exponents(models)}, '
+              f'friction={friction}), once per process): {secs:.2f} s, not counted below')
     else:
         print('compile: none (numpy sweep; --no-jit or numba missing)')
 

@@ -2,7 +2,9 @@
 
 The truth is simulated by the core's sweep at a fine step (1 ms, 16-64 times finer than the
 fit's), sampled at jittered stamps, with Gaussian sensor noise and an encoder's quantisation
-added, and a zero offset.
+added, and a zero offset. A record starts released from rest (``start='rest'``) or passing the
+centre at full speed (``start='centre'``): φ = 0 with the speed 2 ω0 sin(A/2) that swings out to
+the same release angle A (energy ½φ'² = ω0² (1 − cos A), neglecting the damping).
 """
 from __future__ import annotations
 
@@ -33,8 +35,11 @@ class Truth:
 
 def records(count: int, seed: int, *, duration: float = 6.0, rate: float = 25.0,
             noise: float = 2e-3, resolution: float = 1e-3,
-            laws: tuple[str, ...] = tuple(LAWS)) -> list[tuple[Truth, FloatArray, FloatArray]]:
+            laws: tuple[str, ...] = tuple(LAWS), start: str = 'rest'
+            ) -> list[tuple[Truth, FloatArray, FloatArray]]:
     """Return ``count`` records (truth, t, position), the laws taken in turn."""
+    if start not in ('rest', 'centre'):
+        raise ValueError(f"start must be 'rest' or 'centre', got {start!r}")
     rng = np.random.default_rng(seed)
     truths = []
     for i in range(count):
@@ -43,9 +48,11 @@ def records(count: int, seed: int, *, duration: float = 6.0, rate: float = 25.0,
         truths.append(Truth(name, float(rng.uniform(2.5, 4.0)), float(rng.uniform(lo, hi)), n,
                             float(rng.uniform(-0.1, 0.1))))
     h = 1e-3
-    phi0 = rng.uniform(0.6, 1.2, count)
-    run = sweep(np.array([t.omega0 ** 2 for t in truths]), np.array([t.gamma for t in truths]),
-                np.array([t.n for t in truths]), phi0, 0.0, duration, h, record_every=1)
+    amp = rng.uniform(0.6, 1.2, count)
+    omega0 = np.array([t.omega0 for t in truths])
+    phi0, dphi0 = (amp, 0.0) if start == 'rest' else (0.0, 2.0 * omega0 * np.sin(amp / 2.0))
+    run = sweep(omega0 ** 2, np.array([t.gamma for t in truths]),
+                np.array([t.n for t in truths]), phi0, dphi0, duration, h, record_every=1)
     assert run.t_record is not None and run.phi_record is not None
     every = round(1.0 / (rate * h))
     out = []

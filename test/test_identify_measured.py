@@ -1,10 +1,10 @@
 """``compare`` on measured pendulums no one here wrote: the docs' table, recomputed and checked.
 
-The records under ``test/data/`` (MIT-licensed, see each ``SOURCE.md``) are fitted with every
-law ``compare`` offers; the table in ``docs/tutorials/identify.md`` ("Measured pendulums") must
-be what these fits give, and what it says of the damping laws must hold. The compiled sweep
-makes the five fits take seconds (numpy takes minutes on the real exponents), so the module
-needs numba.
+The records under ``test/data/`` (MIT-licensed, see each ``SOURCE.md``) are fitted with the
+table's four laws (all but ``power+coulomb``); the table in
+``docs/tutorials/identify.md`` ("Measured pendulums") must be what these fits give, and what it
+says of the damping laws must hold. The compiled sweep makes the fits take seconds (numpy
+takes minutes on the real exponents), so the module needs numba.
 """
 from __future__ import annotations
 

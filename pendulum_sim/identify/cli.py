@@ -21,9 +21,10 @@ def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``pendulum_identify``."""
     parser = argparse.ArgumentParser(
         prog=PROG,
-        description='Fit the damping laws (viscous, quadratic, coulomb, power) to a recorded '
-                    'free swing, rank them by BIC, and write fit.yaml (a scene), models.csv, '
-                    'fit.png and campaign_parameters.yaml into --out.')
+        description='Fit the damping laws (viscous, quadratic, coulomb, power, '
+                    'power+coulomb) to a recorded free swing, rank them by BIC, and write '
+                    'fit.yaml (a scene), models.csv, fit.png and campaign_parameters.yaml into '
+                    '--out.')
     parser.add_argument('recording', metavar='RECORDING',
                         help='a rosbag2 MCAP file (or its folder) or a .csv file')
     parser.add_argument('--out', required=True, metavar='DIR',

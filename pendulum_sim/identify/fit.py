@@ -350,6 +350,7 @@ def _friction(law: Law, known: dict[str, float], params: dict[str, Value],
 
 
 def _use_jit(jit: bool | None) -> bool:
+    """Say whether the fit simulates on the compiled sweep (None: where numba is installed)."""
     if jit is None:
         return jit_available()
     if not isinstance(jit, bool):
@@ -447,9 +448,10 @@ def compare(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
             models: Sequence[str] | None = None, known: Mapping[str, float] | None = None,
             jit: bool | None = None, progress: Callable[[str], None] | None = None
             ) -> list[Fit]:
-    """Fit each model (default: viscous, quadratic, coulomb, power) and rank them by BIC.
+    """Fit each model (default: all five, ``laws.COMPARED``) and rank them by BIC.
 
-    ``power+coulomb`` is fitted where ``models`` names it (``laws.COMPARED``).
+    ``models`` names the laws to fit instead, of viscous, quadratic, coulomb, power and
+    power+coulomb.
     """
     rec = prepare(t, position, velocity, effort)
     return compare_records([rec], models=models, known=known, jit=jit, progress=progress)[0]

@@ -1,4 +1,9 @@
-"""A physically reasoned first guess: period from zero crossings, damping from the envelope.
+"""A physically reasoned first guess: period and damping envelope from the turning points.
+
+The turning points are the extrema of the swing about its centre in each whole half swing
+(between two zero crossings): the partial half swing before the first crossing is dropped, so
+a record that starts anywhere in the swing (released from rest, or passing the centre at full
+speed) reads the same period and envelope.
 
 The envelope of a lightly damped swing decays as the law says (energy averaged over one
 small-amplitude cycle): exponentially for n = 1 (A ∝ e^(−γt/2)), linearly for Coulomb
@@ -27,9 +32,10 @@ ENVELOPE_EXPONENTS = (0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
 class Guess:
     """What the record says before any fit.
 
-    ``crossings`` counts the zero crossings (around the guessed zero offset); ``peaks_t`` and
-    ``peaks_a`` are the swing's extrema (time, amplitude about the offset). ``omega0`` is None
-    when the record has fewer than three crossings (no whole period to time); ``oscillates`` is
+    ``crossings`` counts the zero crossings (around the guessed zero offset, beyond the noise);
+    ``peaks_t`` and ``peaks_a`` are the swing's turning points (time, amplitude about the
+    offset), one per whole half swing. ``omega0`` is None when the record has fewer than three
+    crossings (two turning points: no half period to time); ``oscillates`` is
     False when the angle never turns back after crossing (an overdamped creep, or none).
     """
 
@@ -58,42 +64,61 @@ def noise_level(y: FloatArray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
-def _crossings(t: FloatArray, z: FloatArray) -> FloatArray:
-    """Return the times where ``z`` changes sign (linear interpolation between samples)."""
-    s = np.sign(z)
-    i = np.flatnonzero((s[:-1] * s[1:]) < 0)
-    return t[i] - z[i] * (t[i + 1] - t[i]) / (z[i + 1] - z[i])
+def _crossings(t: FloatArray, z: FloatArray, band: float) -> FloatArray:
+    """Return the times where ``z`` passes from one side of ``±band`` to the other.
+
+    A noisy signal that dithers about zero inside the band crosses once, not at every sign
+    change: the crossing is interpolated linearly between the last sample beyond the band on
+    one side and the first beyond it on the other (adjacent samples where the swing is fast).
+    """
+    side = np.where(z > band, 1, np.where(z < -band, -1, 0))
+    out = np.flatnonzero(side)
+    change = np.flatnonzero(side[out[:-1]] != side[out[1:]])
+    a, b = out[change], out[change + 1]
+    return np.asarray(t[a] - z[a] * (t[b] - t[a]) / (z[b] - z[a]), dtype=np.float64)
 
 
-def _extrema(t: FloatArray, z: FloatArray, cross: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Return the extremum of |z| in each half swing (from the start to each crossing)."""
-    edges = np.concatenate(([t[0] - 1.0], cross))
-    pt, pa = [], []
-    for a, b in itertools.pairwise(edges):
+def turning_points(t: FloatArray, z: FloatArray, cross: FloatArray
+                   ) -> tuple[FloatArray, FloatArray]:
+    """Return the turning points of the swing: the extremum of ``z`` in each whole half swing.
+
+    A half swing runs from one crossing to the next; the partial ones before the first crossing
+    and after the last are dropped, so the points are turning points wherever the record starts
+    (a release from rest, or mid-swing through the centre at full speed) and ends.
+    """
+    pt, pz = [], []
+    for a, b in itertools.pairwise(cross):
         inside = np.flatnonzero((t > a) & (t < b))
         if inside.size == 0:
             continue
         k = inside[np.argmax(np.abs(z[inside]))]
         pt.append(t[k])
-        pa.append(abs(z[k]))
-    return np.asarray(pt, dtype=np.float64), np.asarray(pa, dtype=np.float64)
+        pz.append(z[k])
+    return np.asarray(pt, dtype=np.float64), np.asarray(pz, dtype=np.float64)
 
 
 def first_look(t: FloatArray, y: FloatArray) -> Guess:
-    """Return the offset, crossings, period-based ω0, extrema and initial state of a record."""
+    """Return the offset, crossings, period-based ω0, turning points and state of a record.
+
+    The period and the decay envelope are read from the turning points (``turning_points``),
+    whatever the phase of the swing at the first sample.
+    """
+    noise = noise_level(y)
+    band = 3.0 * noise   # a crossing leaves the noise on both sides of the centre
     offset = 0.5 * float(np.max(y) + np.min(y))   # the first swing's midpoint, nearly
-    cross = _crossings(t, y - offset)
-    for _ in range(3):   # the midpoints of successive extrema: the swing's centre
-        _, signed = _signed_extrema(t, y - offset, cross)
+    cross = _crossings(t, y - offset, band)
+    for _ in range(3):   # the midpoints of successive turning points: the swing's centre
+        _, signed = turning_points(t, y - offset, cross)
         if signed.size < 2:
             break
         offset += float(np.mean(0.5 * (signed[:-1] + signed[1:])))
-        cross = _crossings(t, y - offset)
-    peaks_t, peaks_a = _extrema(t, y - offset, cross)
+        cross = _crossings(t, y - offset, band)
+    peaks_t, signed = turning_points(t, y - offset, cross)
+    peaks_a = np.abs(signed)
     omega0 = None
-    if cross.size >= 3:
-        period = 2.0 * float(np.mean(np.diff(cross)))
-        amp = float(np.median(peaks_a)) if peaks_a.size else 0.0
+    if peaks_t.size >= 2:   # three crossings: two whole half swings
+        period = 2.0 * float(peaks_t[-1] - peaks_t[0]) / (peaks_t.size - 1)
+        amp = float(np.median(peaks_a))
         # The nonlinear pendulum's period is 4 K(m)/ω0 with m = sin²(A/2).
         omega0 = 2.0 * math.pi / period * 2.0 * float(ellipk(math.sin(min(amp, 3.0) / 2) ** 2)
                                                       ) / math.pi
@@ -109,22 +134,8 @@ def first_look(t: FloatArray, y: FloatArray) -> Guess:
         far = after[np.argmax(np.abs(y[after] - offset))]
         oscillates = bool(far < t.size - max(2, t.size // 20))
     return Guess(offset=offset, crossings=int(cross.size), omega0=omega0, peaks_t=peaks_t,
-                 peaks_a=peaks_a, phi0=phi0, dphi0=dphi0, noise=noise_level(y),
+                 peaks_a=peaks_a, phi0=phi0, dphi0=dphi0, noise=noise,
                  oscillates=oscillates)
-
-
-def _signed_extrema(t: FloatArray, z: FloatArray, cross: FloatArray
-                    ) -> tuple[FloatArray, FloatArray]:
-    edges = np.concatenate(([t[0] - 1.0], cross, [t[-1] + 1.0]))
-    pt, pz = [], []
-    for a, b in itertools.pairwise(edges[1:-1]):   # whole half swings only
-        inside = np.flatnonzero((t > a) & (t < b))
-        if inside.size == 0:
-            continue
-        k = inside[np.argmax(np.abs(z[inside]))]
-        pt.append(t[k])
-        pz.append(z[k])
-    return np.asarray(pt, dtype=np.float64), np.asarray(pz, dtype=np.float64)
 
 
 def envelope_gamma(n: float, omega0: float, peaks_t: FloatArray, peaks_a: FloatArray

@@ -19,7 +19,10 @@ from pathlib import Path
 
 from .fit import Fit
 
-COLUMNS = ('omega0', 'gamma', 'n', 'friction', 'phi_offset', 'phi0', 'dphi0')
+COLUMNS = ('omega0', 'gamma', 'n', 'friction', 'friction_accel', 'phi_offset', 'phi0',
+           'dphi0')
+"""The parameters of ``models.csv``, each with its standard error and 95 % interval:
+``friction`` in N m (where the inertia is known), ``friction_accel`` its deceleration f/I."""
 CORRELATED = 0.5
 """Correlations beyond ± this are noted in campaign_parameters.yaml."""
 

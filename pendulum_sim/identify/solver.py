@@ -123,10 +123,9 @@ def _run(problems: Sequence[Problem], thetas: Sequence[FloatArray], members: lis
             for k in PARAMETERS:
                 cols[k].append(values[k])
     om = np.asarray(cols['omega0'])
-    friction = np.asarray(cols['friction_accel'])
     result = sweep(om * om, np.asarray(cols['gamma']), np.asarray(cols['n']),
                    np.asarray(cols['phi0']), np.asarray(cols['dphi0']), t_end, h,
-                   record_every=1, jit=jit, friction=friction)
+                   record_every=1, jit=jit, friction=np.asarray(cols['friction_accel']))
     assert result.phi_record is not None and result.dphi_record is not None
     phi, dphi = result.phi_record, result.dphi_record
     offsets = np.asarray(cols['phi_offset'])
