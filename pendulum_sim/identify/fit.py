@@ -267,7 +267,10 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
     reasons: dict[str, str] = {}
     try:
         cov = s2 * np.linalg.inv(best.jac.T @ best.jac)
-        se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        var = np.diag(cov)
+        # A variance <= 0 (round-off of a near-singular J^T J) is no standard error: the
+        # parameter is reported as not determined, never with an interval of zero width.
+        se = np.sqrt(np.where(var > 0.0, var, np.nan))
     except np.linalg.LinAlgError:
         cov = np.full((p, p), np.nan)
         se = np.full(p, np.nan)
@@ -306,7 +309,7 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
         ci['inertia'] = (known['inertia'], known['inertia'])
         fixed = (*fixed, 'inertia')
     corr: dict[str, float] = {}
-    d = np.sqrt(np.diag(cov))
+    d = se
     for i in range(p):
         for j in range(i + 1, p):
             if d[i] > 0 and d[j] > 0:
@@ -349,6 +352,36 @@ def _friction(law: Law, known: dict[str, float], params: dict[str, Value],
                                'deceleration in rad/s^2')
 
 
+REST_BAND = 4.0
+"""A record has come to rest where its angle stays within this many noise levels of its end."""
+REST_MIN = 0.05
+"""The least fraction of a record its final rest must span to be fitted in two stages."""
+
+
+def moving_part(rec: Record) -> Record | None:
+    """Return ``rec`` up to where it comes to rest for good (a Coulomb stick), or None.
+
+    Its last samples within REST_BAND noise levels of its final angle (the median of its last
+    fiftieth) are the rest; where they span at least REST_MIN of the record and what comes
+    before still oscillates, the record up to the rest's first sample is returned. A law with a
+    Coulomb part is fitted to it first: the stick makes the cost of the whole record a rugged
+    function of the parameters near it (the model sticks a few mrad away and the fit stalls
+    there), while the moving part's is smooth; the whole record is then fitted from that result
+    as well as from the guess (:func:`fit_records`).
+    """
+    y = rec.y
+    band = REST_BAND * rec.guess.noise
+    final = float(np.median(y[-max(5, y.size // 50):]))
+    away = np.flatnonzero(np.abs(y - final) > band)
+    if band <= 0.0 or away.size == 0:
+        return None
+    k = int(away[-1]) + 2   # up to and with the first sample at rest
+    if y.size - k < REST_MIN * y.size or k < MIN_SAMPLES:
+        return None
+    part = Record(t0=rec.t0, t=rec.t[:k], y=y[:k], guess=first_look(rec.t[:k], y[:k]))
+    return part if part.guess.omega0 is not None else None
+
+
 def _use_jit(jit: bool | None) -> bool:
     """Say whether the fit simulates on the compiled sweep (None: where numba is installed)."""
     if jit is None:
@@ -382,6 +415,9 @@ def fit_records(records: Sequence[Record], *, model: str = 'power',
         for start in _starts(law, rec, fixed):
             problems.append(_problem(law, rec, start, fixed))
             owner.append(i)
+    for i, start in _moving_starts(law, records, out, fixed, use_jit):
+        problems.append(_problem(law, records[i], start, fixed))
+        owner.append(i)
     solve(problems, jit=use_jit, progress=progress)
     for i, rec in enumerate(records):
         if out[i] is not None:
@@ -393,6 +429,34 @@ def fit_records(records: Sequence[Record], *, model: str = 'power',
         else:
             out[i] = _result(law, rec, best, len(mine), fixed)
     return [f for f in out if f is not None]
+
+
+def _moving_starts(law: Law, records: Sequence[Record], out: list[Fit | None],
+                   fixed: dict[str, float], use_jit: bool) -> list[tuple[int, dict[str, float]]]:
+    """Return (record, start) pairs from fits of the moving parts of records that stick.
+
+    For a law with a Coulomb part (``coulomb``, ``power+coulomb``), each record that comes to
+    rest for good (:func:`moving_part`) is fitted up to its rest first; the best parameters
+    are one more start of the whole record's fit.
+    """
+    if not (law.friction or law.n == 0.0):
+        return []
+    parts = {i: moving_part(rec) for i, rec in enumerate(records) if out[i] is None}
+    stage: list[Problem] = []
+    owner: list[int] = []
+    for i, part in parts.items():
+        if part is not None:
+            for start in _starts(law, part, fixed):
+                stage.append(_problem(law, part, start, fixed))
+                owner.append(i)
+    solve(stage, jit=use_jit)
+    starts = []
+    for i in dict.fromkeys(owner):
+        best = min((p for p, o in zip(stage, owner, strict=True) if o == i),
+                   key=lambda p: p.cost)
+        if best.jac is not None:
+            starts.append((i, best.full(best.theta)))
+    return starts
 
 
 def fit(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
