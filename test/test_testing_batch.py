@@ -36,6 +36,18 @@ def scalar(t: float, position: float, velocity: float) -> float:
     return float(pd_batch(t, np.array([position]), np.array([velocity]))[0])
 
 
+def assert_the_scalar_run(values: dict[str, Any], got: Any) -> ClosedLoopRun:
+    """Assert that a batched run is the scalar joint's (bytes for integer n); return that."""
+    assert isinstance(got, ClosedLoopRun)
+    want = run_in_process(scalar, values, 300)
+    for name in FIELDS:
+        if values['n'] == int(values['n']):
+            assert getattr(got, name).tobytes() == getattr(want, name).tobytes(), name
+        else:
+            assert np.max(np.abs(getattr(got, name) - getattr(want, name))) <= 1e-12
+    return want
+
+
 def test_vectorised_sets_the_flag_and_keeps_the_law() -> None:
     def law(t: float, p: Any, v: Any) -> Any:
         return -p
@@ -64,13 +76,7 @@ def test_a_batch_gives_each_episode_the_scalar_joints_run() -> None:
     runs = run_batch(pd_batch, episodes, 300)
     saturated = 0
     for values, got in zip(episodes, runs, strict=True):
-        assert isinstance(got, ClosedLoopRun)
-        want = run_in_process(scalar, values, 300)
-        for name in FIELDS:
-            if values['n'] == int(values['n']):
-                assert getattr(got, name).tobytes() == getattr(want, name).tobytes(), name
-            else:
-                assert np.max(np.abs(getattr(got, name) - getattr(want, name))) <= 1e-12
+        want = assert_the_scalar_run(values, got)
         np.testing.assert_array_equal(np.abs(got.effort) == values['max_effort'],
                                       np.abs(want.effort) == values['max_effort'])
         saturated += int(np.any(np.abs(got.effort) == values['max_effort']))
@@ -91,13 +97,7 @@ def test_a_batch_takes_the_joints_coulomb_friction_as_the_scalar_joint() -> None
     runs = run_batch(pd_batch, episodes, 300)
     stuck = 0
     for values, got in zip(episodes, runs, strict=True):
-        assert isinstance(got, ClosedLoopRun)
-        want = run_in_process(scalar, values, 300)
-        for name in FIELDS:
-            if values['n'] == int(values['n']):
-                assert getattr(got, name).tobytes() == getattr(want, name).tobytes(), name
-            else:
-                assert np.max(np.abs(getattr(got, name) - getattr(want, name))) <= 1e-12
+        assert_the_scalar_run(values, got)
         stuck += int(np.count_nonzero(got.velocity == 0.0) > 1)
     assert stuck > 0   # the friction held some joints at rest, in the batch as alone
     # Without the friction the same episodes end elsewhere: the batch did not drop it.
