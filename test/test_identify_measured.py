@@ -130,3 +130,42 @@ def test_what_the_docs_say_of_the_laws(fits: dict[str, dict[str, Fit]]) -> None:
     for (lo_a, hi_a), (lo_b, hi_b) in zip(encoders, encoders[1:] + encoders[:1], strict=True):
         assert hi_a < lo_b or hi_b < lo_a    # no one exponent serves the three releases
     assert all(n_ci(name)[0] <= 2.0 for name in RECORDS)
+
+
+FRICTION_ROW = re.compile(r'^\| (?P<name>[^|]+?) \| (?P<rank>\d) \| '
+                          r'(?P<n>[\d.]+) \((?P<lo>[\d.]+) to (?P<hi>[\d.]+)\) \| '
+                          r'(?P<f>[\d.]+) \((?P<flo>[\d.]+) to (?P<fhi>[\d.]+)\) \| '
+                          r'(?P<rms>[\d.]+) \|$')
+
+
+@pytest.fixture(scope='module')
+def five() -> dict[str, list[Fit]]:
+    """Return each record's fits over compare's default, all five laws (compiled), ranked."""
+    return {name: compare(*load(name), jit=True) for name in RECORDS}
+
+
+def test_docs_friction_table_is_what_the_fits_give(five: dict[str, list[Fit]]) -> None:
+    """The docs' power+coulomb rows, and what they say: the cup asks for no friction, the
+    bearing does on every release, and its exponents still disagree between releases."""
+    rows = {m['name']: m for m in (FRICTION_ROW.match(line) for line in
+                                   PAGE.read_text(encoding='utf-8').splitlines()) if m}
+    assert set(rows) == set(RECORDS)
+    for name, row in rows.items():
+        ranked = [f.model for f in five[name]]
+        pc = five[name][ranked.index('power+coulomb')]
+        assert int(row['rank']) == ranked.index('power+coulomb') + 1, name
+        n_ci, f_ci = pc.ci95['n'], pc.ci95['friction_accel']
+        assert n_ci is not None and f_ci is not None and pc.params['n'] is not None
+        for key, value in (('n', pc.params['n']), ('lo', n_ci[0]), ('hi', n_ci[1]),
+                           ('f', pc.params['friction_accel']), ('flo', f_ci[0]),
+                           ('fhi', f_ci[1])):
+            assert close(row[key], float(value), 0.01), (name, key)   # type: ignore[arg-type]
+        assert close(row['rms'], pc.rms_residual * 1e3, 0.1), name
+        assert f_ci[0] >= 0.0   # an interval within the friction's range
+    for name in ('video lab 1', 'video lab 2'):
+        assert five[name][0].model != 'power+coulomb', name
+    bearing = [five[f'encoder 0{i}'][0] for i in (1, 2, 3)]
+    assert all(f.model == 'power+coulomb' for f in bearing)
+    cis = [f.ci95['n'] for f in bearing]
+    for a, b in zip(cis, cis[1:] + cis[:1], strict=True):
+        assert a is not None and b is not None and (a[1] < b[0] or b[1] < a[0])

@@ -23,7 +23,7 @@ from pendulum_sim.core.jit import available as jit_available
 from .errors import IdentifyError
 from .guess import Guess, best_exponent, envelope_gamma, first_look
 from .laws import COMPARED, MODELS, Law, get_law
-from .solver import Problem, solve
+from .solver import BOUNDS, Problem, solve
 
 FloatArray = npt.NDArray[np.float64]
 Value = float | None
@@ -211,10 +211,11 @@ def friction_starts(base: dict[str, float], n: float, gam: float, om: float, g: 
     The envelope read under the power law alone (γ) and under Coulomb friction alone (its
     linear decay, the friction deceleration c: ``guess.envelope_gamma`` at n = 0) bound the
     two shares; the starts split the decay between them: half each, mostly the law, mostly
-    the friction.
+    the friction, and the law alone (the nested ``power`` law, so that the fit ends no worse
+    than it where the record asks for no friction).
     """
     c = max(envelope_gamma(0.0, om, g.peaks_t, g.peaks_a)[0], 1e-4)
-    shares = ((0.5, 0.5), (0.9, 0.1), (0.1, 0.9))
+    shares = ((0.5, 0.5), (0.9, 0.1), (0.1, 0.9), (1.0, 0.0))
     return [{**base, 'n': n, 'gamma': gam if gamma_known else gam * a,
              'friction_accel': c * b} for a, b in shares]
 
@@ -286,7 +287,10 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
                 params[k], stderr[k], ci[k] = None, None, None
                 reasons[k] = f'{k} is not determined by the record (the fit is singular in it)'
                 continue
-            stderr[k], ci[k] = e, (float(v) - q * e, float(v) + q * e)   # type: ignore[arg-type]
+            # The interval within the parameter's physical range (a friction, γ, n >= 0).
+            lo_b, hi_b = BOUNDS[k]
+            stderr[k], ci[k] = e, (max(float(v) - q * e, lo_b),   # type: ignore[arg-type]
+                                   min(float(v) + q * e, hi_b))   # type: ignore[arg-type]
         else:
             stderr[k], ci[k] = 0.0, (float(v), float(v))   # type: ignore[arg-type]
     if law.n is None and 'n' in best.free and stderr['n'] is not None and (
