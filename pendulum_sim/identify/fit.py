@@ -453,6 +453,8 @@ def _moving_starts(law: Law, records: Sequence[Record], out: list[Fit | None],
             for start in _starts(law, part, fixed):
                 stage.append(_problem(law, part, start, fixed))
                 owner.append(i)
+    if not stage:
+        return []
     solve(stage, jit=use_jit)
     starts = []
     for i in dict.fromkeys(owner):

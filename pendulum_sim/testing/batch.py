@@ -135,15 +135,18 @@ def warm_up_batch(episodes: Sequence[Mapping[str, Value]]) -> float:
     takes for these episodes: their damping laws, integrator and friction
     (``pendulum_sim.core.warm_up``); return the seconds. Called before the clock starts.
     """
+    from pendulum_sim.core.sweep import SWEEP_METHODS
     from pendulum_sim.core.warm_up import warm_up
-    from pendulum_sim.node.parameters import joint_config
 
-    configs = [joint_config(v, epoch_ns(v)) for v in episodes]
+    # Read from the node parameters as they stand: run_batch makes the joint configurations.
+    by_method: dict[str, list[Mapping[str, Value]]] = {}
+    for v in episodes:
+        by_method.setdefault(str(v['integrator']), []).append(v)
     seconds = 0.0
-    for method in sorted({c.method for c in configs if not batchable_config(c)}):
-        mine = [c for c in configs if c.method == method]
-        seconds += warm_up(sorted({c.params.n for c in mine}), method,
-                           friction=any(c.params.friction > 0.0 for c in mine))
+    for method, mine in sorted(by_method.items()):
+        if method in SWEEP_METHODS:
+            seconds += warm_up(sorted({float(v['n']) for v in mine}), method,
+                               friction=any(float(v['friction']) > 0.0 for v in mine))
     return seconds
 
 
