@@ -21,7 +21,7 @@ from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen,
 from pendulum_sim.core.compiled_careful import COUNTERS as CAREFUL_COUNTERS
 from pendulum_sim.core.compiled_careful import careful_step
 from pendulum_sim.core.compiled_sweep import PARALLEL_MIN
-from pendulum_sim.core.coulomb import creep_rate, friction_step
+from pendulum_sim.core.coulomb import creep_rate, friction_step, moving_input
 from pendulum_sim.core.decisions import (
     STIFF_MAX_TRIALS,
     accuracy_speed,
@@ -204,10 +204,13 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
         want = eng.careful(p, v, h, ain, st)
         args = (p, v, h, ain, w2, gamma, n, eng.cf, eng.v_acc, eng.reach, eng.energy_check,
                 eng.nonsmooth, eng.coulomb, consts)
+        # The plain step of h the compiled run took before it refused the step.
+        known = plain(p, v, h, moving_input(ain, v, eng.cf), w2, gamma, 1.0, n)
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-        got = compiled[0](*compiled[1:], *args, counts)
+        got = compiled[0](*compiled[1:], *args, counts, *known)
         again = np.zeros_like(counts)
-        assert careful_step(plain, branch, laws, pair_plain, pair_branch, *args, again) == got
+        assert careful_step(plain, branch, laws, pair_plain, pair_branch, *args, again,
+                            *known) == got
         assert np.array_equal(again, counts)
         assert got[0], (gamma, w2, h, ain, p, v)  # taken compiled
         assert got[1:] == want[:2], (gamma, w2, h, ain, p, v)
@@ -238,6 +241,14 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
         assert stiff_turns > 5
 
 
+def _known(compiled: tuple[Any, ...], eng: Engine, p: float, v: float, h: float,
+           ain: float) -> tuple[float, float, float, float]:
+    """Return the plain step of h a compiled run takes before it refuses the step (compiled)."""
+    known: tuple[float, float, float, float] = compiled[1](
+        p, v, h, moving_input(ain, v, eng.cf), eng.w2, eng.gamma, 1.0, eng.n)
+    return known
+
+
 def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:
     """Assert that the compiled careful step declines the step and leaves the counters."""
     compiled = _compiled(method, eng.n)
@@ -245,7 +256,7 @@ def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:
     counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
     got = compiled[0](*compiled[1:], p, v, h, 0.0, eng.w2, eng.gamma, eng.n, eng.cf,
                       eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb,
-                      consts, counts)
+                      consts, counts, *_known(compiled, eng, p, v, h, 0.0))
     assert got == (False, p, v) and not counts.any()
 
 
@@ -418,7 +429,7 @@ def test_a_stiff_step_the_substeps_cannot_cover_goes_to_the_guard_compiled() -> 
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
         got = compiled[0](*compiled[1:], p, v, h, ain, w2, gamma, n, eng.cf, eng.v_acc,
                           eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb, consts,
-                          counts)
+                          counts, *_known(compiled, eng, p, v, h, ain))
         assert got == (True, *want[:2])
         assert tuple(counts.tolist()) == _stats(st)
         assert st.substeps >= STIFF_MAX_TRIALS and st.reversals > 0

@@ -107,7 +107,8 @@ NOT_FINITE = -1
 
 def micro_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
                w2: float, gamma: float, n: float, reach: float, nonsmooth: bool, coulomb: bool,
-               strict: bool, cf: float = 0.0) -> SplitResult:
+               strict: bool, cf: float = 0.0, known: bool = False, kp1: float = 0.0,
+               kv1: float = 0.0, kw: float = 0.0, ka0: float = 0.0) -> SplitResult:
     """Take one plain step of h, split at a velocity reversal where the damping is not smooth.
 
     Under Coulomb friction at rest, ``coulomb.rest_step``; otherwise the plain step, and where
@@ -119,13 +120,19 @@ def micro_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
     ``reversals`` NOT_FINITE. With a friction ``cf`` = c_f beside the law, a step in motion is
     taken under ``coulomb.moving_input`` and its work counts the friction's. Written to compile:
     :meth:`SplitSteps.micro` calls it in Python, the compiled sweep's careful step
-    (``compiled_careful.py``) compiled.
+    (``compiled_careful.py``) compiled. With ``known`` the plain step's result is given,
+    (``kp1``, ``kv1``, ``kw``, ``ka0``) = ``plain(p, v, h, moving_input(ain, v, cf), ...)``,
+    the very floats the compiled sweep's run took before it refused the step, and is not
+    taken again.
     """
     if coulomb and v == 0.0:
         p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n, cf)
         return True, p1, v1, w, 0, p, v, 0.0, 0.0
     a = moving_input(ain, v, cf)
-    p1, v1, w, a0 = plain(p, v, h, a, w2, gamma, 1.0, n)
+    if known:
+        p1, v1, w, a0 = kp1, kv1, kw, ka0
+    else:
+        p1, v1, w, a0 = plain(p, v, h, a, w2, gamma, 1.0, n)
     if strict and not (math.isfinite(p1) and math.isfinite(v1) and math.isfinite(a0)):
         return False, p, v, 0.0, NOT_FINITE, p, v, 0.0, 0.0
     if nonsmooth and reversal_suspect(v, v1, a0, h, reach):
