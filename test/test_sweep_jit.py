@@ -207,10 +207,14 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
         # The plain step of h the compiled run took before it refused the step.
         known = plain(p, v, h, moving_input(ain, v, eng.cf), w2, gamma, 1.0, n)
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-        got = compiled[0](*compiled[1:], *args, counts, *known)
+        got = compiled[0](*compiled[1:], *args, counts, True, *known)
         again = np.zeros_like(counts)
         assert careful_step(plain, branch, laws, pair_plain, pair_branch, *args, again,
-                            *known) == got
+                            True, *known) == got
+        # Outside the guard's range the run takes no plain step: the careful step takes it.
+        alone = np.zeros_like(counts)
+        assert compiled[0](*compiled[1:], *args, alone, False, 0.0, 0.0, 0.0, 0.0) == got
+        assert np.array_equal(alone, counts)
         assert np.array_equal(again, counts)
         assert got[0], (gamma, w2, h, ain, p, v)  # taken compiled
         assert got[1:] == want[:2], (gamma, w2, h, ain, p, v)
@@ -256,7 +260,7 @@ def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:
     counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
     got = compiled[0](*compiled[1:], p, v, h, 0.0, eng.w2, eng.gamma, eng.n, eng.cf,
                       eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb,
-                      consts, counts, *_known(compiled, eng, p, v, h, 0.0))
+                      consts, counts, True, *_known(compiled, eng, p, v, h, 0.0))
     assert got == (False, p, v) and not counts.any()
 
 
@@ -429,7 +433,7 @@ def test_a_stiff_step_the_substeps_cannot_cover_goes_to_the_guard_compiled() -> 
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
         got = compiled[0](*compiled[1:], p, v, h, ain, w2, gamma, n, eng.cf, eng.v_acc,
                           eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb, consts,
-                          counts, *_known(compiled, eng, p, v, h, ain))
+                          counts, True, *_known(compiled, eng, p, v, h, ain))
         assert got == (True, *want[:2])
         assert tuple(counts.tolist()) == _stats(st)
         assert st.substeps >= STIFF_MAX_TRIALS and st.reversals > 0

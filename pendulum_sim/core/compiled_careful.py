@@ -80,8 +80,8 @@ def finite(p: float, v: float) -> bool:
 def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branch: Any,
                  p: float, v: float, h: float, ain: float, w2: float, gamma: float, n: float,
                  cf: float, v_acc: float, reach: float, check: bool, nonsmooth: bool,
-                 coulomb: bool, guard: Any, counts: Any, kp1: float, kv1: float, kw: float,
-                 ka0: float) -> tuple[bool, float, float]:
+                 coulomb: bool, guard: Any, counts: Any, known: bool, kp1: float, kv1: float,
+                 kw: float, ka0: float) -> tuple[bool, float, float]:
     """Take ``Engine.careful``'s step of h from (φ, φ') for a guarded explicit method.
 
     The generated functions come first, all with the exponent an argument: the method's plain
@@ -91,10 +91,11 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
     is then the one it was without it), ``reach`` is ``Problem.reach``, ``guard`` the guard's
     ``StabilityGuard.constants``,
     ``counts`` the pendulum's counters (:data:`COUNTERS`; what the step did is added there);
-    (``kp1``, ``kv1``, ``kw``, ``ka0``) the plain step of h the run took before it refused the
-    step, ``plain(p, v, h, moving_input(ain, v, cf), w2, gamma, 1.0, n)``'s floats, which the
-    careful step reads instead of taking that step again (its stiff test's φ''₀ where ``cf``
-    is 0, the first substep where the guard's count is 1).
+    with ``known``, (``kp1``, ``kv1``, ``kw``, ``ka0``) is the plain step of h the run took
+    before it refused the step, ``plain(p, v, h, moving_input(ain, v, cf), w2, gamma, 1.0,
+    n)``'s floats, which the careful step reads instead of taking that step again (its stiff
+    test's φ''₀ where ``cf`` is 0, the first substep where the guard's count is 1); the run
+    takes no plain step outside the guard's speed range (``known`` False there).
     Returns ``(done, φ₁, φ'₁)``; ``done`` False where ``Engine.careful`` must take the step
     (see the module docstring), the counters then untouched.
     """
@@ -114,7 +115,9 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
             pw = power_formula(abs(v), n)
             if not pw < math.inf:  # Python's damping law raises OverflowError here
                 return False, p, v
-            stiff = abs(ka0) > 0.5 * gamma * pw  # bare: ka0 is plain(p, v, h, ain, ...)'s
+            # bare (c_f = 0): the known ka0 is plain(p, v, h, ain, ...)'s φ''₀
+            a0 = ka0 if known else plain(p, v, h, ain, w2, gamma, 1.0, n)[3]
+            stiff = abs(a0) > 0.5 * gamma * pw
         code = TO_GUARD
         if stiff:  # Engine.stiff: the error-controlled substeps
             code, p1, v1, _, subs, turns = stiff_cover(pair_plain, pair_branch, p, v, h, ain,
@@ -124,7 +127,8 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
         if code == TO_GUARD:  # Engine.guarded (after a stiff cover that failed: from the start)
             done, p1, v1, gsubs, fbs, gturns = guarded(plain, branch, laws, p, v, h, ain, w2,
                                                        gamma, n, cf, reach, nonsmooth,
-                                                       coulomb, guard, kp1, kv1, kw, ka0)
+                                                       coulomb, guard, known, kp1, kv1, kw,
+                                                       ka0)
             if not done:
                 return False, p, v
             subs += gsubs
@@ -154,7 +158,7 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
 
 def guarded(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
             w2: float, gamma: float, n: float, cf: float, reach: float, nonsmooth: bool,
-            coulomb: bool, guard: Any, kp1: float, kv1: float, kw: float,
+            coulomb: bool, guard: Any, known: bool, kp1: float, kv1: float, kw: float,
             ka0: float) -> tuple[bool, float, float, int, int, int]:
     """Return ``Engine.guarded``'s step: (done, φ₁, φ'₁, substeps, fallbacks, reversals).
 
@@ -164,7 +168,8 @@ def guarded(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ai
     ``done`` False where a substep is not finite or the fallback refuses, and where the
     fallback would take friction beside the law (c_f = ``cf`` > 0: ``engine.moving_fallback``,
     the Python path's one implementation, takes that step). Where the count is 1 the substep
-    is the whole step, whose plain step (``kp1``, ``kv1``, ``kw``, ``ka0``) is known.
+    is the whole step, whose plain step (``kp1``, ``kv1``, ``kw``, ``ka0``) is given where
+    ``known``.
     """
     force = abs(ain) + cf + w2
     omega0 = math.sqrt(w2)
@@ -179,7 +184,7 @@ def guarded(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ai
             p, v, _ = fallback_run(p, v, left, ain, w2, gamma, n, omega0, damping_formula)
             return True, p, v, max(taken - 1, 0), fbs + 1, turns
         hh = left / m
-        whole = m == 1 and taken == 0  # the substep is the step of h the run took plain
+        whole = known and m == 1 and taken == 0  # the step of h the run took plain
         done, p1, v1, _, k, pm, vm, _, rest = micro_step(plain, branch, laws, p, v, hh, ain, w2,
                                                          gamma, n, reach, nonsmooth, coulomb,
                                                          True, cf, whole, kp1, kv1, kw, ka0)
