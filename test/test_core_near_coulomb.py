@@ -15,7 +15,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from pendulum_sim.core import PendulumParams, Stepper
-from pendulum_sim.core.coulomb import creep_speed
+from pendulum_sim.core.coulomb import TINY, creep_rate, creep_speed, creep_state
+from pendulum_sim.core.law import compile_laws
 from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.sweep import sweep
 
@@ -100,3 +101,23 @@ def test_a_creep_speed_below_the_smallest_double_comes_to_rest_where_dop853_does
     st.step()
     assert st.dphi == 0.0
     assert st.phi - p0 == pytest.approx(sol.y_events[0][0][0] - p0, rel=1e-8)
+
+
+def test_a_creep_below_the_smallest_normal_double_does_no_work_and_stays() -> None:
+    # n = 0.005, γ = 100 at 0.3 rad: v_c = 0.0296^200 ≈ 1e-308 is a normal double but h v_c is
+    # not. The creep keeps φ and v_c and counts no work (coulomb.TINY), so the step does no
+    # arithmetic on subnormal numbers; a creep speed with h v_c above TINY still counts its
+    # work h v_c F.
+    n, gamma, p0, h = 0.005, 100.0, 0.3, 1e-3
+    laws = compile_laws(n)
+    force = -W2 * math.sin(p0)
+    vc = creep_rate(force, gamma, n)
+    assert 0.0 < abs(vc) < TINY / h and abs(vc) >= TINY
+    crept, p1, v1, w = creep_state(laws, n, gamma, W2, p0, vc, h, 0.0)
+    assert (crept, p1, v1, w) == (True, p0, vc, 0.0)
+    # At n = 0.02 the creep speed is far above: its work is the creep's h v_c F.
+    n = 0.02
+    vc = creep_rate(force, gamma, n)
+    assert abs(vc) > TINY / h
+    crept, p1, v1, w = creep_state(compile_laws(n), n, gamma, W2, p0, vc, h, 0.0)
+    assert crept and p1 == p0 and v1 == vc and w == h * vc * force != 0.0

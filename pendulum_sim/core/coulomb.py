@@ -100,6 +100,11 @@ def rest_step(branch: Any, p: float, v: float, h: float, ain: float, w2: float, 
     return p1, v1, w
 
 
+TINY = 2.2250738585072014e-308
+"""The smallest normal double (``sys.float_info.min``): a creep that moves φ by less in a step
+does no work the step counts (:func:`creep_state`)."""
+
+
 def stuck(coulomb: bool, v: float, v1: float) -> bool:
     """Return True where a step from φ' = ``v`` came to rest under Coulomb friction (a stick)."""
     return coulomb and v1 == 0.0 and v != 0.0
@@ -178,7 +183,8 @@ def creep_state(laws: Any, n: float, gamma: float, w2: float, p: float, v: float
     the least deceleration towards it (|F| against the motion, |γ |φ'|^n − |F|| with it).
     The reduced equation φ' = sgn(F) (|F(φ)|/γ)^(1/n) is then taken by one RK4 step; the
     damping balances the force on the creep, so its work per unit inertia is ∫ F φ' dt (the
-    same quadrature). Where h v_c is below half an ulp of φ, φ stays and so does v_c.
+    same quadrature). Where h v_c is below half an ulp of φ, φ stays and so does v_c; where it
+    is below the smallest normal double (:data:`TINY`), the creep's work is taken as 0.
     ``laws`` is ``law.compile_laws(n)`` (or its compiled form).
     """
     if not (0.0 < n < 1.0 and gamma > 0.0):
@@ -203,6 +209,11 @@ def creep_state(laws: Any, n: float, gamma: float, w2: float, p: float, v: float
         shift = settle_shift(laws, n, gamma, v, vc, force)
         p += shift
         w0 = force * shift + 0.5 * (v * v - vc * vc)
+    if abs(vc) < TINY / h:
+        # h v_c is below the smallest normal double: φ stays, and the creep's work h v_c F,
+        # below TINY |F|, is taken as 0 (no arithmetic on subnormal numbers, which costs
+        # some hundred cycles an operation on x86).
+        return True, p, vc, w0
     if p + h * vc == p:
         return True, p, vc, w0 + h * vc * force
     k2, f2 = _rate_at(p + 0.5 * h * vc, ain, w2, gamma, n)
@@ -240,6 +251,6 @@ def creep(prob: Problem, p: float, v: float, h: float, ain: float) -> StepResult
     return (p1, v1, w) if crept else None
 
 
-__all__ = ['CREEP_RELAX', 'creep', 'creep_rate', 'creep_speed', 'creep_state', 'friction_step',
-           'friction_work', 'moving_input', 'rest_direction', 'rest_step',
+__all__ = ['CREEP_RELAX', 'TINY', 'creep', 'creep_rate', 'creep_speed', 'creep_state',
+           'friction_step', 'friction_work', 'moving_input', 'rest_direction', 'rest_step',
            'settle_shift', 'stuck']
