@@ -15,10 +15,12 @@ two on random and edge states (``test_batched_careful.py``).
 
 A pendulum it cannot take so is handed back to the scalar path, from the same state (nothing is
 counted or changed for it): a step that crosses φ' = 0 (the reversal split), whose branch run
-reaches φ' = 0 after all, whose energy rose, or whose result is not finite. The sweep hands it
-only pendulums for which ``Engine.careful`` surely starts with one plain step: not Coulomb, not
-near-Coulomb (n > 1), below the stiff-transient speed, and inside the guard's safe speed range
-(shrunk by :data:`RANGE_MARGIN`), where the guard's count (``guard.substep_count``) is 1.
+reaches φ' = 0 after all, whose energy rose, or whose result is not finite. The splits are taken
+over arrays in turn by ``batched_split.py``, which reuses the parts here (:func:`graded_parts`,
+:func:`graded_meshes`, :func:`branch_runs`, :func:`settled`). The sweep hands it only pendulums for
+which ``Engine.careful`` surely starts with one plain step: not Coulomb, not near-Coulomb (n > 1),
+below the stiff-transient speed, and inside the guard's safe speed range (shrunk by
+:data:`RANGE_MARGIN`), where the guard's count (``guard.substep_count``) is 1.
 """
 from __future__ import annotations
 

@@ -61,9 +61,9 @@ SPLIT_MIN = 48
 """Splits of one batch below which :func:`careful_steps` hands them all to the scalar path.
 
 A batch of splits takes some 40 numpy passes of a branch step per graded run, four runs deep,
-whatever its width: about 2.5 ms, the time of some 20 scalar splits (~0.12 ms each); measured
-(``bench/bench_real_n.py``'s states, rk4, h = 1 ms) the batch is as fast as the scalar splits
-at about 50 of them and 3x faster at 256."""
+whatever its width: about 2.5 ms, the time of some 20 scalar splits (~0.12 ms each). Measured
+on crossing states like ``bench/bench_real_n.py``'s (rk4, n = 1.5, ω0² = 9.8, γ in [0.1, 2],
+h = 1 ms), a batch is as fast as the scalar splits at about 50 of them and 3x faster at 256."""
 
 
 def _at(n: Any, rows: IntArray) -> Any:

@@ -119,8 +119,10 @@ class SweepResult:
         compiled careful step declines (``compiled_careful.py``).
     batched : int
         Steps of the stretch the careful path took batched over arrays on the numpy sweep
-        (``batched_careful.py``: the graded steps next to a reversal, the same floats as
-        ``Engine.careful``); ``batched + handed_back`` steps took the careful path there.
+        (``batched_careful.py``: the graded steps next to a reversal; ``batched_split.py``: the
+        steps split at one, where a block's step has ``batched_split.SPLIT_MIN`` of them; the
+        same floats and counts as ``Engine.careful``); ``batched + handed_back`` steps took the
+        careful path there.
     """
 
     phi: FloatArray
@@ -268,7 +270,7 @@ class _Group:
     n: float
     step: Any
     nn: Any  # the exponent: ``n`` itself, or a column where the group's exponents differ
-    batchable: BoolArray  # the careful path's graded steps batched (batched_careful.py)
+    batchable: BoolArray  # the careful path's graded and split steps batched (batched_split)
     nonsmooth: BoolArray
     coulomb: BoolArray
     damped: BoolArray
@@ -284,7 +286,7 @@ class _Group:
         # reach = 0 makes the near-reversal test false everywhere: the crossing test decides.
         self.graded = bool(self.reach.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
-        # The careful path's graded steps are batched (batched_careful.py) for these laws.
+        # The careful path's graded and split steps are batched (batched_split.py) for these.
         self.batch = bool(self.batchable.any()) and self.any_nonsmooth and self.graded
         size = self.sl.stop - self.sl.start
         self.check = np.zeros(size, dtype=bool)
@@ -293,7 +295,7 @@ class _Group:
         self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
-        self.batched = 0  # careful steps taken batched (batched_careful.py) this advance
+        self.batched = 0  # careful steps taken batched (batched_split.py) this advance
         self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
         self.use_careful = False  # the compiled run takes the careful step (compiled_careful)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
