@@ -3,17 +3,18 @@
 For a non-integer 1 < n < 3 a step that crosses a velocity reversal is split there
 (``split.split_step``): the reversal is located on the branch step's own φ'(θh) = 0
 (``reversal.locate_on_branch``: a Hermite guess, ``reversal.hermite_root``, then Newton), the
-graded run up to it is moved onto φ' = 0 (``reversal.graded_landing``) and the rest of the step
-is a graded branch run from rest on the side of the force (``reversal.branch_run`` over
-``reversal.graded_mesh``). :func:`split_steps` takes those splits over arrays, each pendulum
-by exactly its scalar operations: the loops whose exits depend on the data (the Hermite root's
-Newton and bisection, the two Newton runs) are masked loops in which each pendulum does its
-own iterations and leaves where its scalar loop leaves; the steps are the generated vector
-texts with the exponent an argument (``explicit.compile_step_with_n``), the meshes and runs
+graded run up to it is moved onto φ' = 0 (``reversal.graded_landing``) and the rest of the step is
+a graded branch run from rest on the side of the force (``reversal.branch_run`` over
+``reversal.graded_mesh``). :func:`split_steps` takes those splits over arrays, each pendulum by
+exactly its scalar operations: the loops whose exits depend on the data (the Hermite root's Newton
+and bisection, the two Newton runs) are masked loops in which each pendulum does its own iterations
+and leaves where its scalar loop leaves (below :data:`SCALAR_BELOW` pendulums the Hermite roots and
+the meshes are the scalar functions' own, one call each); the steps are the generated vector texts
+with the exponent an argument (``explicit.compile_step_with_n``), the meshes and runs
 ``batched_careful.graded_meshes`` and ``branch_runs``, the landing's work the law's text
-(``law.compile_laws``); every power is the C library's (``law.ExactExponent``) and the sines
-are numpy's, as in ``batched_careful.py``. A test compares it with ``Engine.careful`` on random
-and edge states (``test_batched_split.py``).
+(``law.compile_laws``); every power is the C library's (``law.ExactExponent``) and the sines are
+numpy's, as in ``batched_careful.py``. A test compares it with ``Engine.careful`` on random and
+edge states (``test_batched_split.py``).
 
 :func:`careful_steps` is the batched careful path on the numpy sweep: the plain and graded
 steps (``batched_careful.graded_parts``), these splits, and the finiteness and energy tests
