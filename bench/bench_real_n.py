@@ -1,22 +1,23 @@
 """Benchmark the sweep for real n: integer, n = 1.5 for all and all-distinct n, side by side.
 
 Run: ``.venv/bin/python bench/bench_real_n.py`` (``--sizes``, ``--steps``, ``--repeats``,
-``--jit``). Issue 30's cases: N pendulums (2000 and 20000 by default), ω0² = 9.8, γ uniform in
-[0.1, 2], φ0 in [−2, 2] rad, φ'0 in [−3, 3] rad/s, τ/I = 0 (so the energy check runs), h = 1 ms,
-500 steps; the exponents (a) integer n = 1..5 mixed, (b) n = 1.5 for all, (c) n uniform in
-[1, 3], all distinct. For each, on the numpy path: ns per pendulum-step (the best of
+``--jit``, ``--h``). Issue 30's cases: N pendulums (2000 and 20000 by default), ω0² = 9.8, γ
+uniform in [0.1, 2], φ0 in [−2, 2] rad, φ'0 in [−3, 3] rad/s, τ/I = 0 (so the energy check runs),
+h = 1 ms (``--h``), 500 steps; the exponents (a) integer n = 1..5 mixed, (b) n = 1.5 for all, (c)
+n uniform in [1, 3], all distinct. For each, on the numpy path: ns per pendulum-step (the best of
 ``--repeats``, set-up included, as ``sweep`` is called), the ratios (b)/(a) and (c)/(b), and the
 fraction of pendulum-steps that took the careful path (``SweepResult.batched`` batched over arrays
-plus ``handed_back`` one by one in Python: for non-integer 1 < n < 3 the batched share is
-the steps within the grading window 1/ω0 of a reversal, ``reversal.GRADE_WINDOW``, about half
-of all steps here at 2.7 branch substeps each; the one-by-one share the steps split at a
-reversal, about 170 scalar branch substeps each). With ``--jit`` (numba, the ``jit`` extra)
-also the compiled sweep (after a first call that compiles) beside a bare compiled RK4 kernel
-(``bench_sweep_jit.bare_rk4``: per exponent for integer n, the n = 1.5 kernel over all for
-distinct n) over the same pendulums, and the first ``jit=True`` sweep of a fresh process twice
-on one new, empty cache directory (``jit_cache.py``, ``PENDULUM_SIM_JIT_CACHE``): the first
-process compiles (cache cold), the second loads what the first compiled (cache warm); timed in
-each process from before its imports to the sweep's end (``--first`` prints these two alone).
+plus ``handed_back`` one by one in Python: for non-integer 1 < n < 3 the batched share is the steps
+within the grading window 1/ω0 of a reversal, ``reversal.GRADE_WINDOW``, about half of all steps
+here at 2.7 branch substeps each; the one-by-one share the steps split at a reversal, about 170
+scalar branch substeps each; batched where a block's step has ``batched_split.SPLIT_MIN`` of them,
+as at ``--h 0.01``, where about ten times as many steps split). With ``--jit`` (numba, the ``jit``
+extra) also the compiled sweep (after a first call that compiles) beside a bare compiled RK4 kernel
+(``bench_sweep_jit.bare_rk4``: per exponent for integer n, the n = 1.5 kernel over all for distinct
+n) over the same pendulums, and the first ``jit=True`` sweep of a fresh process twice on one new,
+empty cache directory (``jit_cache.py``, ``PENDULUM_SIM_JIT_CACHE``): the first process compiles
+(cache cold), the second loads what the first compiled (cache warm); timed in each process from
+before its imports to the sweep's end (``--first`` prints these two alone).
 Asserts nothing.
 """
 from __future__ import annotations
@@ -87,18 +88,21 @@ def first_jit_figures(size: int) -> None:
 
 
 def main() -> int:
+    global H
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--sizes', type=int, nargs='+', default=[2000, 20000])
     parser.add_argument('--steps', type=int, default=500)
     parser.add_argument('--repeats', type=int, default=2)
     parser.add_argument('--jit', action='store_true')
+    parser.add_argument('--h', type=float, default=H, help='the step in s (default 1 ms)')
     parser.add_argument('--first', action='store_true',
                         help='print the first jit=True sweeps of fresh processes alone')
     args = parser.parse_args()
+    H = args.h
     if args.first:
         first_jit_figures(2000)
         return 0
-    print(f'# sweep, h = 1 ms, {args.steps} steps, tau = 0, '
+    print(f'# sweep, h = {H * 1e3:g} ms, {args.steps} steps, tau = 0, '
           f'{platform.processor() or platform.machine()}, {os.cpu_count()} cores', flush=True)
     for size in args.sizes:
         per: dict[str, float] = {}

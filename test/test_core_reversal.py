@@ -87,10 +87,12 @@ def test_the_split_and_its_graded_newton_run_are_written_once() -> None:
     # reversal.graded_landing, called by split.split_step; split.micro_step (the plain step,
     # split at a reversal) calls split_step, the Stepper (SplitSteps) and the compiled sweep's
     # careful step both call micro_step itself, and the friction decisions after a reversal
-    # are coulomb's (rest_step, creep_state).
+    # are coulomb's (rest_step, creep_state). Its one other form is the masked loop over arrays
+    # of the numpy sweep's batched split (batched_split.graded_landings), which
+    # test_batched_split.py holds to the scalar split's floats, element by element.
     core = Path(reversal.__file__).parent
     users = {f.name for f in core.glob('*.py') if 'GRADED_ITERATIONS' in f.read_text('utf-8')}
-    assert users == {'reversal.py'}
+    assert users == {'reversal.py', 'batched_split.py'}
     assert {'graded_landing', 'locate_on_branch', 'rest_step',
             'creep_state'} <= set(split.split_step.__code__.co_names)
     assert 'split_step' in split.SplitSteps.split.__code__.co_names

@@ -15,10 +15,12 @@ two on random and edge states (``test_batched_careful.py``).
 
 A pendulum it cannot take so is handed back to the scalar path, from the same state (nothing is
 counted or changed for it): a step that crosses φ' = 0 (the reversal split), whose branch run
-reaches φ' = 0 after all, whose energy rose, or whose result is not finite. The sweep hands it
-only pendulums for which ``Engine.careful`` surely starts with one plain step: not Coulomb, not
-near-Coulomb (n > 1), below the stiff-transient speed, and inside the guard's safe speed range
-(shrunk by :data:`RANGE_MARGIN`), where the guard's count (``guard.substep_count``) is 1.
+reaches φ' = 0 after all, whose energy rose, or whose result is not finite. The splits are taken
+over arrays in turn by ``batched_split.py``, which reuses the parts here (:func:`graded_parts`,
+:func:`graded_meshes`, :func:`branch_runs`, :func:`settled`). The sweep hands it only pendulums for
+which ``Engine.careful`` surely starts with one plain step: not Coulomb, not near-Coulomb (n > 1),
+below the stiff-transient speed, and inside the guard's safe speed range (shrunk by
+:data:`RANGE_MARGIN`), where the guard's count (``guard.substep_count``) is 1.
 """
 from __future__ import annotations
 
@@ -148,20 +150,17 @@ def first_stage(tableau: Tableau, n: float) -> Any:
                   dict(VECTOR_ENV), f'<{tableau.name} first stage>')
 
 
-def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: FloatArray,
+def graded_parts(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: FloatArray,
                  w2: FloatArray, gamma: FloatArray, n: Any, reach: FloatArray,
-                 check: BoolArray, v1_fast: FloatArray | None = None
-                 ) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray]:
-    """Take the careful path's step of h for each pendulum where it is one plain or graded step.
+                 v1_fast: FloatArray | None = None
+                 ) -> tuple[BoolArray, BoolArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Take the plain and graded steps of :func:`graded_steps`; find the steps to split.
 
-    Returns (done, φ₁, φ'₁, E₁/I): where ``done`` the scalar careful path's result for that
-    pendulum (``Engine.careful`` with the guard's count 1), elsewhere nothing (the scalar path
-    takes it).
-    ``n`` is the exponent, a float or one per pendulum (:func:`batchable_law` true for each),
-    ``reach`` the grading window S (``Problem.reach``), ``check`` where the energy test applies.
-    ``v1_fast``, the fast path's φ'₁ of the same plain step (numpy's power), spares the C
-    library's plain step where its sign decides the reversal test (:data:`SIGN_MARGIN`) and
-    the step is graded (its result is then the branch run's).
+    Returns (done, split, φ''₀, φ₁, φ'₁, w): where ``done`` the micro step's result
+    (``split.micro_step``: the plain step or the graded branch run), before the finiteness and
+    energy tests (:func:`settled`); where ``split`` the micro step splits at the reversal
+    (``split.split_step`` from the same state and φ''₀: the step crosses φ' = 0, or its graded
+    branch run reached φ' = 0 after all). Elsewhere nothing (a plain step that is not finite).
     """
     key = float(n) if np.ndim(n) == 0 else 1.5  # a non-special exponent: one text for all
     plain = compile_step_with_n(tableau, key, False, vector=True)
@@ -192,8 +191,9 @@ def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: 
     done = np.isfinite(a0) & np.isfinite(v1s)
     sus = reversal_suspect(v, v1s, a0, h, reach)
     cross = (v1s * v < 0.0) | ((a0 * v < 0.0) & (np.abs(v) <= h * np.abs(a0)))
-    done &= ~(sus & cross)
-    graded = done & sus & ~cross & (reach > 0.0) & (a0 != 0.0)
+    split = done & sus & cross
+    done &= ~split
+    graded = done & sus & (reach > 0.0) & (a0 != 0.0)
     step_at(np.flatnonzero(done & ~graded))  # the plain step is the result
     near = np.flatnonzero(graded)
     if near.size:
@@ -208,16 +208,50 @@ def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: 
         pg, vg, wg = branch_runs(branch, p[near], vn, flat, start, count, back, ain[near],
                                  w2[near], gamma[near], side, nn)
         p1[near], v1[near], w[near] = pg, vg, wg
-        done[near] &= vg * vn >= 0.0  # reached φ' = 0 after all: the split (scalar)
+        reached = vg * vn < 0.0  # reached φ' = 0 after all: the split
+        done[near] &= ~reached
+        split[near] |= reached
+    return done, split, a0, p1, v1, w
+
+
+def settled(done: BoolArray, p: FloatArray, v: FloatArray, p1: FloatArray, v1: FloatArray,
+            w: FloatArray, ain: FloatArray, w2: FloatArray, check: BoolArray
+            ) -> tuple[BoolArray, FloatArray]:
+    """Return (done, E₁/I): ``done`` kept where the careful path would keep the step's result.
+
+    Where the result is not finite (``Engine._settle`` takes the fallback's) or its energy rose
+    without input where ``check`` (``Engine.careful`` redoes it), ``done`` is cleared: the
+    scalar path takes the step.
+    """
     with np.errstate(invalid='ignore'):
-        done &= np.isfinite(p1) & np.isfinite(v1) & np.isfinite(w)
+        done = done & np.isfinite(p1) & np.isfinite(v1) & np.isfinite(w)
     e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
     rows = np.flatnonzero(done & check & (ain == 0.0))
     if rows.size:
         e0 = specific_energy(v[rows], np.sin(0.5 * p[rows]), w2[rows])
         done[rows] &= ~energy_rose(e0, e1[rows], w2[rows])  # the energy redo (scalar)
+    return done, e1
+
+
+def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: FloatArray,
+                 w2: FloatArray, gamma: FloatArray, n: Any, reach: FloatArray,
+                 check: BoolArray, v1_fast: FloatArray | None = None
+                 ) -> tuple[BoolArray, FloatArray, FloatArray, FloatArray]:
+    """Take the careful path's step of h for each pendulum where it is one plain or graded step.
+
+    Returns (done, φ₁, φ'₁, E₁/I): where ``done`` the scalar careful path's result for that
+    pendulum (``Engine.careful`` with the guard's count 1), elsewhere nothing (the scalar path
+    takes it, or the batched split, ``batched_split.careful_steps``).
+    ``n`` is the exponent, a float or one per pendulum (:func:`batchable_law` true for each),
+    ``reach`` the grading window S (``Problem.reach``), ``check`` where the energy test applies.
+    ``v1_fast``, the fast path's φ'₁ of the same plain step (numpy's power), spares the C
+    library's plain step where its sign decides the reversal test (:data:`SIGN_MARGIN`) and
+    the step is graded (its result is then the branch run's).
+    """
+    done, _, _, p1, v1, w = graded_parts(tableau, p, v, h, ain, w2, gamma, n, reach, v1_fast)
+    done, e1 = settled(done, p, v, p1, v1, w, ain, w2, check)
     return done, p1, v1, e1
 
 
 __all__ = ['RANGE_MARGIN', 'SIGN_MARGIN', 'batchable_law', 'branch_runs', 'first_stage',
-           'graded_meshes', 'graded_steps']
+           'graded_meshes', 'graded_parts', 'graded_steps', 'settled']

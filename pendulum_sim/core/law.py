@@ -226,9 +226,15 @@ def laws_source(n: float, name: str = 'laws') -> str:
 
 
 @functools.lru_cache(maxsize=256)
-def compile_laws(n: float) -> Any:
-    """Return :func:`laws_source`'s function for the exponent ``n`` (scalar, ``math``)."""
-    return define(laws_source(n), 'laws', dict(SCALAR_ENV), '<laws>')
+def compile_laws(n: float, vector: bool = False) -> Any:
+    """Return :func:`laws_source`'s function for the exponent ``n`` (scalar, ``math``).
+
+    ``vector`` defines the same text with numpy: passed ``n`` as an :class:`ExactExponent` it
+    takes the scalar function's floats over arrays (the reversal split batched,
+    ``batched_split.py``).
+    """
+    return define(laws_source(n), 'laws', dict(VECTOR_ENV if vector else SCALAR_ENV),
+                  '<laws>')
 
 
 @functools.lru_cache(maxsize=256)

@@ -36,7 +36,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .batched_careful import RANGE_MARGIN, batchable_law, graded_steps
+from .batched_careful import RANGE_MARGIN, batchable_law
+from .batched_split import SPLIT_MIN, careful_steps
 from .compiled_careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
 from .decisions import (
@@ -118,8 +119,10 @@ class SweepResult:
         compiled careful step declines (``compiled_careful.py``).
     batched : int
         Steps of the stretch the careful path took batched over arrays on the numpy sweep
-        (``batched_careful.py``: the graded steps next to a reversal, the same floats as
-        ``Engine.careful``); ``batched + handed_back`` steps took the careful path there.
+        (``batched_careful.py``: the graded steps next to a reversal; ``batched_split.py``: the
+        steps split at one, where a block's step has ``batched_split.SPLIT_MIN`` of them; the
+        same floats and counts as ``Engine.careful``); ``batched + handed_back`` steps took the
+        careful path there.
     """
 
     phi: FloatArray
@@ -267,7 +270,7 @@ class _Group:
     n: float
     step: Any
     nn: Any  # the exponent: ``n`` itself, or a column where the group's exponents differ
-    batchable: BoolArray  # the careful path's graded steps batched (batched_careful.py)
+    batchable: BoolArray  # the careful path's graded and split steps batched (batched_split)
     nonsmooth: BoolArray
     coulomb: BoolArray
     damped: BoolArray
@@ -283,7 +286,7 @@ class _Group:
         # reach = 0 makes the near-reversal test false everywhere: the crossing test decides.
         self.graded = bool(self.reach.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
-        # The careful path's graded steps are batched (batched_careful.py) for these laws.
+        # The careful path's graded and split steps are batched (batched_split.py) for these.
         self.batch = bool(self.batchable.any()) and self.any_nonsmooth and self.graded
         size = self.sl.stop - self.sl.start
         self.check = np.zeros(size, dtype=bool)
@@ -292,7 +295,7 @@ class _Group:
         self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
-        self.batched = 0  # careful steps taken batched (batched_careful.py) this advance
+        self.batched = 0  # careful steps taken batched (batched_split.py) this advance
         self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
         self.use_careful = False  # the compiled run takes the careful step (compiled_careful)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
@@ -523,7 +526,7 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     refused = np.flatnonzero(~ok)
     batched = 0
     if refused.size and grp.batch:
-        taken = _batched(grp, hh, meth, guard, refused, p1, v1, e1)
+        taken = _batched(grp, hh, meth, guard, refused, p1, v1, e1, stats)
         batched = int(taken.size)
         if batched:
             keep = np.ones(refused.size, dtype=bool)
@@ -551,13 +554,16 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
 
 
 def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
-             p1: FloatArray, v1: FloatArray, e1: FloatArray) -> IntArray:
-    """Take the refused steps the batched careful path serves (``batched_careful.py``).
+             p1: FloatArray, v1: FloatArray, e1: FloatArray,
+             stats: dict[int, GuardStats]) -> IntArray:
+    """Take the refused steps the batched careful path serves (``batched_split.careful_steps``).
 
     The candidates are those whose ``Engine.careful`` starts with one plain step: a kink at
     rest, below the stiff-transient speed and, with the guard, inside its safe speed range by
     RANGE_MARGIN (the guard's count is then 1). Writes their states (and E/I, with the scalar
-    sine) into ``p1``, ``v1``, ``e1``; returns the sorted indices it took.
+    sine) into ``p1``, ``v1``, ``e1`` and counts the reversals of the splits it took in
+    ``stats`` (per pendulum, as ``Engine.careful`` counts them); returns the sorted indices it
+    took.
     """
     p, vv = grp.p, grp.v
     av = np.abs(vv[refused])
@@ -571,9 +577,15 @@ def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
         return cand
     ain, w2, gam = (c[cand] for c in (grp.ain_col, grp.w2_col, grp.gamma_col))
     nn = grp.nn[cand] if isinstance(grp.nn, np.ndarray) else grp.nn
-    done, pb, vb, eb = graded_steps(meth.tableau, p[cand], vv[cand], hh, ain, w2, gam, nn,
-                                    grp.reach[cand], grp.check[cand], v1[cand])
+    done, pb, vb, eb, turns = careful_steps(meth.tableau, p[cand], vv[cand], hh, ain, w2, gam,
+                                            nn, grp.reach[cand], grp.check[cand], v1[cand],
+                                            SPLIT_MIN)
     taken = cand[done]
+    for j in cand[done & (turns > 0)].tolist():
+        st = stats.get(grp.sl.start + j)
+        if st is None:
+            st = stats[grp.sl.start + j] = GuardStats()
+        st.reversals += 1
     p1[taken], v1[taken] = pb[done], vb[done]
     if grp.any_check:
         e1[taken] = eb[done]
