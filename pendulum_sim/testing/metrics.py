@@ -194,6 +194,18 @@ def _metrics(t: FloatArray, y: FloatArray, target: FloatArray, y0: FloatArray,
     return {name: info[name] for name in METRIC_NAMES}
 
 
+def _measured(columns: dict[str, FloatArray]) -> list[StepMetrics]:
+    """Return the StepMetrics of each row of ``columns`` (:func:`_metrics`); a metric the run
+    does not define is ``math.nan`` itself, so that such metrics compare equal."""
+    cells = []
+    for column in columns.values():
+        values = column.tolist()
+        if np.isnan(column).any():
+            values = [math.nan if math.isnan(v) else v for v in values]
+        cells.append(values)
+    return [StepMetrics(*row) for row in zip(*cells, strict=True)]
+
+
 def _checked(t: ArrayLike, y: ArrayLike, target: float, initial: float | None,
              effort: ArrayLike | None) -> tuple[FloatArray, FloatArray, float, FloatArray | None]:
     """Return the samples as arrays and the initial value, or raise why they cannot be measured."""
@@ -247,7 +259,7 @@ def step_metrics(t: ArrayLike, y: ArrayLike, target: float, *, initial: float | 
     columns = _metrics(tt, yy[np.newaxis, :], np.array([float(target)]), np.array([y0]),
                        None if tau is None else tau[np.newaxis, :],
                        np.array([float(effort_limit)]))
-    return StepMetrics(**{name: float(column[0]) for name, column in columns.items()})
+    return _measured(columns)[0]
 
 
 def step_metrics_batch(t: ArrayLike, y: ArrayLike, target: ArrayLike, *,
@@ -303,9 +315,8 @@ def step_metrics_batch(t: ArrayLike, y: ArrayLike, target: ArrayLike, *,
     if good.size:
         columns = _metrics(tt, yy[good], goal[good], y0[good],
                            None if tau is None else tau[good], limit[good])
-        values = [column.tolist() for column in columns.values()]
-        for i, row in zip(good.tolist(), zip(*values, strict=True), strict=True):
-            out[i] = StepMetrics(*row)
+        for i, m in zip(good.tolist(), _measured(columns), strict=True):
+            out[i] = m
     for i in np.flatnonzero(~ok).tolist():
         try:
             out[i] = step_metrics(tt, yy[i], float(goal[i]),
