@@ -313,8 +313,9 @@ def step_metrics_batch(t: ArrayLike, y: ArrayLike, target: ArrayLike, *,
     out: list[StepMetrics | TestingError | None] = [None] * n
     good = np.flatnonzero(ok)
     if good.size:
-        columns = _metrics(tt, yy[good], goal[good], y0[good],
-                           None if tau is None else tau[good], limit[good])
+        take = slice(None) if good.size == n else good   # all rows: no copies
+        columns = _metrics(tt, yy[take], goal[take], y0[take],
+                           None if tau is None else tau[take], limit[take])
         for i, m in zip(good.tolist(), _measured(columns), strict=True):
             out[i] = m
     for i in np.flatnonzero(~ok).tolist():
