@@ -21,7 +21,7 @@ from .scene import Value, finite_limit
 
 FloatArray = NDArray[np.float64]
 
-BLOCK = 64   # runs measured together by runs_metrics (a block of samples stays in the cache)
+BLOCK = 32   # runs measured together by runs_metrics (a block of samples stays in the cache)
 
 
 @dataclass(frozen=True)
