@@ -91,9 +91,9 @@ def runs_metrics(runs: Sequence[ClosedLoopRun],
                  targets: Sequence[float]) -> list[StepMetrics | TestingError]:
     """Return ``run.metrics(target)`` of each run, or the TestingError it raises.
 
-    The same numbers, computed together (:func:`~pendulum_sim.testing.metrics.
-    step_metrics_batch`) for the runs that share their sample times, as a batch's runs do,
-    :data:`BLOCK` at a time; any other run alone.
+    The same numbers, computed together
+    (:func:`~pendulum_sim.testing.metrics.step_metrics_batch`) for the runs that share their
+    sample times, as a batch's runs do, :data:`BLOCK` at a time; any other run alone.
     """
     out: list[StepMetrics | TestingError | None] = [None] * len(runs)
     groups: dict[int, list[int]] = {}
