@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -119,7 +120,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         from .check import check_live_port, check_values
         from .execute import check_address, run_campaign
         from .spec import read_spec
-        from .summary import write_results
+        from .summary import import_writers, write_results
 
         if args.scheduler is not None:
             check_address(args.scheduler)
@@ -128,9 +129,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.foxglove_port:
             check_live_port(spec, args.foxglove_port)
         out = Path(args.out)
+        importing: list[threading.Thread] = []
         rows = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers,
                             resume=args.resume, progress=not args.no_progress,
-                            foxglove_port=args.foxglove_port)
+                            foxglove_port=args.foxglove_port,
+                            on_submitted=lambda: importing.append(import_writers()))
+        for thread in importing:
+            thread.join()
         write_results(spec, rows, out)
     except CampaignError as exc:
         line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__

@@ -6,7 +6,9 @@ metrics pages) even with the dashboard off; the scheduler's asks for port 8787 a
 pages, so its local cluster's scheduler and workers start none (:class:`QuietScheduler`,
 :class:`QuietWorker`). Its processes are started with SIGINT ignored (they inherit it, and
 Python keeps an inherited SIG_IGN), so Ctrl-C in the terminal interrupts the campaign's own
-process, which closes the cluster, and no worker prints a traceback.
+process, which closes the cluster, and no worker prints a traceback. Each worker starts its
+episode process (:mod:`~pendulum_sim.testing.campaign.sandbox`) as it starts, so the first
+episodes find it ready.
 """
 from __future__ import annotations
 
@@ -41,7 +43,13 @@ class QuietScheduler(Scheduler):
 
 
 class QuietWorker(Worker):
-    """A Dask worker without an HTTP server."""
+    """A Dask worker without an HTTP server, whose episode process starts with it."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        from .sandbox import memory_limit_of, prestart
+
+        prestart(memory_limit_of(self))
 
     def start_http_server(self, *args: Any, **kwargs: Any) -> None:
         """Start nothing (a campaign reads no dashboard)."""

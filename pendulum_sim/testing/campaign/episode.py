@@ -74,20 +74,26 @@ def verdict(spec: CampaignSpec, metrics: StepMetrics | dict[str, float]) -> str:
 
 
 def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any], target: float,
-           run: ClosedLoopRun | None, reason: str, started: float) -> dict[str, Any]:
+           run: ClosedLoopRun | None, reason: str, started: float,
+           measured: StepMetrics | TestingError | None = None) -> dict[str, Any]:
     """Return the table row of an episode (a run of None failed before it had samples).
 
     The metrics are measured towards the episode's ``target``, over the run up to its fault
-    when ``reason`` says why it stopped early.
+    when ``reason`` says why it stopped early; ``measured`` is ``run.metrics(target)`` (or
+    the TestingError it raises) when the caller has it already (a batch's runs, measured
+    together by :func:`~pendulum_sim.testing.run.runs_metrics`).
     """
     metrics: dict[str, float] = {name: math.nan for name in METRIC_NAMES}
     if run is not None:
-        try:
-            m = run.metrics(target)
-        except TestingError as exc:
-            reason = reason or str(exc)
+        if measured is None:
+            try:
+                measured = run.metrics(target)
+            except TestingError as exc:
+                measured = exc
+        if isinstance(measured, TestingError):
+            reason = reason or str(measured)
         else:
-            metrics = m.as_dict()
+            metrics = measured.as_dict()
             reason = reason or (f'the simulation stopped: {run.failed}' if run.failed else
                                 verdict(spec, metrics))
     return {'episode': episode, **values, 'target': target, **metrics, 'passed': not reason,
@@ -167,6 +173,7 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
     ``wall_time_s`` of each row is the batch's time divided by its size.
     """
     from ..batch import run_batch, warm_up_batch
+    from ..run import runs_metrics
 
     started = time.perf_counter()
     spec = cached_spec(text)
@@ -190,12 +197,17 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
         loop_done()
     for i, res in zip(ok, batch, strict=True):
         results[i] = res
+    runs = [res if isinstance(res, ClosedLoopRun) else failed_run(res) for res in results]
+    runs = [None if run is None else run.with_target(d.target)
+            for run, d in zip(runs, drawn, strict=True)]
+    measured = runs_metrics([run for run in runs if run is not None],
+                            [d.target for run, d in zip(runs, drawn, strict=True)
+                             if run is not None])[::-1]
     rows = []
-    for i, d, res in zip(episodes, drawn, results, strict=True):
-        run = res if isinstance(res, ClosedLoopRun) else failed_run(res)
-        run = None if run is None else run.with_target(d.target)
+    for i, d, res, run in zip(episodes, drawn, results, runs, strict=True):
         reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
-        row = row_of(spec, i, d.values, d.target, run, reason, started)
+        row = row_of(spec, i, d.values, d.target, run, reason, started,
+                     None if run is None else measured.pop())
         row['wall_time_s'] = (time.perf_counter() - started) / len(episodes)
         _keep_failure(out, row, run)
         rows.append(row)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import pickle
 import re
 import sys
 import time
@@ -24,7 +25,7 @@ from typing import IO, Any
 
 from ..errors import CampaignError
 from .episode import batched, fault_row
-from .sandbox import Fault, run_chunk
+from .sandbox import Fault, run_chunk_pickled
 from .spec import CampaignSpec, shown
 from .store import EpisodeStore
 
@@ -123,13 +124,16 @@ def check_address(address: str) -> None:
 def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
                 progress: bool = True,
                 on_row: Callable[[dict[str, Any]], None] | None = None,
-                foxglove_port: int = 0) -> int:
+                foxglove_port: int = 0,
+                on_submitted: Callable[[], Any] | None = None) -> int:
     """Run the episodes without a stored row on ``client``; return how many ran.
 
     Each task's rows are stored in one transaction when it ends. A task that fails as a whole
     (its worker died, say) is run again one episode per task; an episode whose own task fails
     so fails with the reason. With ``foxglove_port`` (0 = off) each episode is served live
     while it runs (the caller gives a client of one worker: one server at a time).
+    ``on_submitted`` is called once the tasks are submitted, while this process waits for
+    them (the command line imports its writers meanwhile).
     """
     from distributed import as_completed
 
@@ -145,15 +149,17 @@ def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
     chunks = [pending[a:a + size] for a in range(0, len(pending), size)]
 
     def submit(chunk: list[int], again: str = '') -> Any:
-        return client.submit(run_chunk, spec.text, chunk, out, spec.episode_timeout,
+        return client.submit(run_chunk_pickled, spec.text, chunk, out, spec.episode_timeout,
                              foxglove_port=foxglove_port, pure=False,
                              key=f'episodes-{chunk[0]}-{chunk[-1]}-{tag}{again}')
 
     futures = as_completed([submit(c) for c in chunks])
+    if on_submitted is not None:
+        on_submitted()
     try:
         for future in futures:
             try:
-                results = future.result()
+                results = pickle.loads(future.result())
             except Exception as exc:   # the task itself failed: its worker is gone
                 first, last = (int(x) for x in future.key.split('-')[1:3])
                 chunk = [i for i in pending if first <= i <= last]
@@ -175,14 +181,17 @@ def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
 
 
 def chunk_size(pending: int, workers: int, batch: bool) -> int:
-    """Return the episodes per task: about four tasks per worker (eight for scalar episodes,
-    which are slower one by one), at most MAX_BATCH in a batch and MAX_CHUNK one by one.
+    """Return the episodes per task: about two tasks per worker for a batch (eight for scalar
+    episodes, which are slower one by one), at most MAX_BATCH in a batch and MAX_CHUNK one by
+    one.
 
     A task runs its episodes together and its rows are stored when it ends: big enough that
     Dask's cost per task is small against it, small enough that the workers stay busy to the
-    end and an interruption loses little.
+    end and an interruption loses little. A batch costs some time per control period whatever
+    its size (the law's call, the sweep's), so a batch of a few thousand episodes runs each
+    faster than four smaller ones (``bench/bench_testbench.py``, part (e)).
     """
-    per_worker = 4 if batch else 8
+    per_worker = 2 if batch else 8
     most = MAX_BATCH if batch else MAX_CHUNK
     return max(1, min(most, -(-pending // (per_worker * max(workers, 1)))))
 
@@ -196,12 +205,13 @@ def _workers(client: Any) -> int:
 
 def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None,
                  workers: int | None = None, resume: bool = False,
-                 progress: bool = True, foxglove_port: int = 0) -> list[dict[str, Any]]:
+                 progress: bool = True, foxglove_port: int = 0,
+                 on_submitted: Callable[[], Any] | None = None) -> list[dict[str, Any]]:
     """Run (or continue) the campaign into ``out``; return every row, by episode id.
 
     Nothing is written before the folder is checked and the cluster reached. With
-    ``foxglove_port`` (0 = off) the episode being run is served live to Foxglove
-    (:func:`run_pending`).
+    ``foxglove_port`` (0 = off) the episode being run is served live to Foxglove; with
+    ``on_submitted``, that is called once the episodes are submitted (:func:`run_pending`).
     """
     store = EpisodeStore(out)
     store.check(spec.text, resume)
@@ -209,7 +219,8 @@ def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None,
     try:
         store.create(spec.text, resume)
         if client is not None:
-            run_pending(spec, store, client, progress, foxglove_port=foxglove_port)
+            run_pending(spec, store, client, progress, foxglove_port=foxglove_port,
+                        on_submitted=on_submitted)
         return store.rows()
     finally:
         store.close()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import math
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -181,6 +182,31 @@ def write_figures(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path) -> 
         plt.close(fig)
         names.append('pass_rate.png')
     return names
+
+
+def _import_writers() -> None:
+    """Import what :func:`write_results` writes with (pyarrow, matplotlib), when installed."""
+    try:
+        import pyarrow.parquet  # noqa: F401
+    except ImportError:
+        pass
+    try:
+        from pendulum_sim.pyplot_agg import pyplot
+
+        pyplot()
+    except ImportError:
+        pass
+
+
+def import_writers() -> threading.Thread:
+    """Start importing what :func:`write_results` writes with, in a thread; return it.
+
+    A campaign's process mostly waits for its episodes: the imports (a third of a second for
+    matplotlib) are done meanwhile instead of after the last episode.
+    """
+    thread = threading.Thread(target=_import_writers, name='import-writers', daemon=True)
+    thread.start()
+    return thread
 
 
 def write_results(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path) -> None:
