@@ -15,15 +15,10 @@ import numpy as np
 import pytest
 
 from pendulum_sim.core import METHODS, IntegratorError, PendulumParams, Stepper
-from pendulum_sim.core.batched_careful import (
-    RANGE_MARGIN,
-    batchable_law,
-    graded_meshes,
-    graded_steps,
-)
+from pendulum_sim.core.batched_careful import batchable_law, graded_meshes, graded_steps
 from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.explicit import compile_step_with_n
-from pendulum_sim.core.guard import GuardStats, safe_speed_range
+from pendulum_sim.core.guard import RANGE_MARGIN, GuardStats, safe_speed_range
 from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.reversal import graded_mesh
 from pendulum_sim.core.sweep import Sweep, sweep

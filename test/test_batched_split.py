@@ -16,7 +16,6 @@ import pytest
 
 import pendulum_sim.core.sweep as sweep_module
 from pendulum_sim.core import METHODS
-from pendulum_sim.core.batched_careful import RANGE_MARGIN
 from pendulum_sim.core.batched_split import (
     SCALAR_BELOW,
     careful_steps,
@@ -25,7 +24,7 @@ from pendulum_sim.core.batched_split import (
 )
 from pendulum_sim.core.engine import Engine
 from pendulum_sim.core.explicit import compile_step_with_n
-from pendulum_sim.core.guard import GuardStats
+from pendulum_sim.core.guard import RANGE_MARGIN, GuardStats
 from pendulum_sim.core.law import compile_laws
 from pendulum_sim.core.problem import Problem
 from pendulum_sim.core.reversal import hermite_root

@@ -34,7 +34,7 @@ from pendulum_sim.core.decisions import (
 )
 from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.explicit import step_source
-from pendulum_sim.core.guard import FALLBACK, GuardStats, substep_count
+from pendulum_sim.core.guard import FALLBACK, GuardStats, one_substep, substep_count
 from pendulum_sim.core.implicit import MAX_FALLBACK_SUBSTEPS
 from pendulum_sim.core.jit import available, numba_twin
 from pendulum_sim.core.law import damping_derivative, damping_expression, power_source
@@ -195,7 +195,7 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
     compiled = _compiled(method, n)
     consts = np.array(guard_for(TABLEAUS[method]).constants)
     rng = np.random.default_rng(int(10 * n))
-    held = stiff = stiff_turns = 0
+    held = stiff = stiff_turns = inside = 0
     seen = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
     for k in range(300 + (200 if n > 1.0 else 0)):
         gamma, w2, h, ain, p, v = _random_state(rng) if k < 300 else _stiff_state(rng, n)
@@ -206,14 +206,19 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
                 eng.nonsmooth, eng.coulomb, consts)
         # The plain step of h the compiled run took before it refused the step.
         known = plain(p, v, h, moving_input(ain, v, eng.cf), w2, gamma, 1.0, n)
+        # The guard's safe range: inside it (by its margin) the count is 1 without computing it.
+        lo, hi = eng.fast_range(h, ain)
+        inside += bool(one_substep(abs(v), lo, hi))
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-        got = compiled[0](*compiled[1:], *args, counts, True, *known)
+        got = compiled[0](*compiled[1:], *args, counts, True, *known, lo, hi)
         again = np.zeros_like(counts)
         assert careful_step(plain, branch, laws, pair_plain, pair_branch, *args, again,
-                            True, *known) == got
-        # Outside the guard's range the run takes no plain step: the careful step takes it.
+                            True, *known, lo, hi) == got
+        # Outside the guard's range the run takes no plain step: the careful step takes it;
+        # with an empty range the guard's count is computed.
         alone = np.zeros_like(counts)
-        assert compiled[0](*compiled[1:], *args, alone, False, 0.0, 0.0, 0.0, 0.0) == got
+        assert compiled[0](*compiled[1:], *args, alone, False, 0.0, 0.0, 0.0, 0.0, math.inf,
+                           -math.inf) == got
         assert np.array_equal(alone, counts)
         assert np.array_equal(again, counts)
         assert got[0], (gamma, w2, h, ain, p, v)  # taken compiled
@@ -227,6 +232,7 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
             stiff_turns += counts[CAREFUL_COUNTERS.index('reversals')] > 0
         else:
             assert k < 300  # every state of _stiff_state is a stiff transient
+    assert inside >= 10  # states where the count 1 was taken without computing it
     sub, fb, rev, sticks, rej, proj = seen.tolist()
     # The guard's substeps taken compiled (Coulomb friction has no slope: never substeps; at
     # n = 0.01 the slope is within the disk or beyond the cap: one step or the fallback).
@@ -260,7 +266,8 @@ def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:
     counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
     got = compiled[0](*compiled[1:], p, v, h, 0.0, eng.w2, eng.gamma, eng.n, eng.cf,
                       eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb,
-                      consts, counts, True, *_known(compiled, eng, p, v, h, 0.0))
+                      consts, counts, True, *_known(compiled, eng, p, v, h, 0.0),
+                      *eng.fast_range(h, 0.0))
     assert got == (False, p, v) and not counts.any()
 
 
@@ -433,7 +440,8 @@ def test_a_stiff_step_the_substeps_cannot_cover_goes_to_the_guard_compiled() -> 
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
         got = compiled[0](*compiled[1:], p, v, h, ain, w2, gamma, n, eng.cf, eng.v_acc,
                           eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb, consts,
-                          counts, True, *_known(compiled, eng, p, v, h, ain))
+                          counts, True, *_known(compiled, eng, p, v, h, ain),
+                          *eng.fast_range(h, ain))
         assert got == (True, *want[:2])
         assert tuple(counts.tolist()) == _stats(st)
         assert st.substeps >= STIFF_MAX_TRIALS and st.reversals > 0

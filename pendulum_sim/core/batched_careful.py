@@ -19,8 +19,8 @@ reaches φ' = 0 after all, whose energy rose, or whose result is not finite. The
 over arrays in turn by ``batched_split.py``, which reuses the parts here (:func:`graded_parts`,
 :func:`graded_meshes`, :func:`branch_runs`, :func:`settled`). The sweep hands it only pendulums for
 which ``Engine.careful`` surely starts with one plain step: not Coulomb, not near-Coulomb (n > 1),
-below the stiff-transient speed, and inside the guard's safe speed range (shrunk by
-:data:`RANGE_MARGIN`), where the guard's count (``guard.substep_count``) is 1.
+below the stiff-transient speed, and where the guard's count (``guard.substep_count``) is surely
+1 (``guard.one_substep``: inside its safe speed range shrunk by ``guard.RANGE_MARGIN``).
 """
 from __future__ import annotations
 
@@ -39,13 +39,6 @@ from .tableaus import Tableau
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
-
-RANGE_MARGIN = 1e-9
-"""Relative margin inside the guard's safe speed range (``guard.safe_speed_range``) for a batch:
-inside the range the guard's stability and angle bounds hold at the largest speed of the step,
-so its count is one substep; the margin keeps the rounding of the two computations of those
-bounds (the range's and ``substep_count``'s) far from deciding it."""
-
 
 def batchable_law(n: float) -> bool:
     """Return True where :func:`graded_steps` serves the exponent ``n``: 1 < n < 3, not whole.
@@ -253,5 +246,5 @@ def graded_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain: 
     return done, p1, v1, e1
 
 
-__all__ = ['RANGE_MARGIN', 'SIGN_MARGIN', 'batchable_law', 'branch_runs', 'first_stage',
+__all__ = ['SIGN_MARGIN', 'batchable_law', 'branch_runs', 'first_stage',
            'graded_meshes', 'graded_parts', 'graded_steps', 'settled']

@@ -61,7 +61,7 @@ from .coulomb import friction_step, moving_input, stuck
 from .decisions import energy_rose, specific_energy
 from .dirk import damping_formula
 from .energy_redo import redo
-from .guard import FALLBACK, substep_count
+from .guard import FALLBACK, one_substep, substep_count
 from .implicit import fallback_refused, fallback_run
 from .law import power_formula
 from .split import micro_step
@@ -81,7 +81,7 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
                  p: float, v: float, h: float, ain: float, w2: float, gamma: float, n: float,
                  cf: float, v_acc: float, reach: float, check: bool, nonsmooth: bool,
                  coulomb: bool, guard: Any, counts: Any, known: bool, kp1: float, kv1: float,
-                 kw: float, ka0: float) -> tuple[bool, float, float]:
+                 kw: float, ka0: float, lo: float, hi: float) -> tuple[bool, float, float]:
     """Take ``Engine.careful``'s step of h from (φ, φ') for a guarded explicit method.
 
     The generated functions come first, all with the exponent an argument: the method's plain
@@ -95,7 +95,9 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
     before it refused the step, ``plain(p, v, h, moving_input(ain, v, cf), w2, gamma, 1.0,
     n)``'s floats, which the careful step reads instead of taking that step again (its stiff
     test's φ''₀ where ``cf`` is 0, the first substep where the guard's count is 1); the run
-    takes no plain step outside the guard's speed range (``known`` False there).
+    takes no plain step outside the guard's speed range (``known`` False there); (``lo``,
+    ``hi``) is that range (``guard.safe_speed_range``), inside which, shrunk by its margin
+    (``guard.one_substep``), the guard's count is 1 without computing it.
     Returns ``(done, φ₁, φ'₁)``; ``done`` False where ``Engine.careful`` must take the step
     (see the module docstring), the counters then untouched.
     """
@@ -128,7 +130,7 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
             done, p1, v1, gsubs, fbs, gturns = guarded(plain, branch, laws, p, v, h, ain, w2,
                                                        gamma, n, cf, reach, nonsmooth,
                                                        coulomb, guard, known, kp1, kv1, kw,
-                                                       ka0)
+                                                       ka0, one_substep(abs(v), lo, hi))
             if not done:
                 return False, p, v
             subs += gsubs
@@ -159,7 +161,7 @@ def careful_step(plain: Any, branch: Any, laws: Any, pair_plain: Any, pair_branc
 def guarded(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ain: float,
             w2: float, gamma: float, n: float, cf: float, reach: float, nonsmooth: bool,
             coulomb: bool, guard: Any, known: bool, kp1: float, kv1: float, kw: float,
-            ka0: float) -> tuple[bool, float, float, int, int, int]:
+            ka0: float, one: bool) -> tuple[bool, float, float, int, int, int]:
     """Return ``Engine.guarded``'s step: (done, φ₁, φ'₁, substeps, fallbacks, reversals).
 
     The fewest stable substeps (``guard.substep_count``), re-judged after each one, each a
@@ -169,15 +171,19 @@ def guarded(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float, ai
     fallback would take friction beside the law (c_f = ``cf`` > 0: ``engine.moving_fallback``,
     the Python path's one implementation, takes that step). Where the count is 1 the substep
     is the whole step, whose plain step (``kp1``, ``kv1``, ``kw``, ``ka0``) is given where
-    ``known``.
+    ``known``; with ``one`` (``guard.one_substep`` of the step's speed) the count is 1 without
+    computing it.
     """
     force = abs(ain) + cf + w2
     omega0 = math.sqrt(w2)
     left = h
     taken = fbs = turns = 0
     while left > 0.0:
-        m = substep_count(left, w2, gamma, n, p, v, force,
-                          abs(moving_input(ain, v, cf) - w2 * math.sin(p)), guard)
+        if one and taken == 0:
+            m = 1
+        else:
+            m = substep_count(left, w2, gamma, n, p, v, force,
+                              abs(moving_input(ain, v, cf) - w2 * math.sin(p)), guard)
         if m == FALLBACK:
             if cf != 0.0 or fallback_refused(v, left, ain, w2, omega0):
                 return False, p, v, 0, 0, 0

@@ -386,7 +386,7 @@ def kernel_source(tableau: Tableau, n: float, friction: bool = False) -> str:
              '                    plain, branch, laws, pair_plain, pair_branch, p0, v0, h, a_in,',
              '                    w2, gamma, n, ' + ('cf' if friction else '0.0')
              + ', v_acc, reach, check, nonsmooth, coulomb,',
-             '                    GUARD, COUNTS[i], known, p1, v1, w, a0)',
+             '                    GUARD, COUNTS[i], known, p1, v1, w, a0, lo, hi)',
              '                if not done:', '                    break',
              '                if check:', *renew,
              '            p0 = p1', '            v0 = v1', '            k += 1',

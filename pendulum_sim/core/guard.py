@@ -251,6 +251,24 @@ def substep_count(h: float, omega0_sq: float, gamma: float, n: float, phi: float
     return max(m, m_angle)
 
 
+RANGE_MARGIN = 1e-9
+"""Relative margin inside the guard's safe speed range (:func:`safe_speed_range`): inside the
+range the guard's stability and angle bounds hold at the largest speed of the step, so its count
+(:func:`substep_count`) is one substep; the margin keeps the rounding of the two computations of
+those bounds (the range's and ``substep_count``'s) far from deciding it."""
+
+
+def one_substep(speed: Any, lo: Any, hi: Any) -> Any:
+    """Return where a step at |φ'| = ``speed`` is surely one substep of the guard.
+
+    Inside the safe speed range ``(lo, hi)`` shrunk by :data:`RANGE_MARGIN`; floats or numpy
+    arrays. The numpy sweep's batched careful path and the compiled careful step take the
+    guard's count as 1 there without computing it (``test_sweep_jit.py`` holds the compiled
+    step to ``Engine.careful``, which computes it).
+    """
+    return (lo * (1.0 + RANGE_MARGIN) <= speed) & (speed <= hi * (1.0 - RANGE_MARGIN))
+
+
 def safe_speed_range(guard: StabilityGuard, omega0_sq: float, gamma: float, n: float, h: float,
                      ain_bound: float) -> tuple[float, float]:
     """Return (lo, hi): one plain step of h is safe for every state with lo <= |φ'| <= hi.

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .batched_careful import RANGE_MARGIN, batchable_law
+from .batched_careful import batchable_law
 from .batched_split import SPLIT_MIN, careful_steps
 from .compiled_careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
@@ -51,7 +51,7 @@ from .decisions import (
 from .engine import Engine, guard_for
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step, compile_step_with_n
-from .guard import GuardStats, safe_speed_ranges
+from .guard import GuardStats, one_substep, safe_speed_ranges
 from .jit import INSTALL_HINT
 from .jit import available as jit_available
 from .jit import compile_kernel as compile_jit_kernel
@@ -559,8 +559,8 @@ def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
     """Take the refused steps the batched careful path serves (``batched_split.careful_steps``).
 
     The candidates are those whose ``Engine.careful`` starts with one plain step: a kink at
-    rest, below the stiff-transient speed and, with the guard, inside its safe speed range by
-    RANGE_MARGIN (the guard's count is then 1). Writes their states (and E/I, with the scalar
+    rest, below the stiff-transient speed and, with the guard, where its count is surely 1
+    (``guard.one_substep``). Writes their states (and E/I, with the scalar
     sine) into ``p1``, ``v1``, ``e1`` and counts the reversals of the splits it took in
     ``stats`` (per pendulum, as ``Engine.careful`` counts them); returns the sorted indices it
     took.
@@ -570,8 +570,7 @@ def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
     fit = grp.batchable[refused] & grp.nonsmooth[refused] & (av <= grp.v_acc[refused])
     fit &= grp.cf[refused] == 0.0  # the batched steps know no friction beside the law
     if guard:
-        fit &= (grp.lo[refused] * (1.0 + RANGE_MARGIN) <= av)
-        fit &= av <= grp.hi[refused] * (1.0 - RANGE_MARGIN)
+        fit &= one_substep(av, grp.lo[refused], grp.hi[refused])
     cand = refused[fit]
     if not cand.size:
         return cand
