@@ -439,6 +439,38 @@ def test_a_campaign_killed_half_way_and_resumed_has_every_episode_once(tmp_path:
         assert same_rows([r], [expected])
 
 
+def _cells(rows: list[dict[str, Any]]) -> list[list[tuple[str, type, str]]]:
+    """Return each row's cells as (column, type, repr): equal only for the same values, of
+    the same types, in the same order (NaN equal to NaN)."""
+    return [[(k, type(v), repr(v)) for k, v in r.items()] for r in rows]
+
+
+def test_the_rows_a_campaign_returns_are_those_its_store_reads_back(tmp_path: Path) -> None:
+    # The rows run now are returned as stored, not decoded again: the same cells and types as
+    # the JSON the store reads back (failed episodes with NaN metrics among them), also for
+    # a resumed campaign whose earlier rows are read back.
+    import sqlite3
+
+    from pendulum_sim.testing.campaign.execute import run_campaign
+    from pendulum_sim.testing.campaign.store import EpisodeStore
+
+    spec = parse_spec(campaign(tmp_path, episodes=12, periods=200).read_text())
+    out = tmp_path / 'out'
+    rows = run_campaign(spec, out, workers=1, progress=False)
+    assert any(not r['passed'] for r in rows) and any(r['passed'] for r in rows)
+    assert any(math.isnan(r['settling_time']) for r in rows)
+    store = EpisodeStore(out)
+    assert _cells(rows) == _cells(store.rows())
+    db = sqlite3.connect(out / 'episodes.sqlite')
+    with db:
+        db.execute('DELETE FROM episodes WHERE episode % 3 = 1')
+    db.close()
+    again = run_campaign(spec, out, workers=1, resume=True, progress=False)
+    assert _cells(again) == _cells(store.rows())
+    assert [r['episode'] for r in again] == list(range(12))
+    store.close()
+
+
 # ------------------------------------------------------------------ a real Dask cluster
 @pytest.fixture
 def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[bytes]]]]:

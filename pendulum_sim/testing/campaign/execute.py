@@ -123,7 +123,7 @@ def check_address(address: str) -> None:
 
 def run_pending(spec: CampaignSpec, store: EpisodeStore, client: Any,
                 progress: bool = True,
-                on_row: Callable[[dict[str, Any]], None] | None = None,
+                on_row: Callable[[dict[str, Any]], Any] | None = None,
                 foxglove_port: int = 0,
                 on_submitted: Callable[[], Any] | None = None) -> int:
     """Run the episodes without a stored row on ``client``; return how many ran.
@@ -209,19 +209,24 @@ def run_campaign(spec: CampaignSpec, out: Path, *, scheduler: str | None = None,
                  on_submitted: Callable[[], Any] | None = None) -> list[dict[str, Any]]:
     """Run (or continue) the campaign into ``out``; return every row, by episode id.
 
-    Nothing is written before the folder is checked and the cluster reached. With
-    ``foxglove_port`` (0 = off) the episode being run is served live to Foxglove; with
-    ``on_submitted``, that is called once the episodes are submitted (:func:`run_pending`).
+    The rows this run stored are returned as they were stored, the others as read back from
+    the store (the same values: a row's cells are numbers, booleans and strings, which JSON
+    keeps as they are). Nothing is written before the folder is checked and the cluster
+    reached. With ``foxglove_port`` (0 = off) the episode being run is served live to
+    Foxglove; with ``on_submitted``, that is called once the episodes are submitted
+    (:func:`run_pending`).
     """
     store = EpisodeStore(out)
     store.check(spec.text, resume)
     client = make_client(scheduler, workers) if len(store.done()) < spec.episodes else None
     try:
         store.create(spec.text, resume)
+        fresh: dict[int, dict[str, Any]] = {}   # the rows stored now, as they were stored
         if client is not None:
-            run_pending(spec, store, client, progress, foxglove_port=foxglove_port,
-                        on_submitted=on_submitted)
-        return store.rows()
+            run_pending(spec, store, client, progress,
+                        on_row=lambda row: fresh.setdefault(int(row['episode']), row),
+                        foxglove_port=foxglove_port, on_submitted=on_submitted)
+        return store.rows(known=fresh)
     finally:
         store.close()
         if client is not None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import sqlite3
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -130,13 +130,19 @@ class EpisodeStore:
             raise CampaignError(f"episode {episode} has no result in '{self.out}'")
         return found
 
-    def rows(self) -> list[dict[str, Any]]:
-        """Return every stored row, by episode id."""
+    def rows(self, known: Mapping[int, dict[str, Any]] | None = None) -> list[dict[str, Any]]:
+        """Return every stored row, by episode id.
+
+        A row in ``known`` (by episode id: rows this process has just stored) is taken from
+        it instead of decoded again; it holds the same values, a row's cells being numbers,
+        booleans and strings, which JSON keeps as they are.
+        """
         if self._db is None and not self.path.is_file():
             old = json_rows_by_id(self.out / JSON_FOLDER)
             return [old[i] for i in sorted(old)]
-        return [json.loads(r) for (r,) in self._connect().execute(
-            'SELECT row FROM episodes ORDER BY episode')]
+        known = known or {}
+        return [known[i] if i in known else json.loads(r) for (i, r) in self._connect().execute(
+            'SELECT episode, row FROM episodes ORDER BY episode')]
 
     def passed(self) -> int:
         """Return how many stored episodes passed."""
