@@ -38,6 +38,7 @@ from .law import ExactExponent, compile_laws
 from .reversal import (
     GRADED_ITERATIONS,
     GRADED_TOL,
+    HERMITE_ITERATIONS,
     NEWTON_ITERATIONS,
     NEWTON_TOL,
     graded_mesh,
@@ -48,9 +49,6 @@ from .tableaus import Tableau
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
-
-HERMITE_ITERATIONS = 60
-"""``reversal.hermite_root``'s iterations at most (its loop's bound)."""
 
 SCALAR_BELOW = 32
 """Below this many pendulums the Hermite roots and the graded meshes are taken by the scalar
@@ -316,5 +314,5 @@ def careful_steps(tableau: Tableau, p: FloatArray, v: FloatArray, h: float, ain:
     return done, p1, v1, e1, turns
 
 
-__all__ = ['HERMITE_ITERATIONS', 'SCALAR_BELOW', 'SPLIT_MIN', 'careful_steps',
+__all__ = ['SCALAR_BELOW', 'SPLIT_MIN', 'careful_steps',
            'graded_landings', 'hermite_roots', 'locate_on_branches', 'meshes', 'split_steps']

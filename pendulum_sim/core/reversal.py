@@ -37,6 +37,10 @@ def graded_law(n: float) -> bool:
     return 0.0 < n < 3.0 and n != int(n)
 
 
+HERMITE_ITERATIONS = 60
+""":func:`hermite_root`'s iterations at most (Newton safeguarded by bisection)."""
+
+
 def hermite_root(v0: float, v1: float, dv0: float, dv1: float) -> float:
     """Return θ in (0, 1) where the cubic Hermite interpolant of φ' vanishes.
 
@@ -46,7 +50,7 @@ def hermite_root(v0: float, v1: float, dv0: float, dv1: float) -> float:
     lo, hi = 0.0, 1.0
     flo = v0
     th = v0 / (v0 - v1)
-    for _ in range(60):
+    for _ in range(HERMITE_ITERATIONS):
         t2 = th * th
         t3 = t2 * th
         f = ((2 * t3 - 3 * t2 + 1) * v0 + (t3 - 2 * t2 + th) * dv0
@@ -249,6 +253,7 @@ __all__ = [
     'GRADED_ITERATIONS',
     'GRADED_TOL',
     'GRADE_WINDOW',
+    'HERMITE_ITERATIONS',
     'LOCATE_FORMS',
     'LOCATE_SRC',
     'NEWTON_ITERATIONS',

@@ -504,13 +504,18 @@ def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float,
     eng = engines.get(key)
     if eng is None:
         eng = engines[key] = Engine(w2, gamma, n, meth, guard, energy_check, friction=cf)
-    i = grp.sl.start + j
-    st = stats.get(i)
-    if st is None:
-        st = stats[i] = GuardStats()
+    st = _stats_of(stats, grp.sl.start + j)
     eng.check_ahead(v, hh, ain, t)
     p1, v1, _ = eng.careful(p, v, hh, ain, st)
     return p1, v1
+
+
+def _stats_of(stats: dict[int, GuardStats], i: int) -> GuardStats:
+    """Return the counters of the careful steps of pendulum ``i`` (n-sorted), made at first use."""
+    st = stats.get(i)
+    if st is None:
+        st = stats[i] = GuardStats()
+    return st
 
 
 def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
@@ -581,10 +586,7 @@ def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
                                             SPLIT_MIN)
     taken = cand[done]
     for j in cand[done & (turns > 0)].tolist():
-        st = stats.get(grp.sl.start + j)
-        if st is None:
-            st = stats[grp.sl.start + j] = GuardStats()
-        st.reversals += 1
+        _stats_of(stats, grp.sl.start + j).reversals += 1
     p1[taken], v1[taken] = pb[done], vb[done]
     if grp.any_check:
         e1[taken] = eb[done]

@@ -6,6 +6,7 @@ A scene is an ordinary ROS 2 parameter file (``/**: ros__parameters: ...``), so
 from __future__ import annotations
 
 import difflib
+import functools
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -46,14 +47,19 @@ QOS_OVERRIDES = 'qos_overrides.'
 NODE_NAME = 'pendulum_node'
 
 
-def known_parameters() -> list[str]:
-    """Return the parameter names pendulum_node declares (and rclpy declares on every node)."""
+@functools.cache
+def known_parameters() -> tuple[str, ...]:
+    """Return the parameter names pendulum_node declares (and rclpy declares on every node).
+
+    Sorted, made once per process (the names are the node's declarations, fixed in the code).
+    """
     from .parameters import SPEC_BY_NAME
 
-    return sorted(set(SPEC_BY_NAME) | set(ROS_PARAMETERS))
+    return tuple(sorted(set(SPEC_BY_NAME) | set(ROS_PARAMETERS)))
 
 
-def unknown_parameter(name: str, where: str, known: list[str] | None = None) -> str | None:
+def unknown_parameter(name: str, where: str,
+                      known: tuple[str, ...] | None = None) -> str | None:
     """Return why ``name`` is not a parameter of the node (with the closest known name), or None.
 
     ``where`` says where the name came from, e.g. ``scene.yaml`` or ``-p gama:=5.0``.

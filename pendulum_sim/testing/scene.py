@@ -71,8 +71,7 @@ def with_overrides(scene: Mapping[str, Value],
 
     values = dict(scene)
     for name, value in (overrides or {}).items():
-        # The node's own parameters are known; only another name needs the search for a hint.
-        reason = None if name in SPEC_BY_NAME else unknown_parameter(name, 'overrides')
+        reason = unknown_parameter(name, 'overrides')
         if reason is not None:
             raise TestingError(reason)
         if name in ('use_sim_time', 'start_type_description_service'):

@@ -200,14 +200,14 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
     runs = [res if isinstance(res, ClosedLoopRun) else failed_run(res) for res in results]
     runs = [None if run is None else run.with_target(d.target)
             for run, d in zip(runs, drawn, strict=True)]
-    measured = runs_metrics([run for run in runs if run is not None],
-                            [d.target for run, d in zip(runs, drawn, strict=True)
-                             if run is not None])[::-1]
+    measured = iter(runs_metrics([run for run in runs if run is not None],
+                                 [d.target for run, d in zip(runs, drawn, strict=True)
+                                  if run is not None]))
     rows = []
     for i, d, res, run in zip(episodes, drawn, results, runs, strict=True):
         reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
         row = row_of(spec, i, d.values, d.target, run, reason, started,
-                     None if run is None else measured.pop())
+                     None if run is None else next(measured))
         row['wall_time_s'] = (time.perf_counter() - started) / len(episodes)
         _keep_failure(out, row, run)
         rows.append(row)
