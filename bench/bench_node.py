@@ -45,7 +45,7 @@ import numpy as np
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(40, 49)))
 os.environ.setdefault('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test' / 'support'))
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
@@ -233,7 +233,7 @@ def per_tick(n: int) -> dict[str, float]:
     from std_msgs.msg import Float64
 
     from pendulum_sim.core import PendulumParams, Stepper
-    from pendulum_sim.node.joint import JointConfig, SimulatedJoint
+    from pendulum_sim.joint.joint import JointConfig, SimulatedJoint
     from pendulum_sim.node.serialized import ClockBytes, Float64Bytes, JointStateBytes
 
     params = PendulumParams(gamma=1.0, n=1.0)

@@ -1,7 +1,7 @@
 """Benchmark a parameter storm against the real-time node: does the tick keep its schedule?
 
 The node runs the default scene in real time (h = 1 ms, publishing at 100 Hz) in its own process.
-A storm client in another process (``test/parameter_storm.py``) sends ``set_parameters``
+A storm client in another process (``test/support/parameter_storm.py``) sends ``set_parameters``
 requests (gamma) at RATE per second with at most 10 unanswered. Printed, from the node's
 /diagnostics before and after the storm: ``schedule_slips``, ``steps_per_wake_max``,
 ``wake_latency_max_us_total``, ``overruns``, ``parameter_sets`` and ``reconfigures`` (the
@@ -23,7 +23,7 @@ from pathlib import Path
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(40, 49)))
-TEST = Path(__file__).resolve().parents[1] / 'test'
+TEST = Path(__file__).resolve().parents[1] / 'test' / 'support'
 sys.path.insert(0, str(TEST))
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402

@@ -9,7 +9,7 @@ gravity, with the default servo gains, from the scene's start state (φ0 = 0.3 r
   time into 1e-3 rad, the overshoot, the peak torque.
 
 Targets (issue 17): velocity within 1 % after 1 s; position within 1e-3 rad. The figures are
-computed, not timed: they are the same on every machine. ``test/test_bench_servo.py`` asserts
+computed, not timed: they are the same on every machine. ``test/bench/test_bench_servo.py`` asserts
 the same thresholds on :func:`track`.
 
     .venv/bin/python bench/bench_servo.py --png servo.png
@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pendulum_sim.core import PendulumParams
-from pendulum_sim.node.joint import JointConfig, SimulatedJoint
-from pendulum_sim.node.scenes import find_scene, read_params_file
+from pendulum_sim.joint.joint import JointConfig, SimulatedJoint
+from pendulum_sim.joint.scenes import find_scene, read_params_file
 
 VELOCITY_AFTER = 1.0      # s: from here on the speed must be within 1 %
 POSITION_AFTER = 2.0      # s: from here on the angle must be within 1e-3 rad

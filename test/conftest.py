@@ -3,7 +3,12 @@ from __future__ import annotations
 
 import os
 import random
+import sys
 from pathlib import Path
+
+# The helpers every test folder shares (harnesses, stand-ins, laws run by name in other
+# processes) live in test/support/ and import by their module name.
+sys.path.insert(0, str(Path(__file__).resolve().parent / 'support'))
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 100)))

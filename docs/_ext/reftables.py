@@ -1,6 +1,6 @@
 """Write the reference tables of the docs from the code's own data.
 
-One generator for every table: the node's parameters (``pendulum_sim.node.parameters.SPECS``),
+One generator for every table: the node's parameters (``pendulum_sim.joint.parameters.SPECS``),
 its ``/diagnostics`` keys (``pendulum_sim.node.diagnostics.KEYS``), the scenes
 (``config/*.yaml``) and the options of every console script the package installs (their
 argparse parsers). The Sphinx build runs it first (this module is also a Sphinx extension), so
@@ -79,7 +79,7 @@ def range_text(spec: Any) -> str:
 
 def parameters_markdown() -> str:
     """Return the table of every node parameter: default, type, unit, range, live."""
-    from pendulum_sim.node.parameters import SPECS
+    from pendulum_sim.joint.parameters import SPECS
 
     rows = [[code(s.name), code(default_text(s.default)), type_name(s.default), cell(s.unit),
              cell(range_text(s)), 'read-only' if s.read_only else 'live', cell(s.description)]
@@ -126,8 +126,8 @@ def scene_summary(path: Path) -> str:
 
 def scenes_markdown() -> str:
     """Return one section per scene: what it is for and every parameter it sets."""
-    from pendulum_sim.node.parameters import SPEC_BY_NAME
-    from pendulum_sim.node.scenes import read_params_file
+    from pendulum_sim.joint.parameters import SPEC_BY_NAME
+    from pendulum_sim.joint.scenes import read_params_file
 
     out = [table(['scene', 'what it is for'],
                  [[f'[{p.stem}](#scene-{p.stem})', cell(scene_summary(p))]

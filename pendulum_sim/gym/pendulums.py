@@ -9,7 +9,7 @@ again only when an episode starts or the set of pendulums it holds changes.
 
 A joint whose speed could reach its speed bound within the period (where the joint would
 limit the torque), and every joint of a period the sweep refuses, takes that period in a
-:class:`~pendulum_sim.node.joint.SimulatedJoint` started from its state, which decides for
+:class:`~pendulum_sim.joint.joint.SimulatedJoint` started from its state, which decides for
 it; a joint that fails there (its reason kept) ends its episode. A scalar environment is this
 class with N = 1, so a vector environment's pendulum and a scalar environment's take the same
 steps.
@@ -22,6 +22,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from pendulum_sim.joint.errors import JointError
+from pendulum_sim.joint.joint import SimulatedJoint
 
 from .errors import GymError
 
@@ -52,7 +55,6 @@ class Pendulums:
 
     def start(self, i: int, config: Any) -> None:
         """Start joint ``i`` at rest at its configuration's initial state."""
-        from pendulum_sim.node.joint import SimulatedJoint
 
         check(config)
         common = (config.h, config.period_steps, config.method, config.guard)
@@ -129,8 +131,6 @@ class Pendulums:
 
     def _by_joint(self, j: int, command: float) -> str | None:
         """Take joint ``j``'s period in a SimulatedJoint from its state; its failure or None."""
-        from pendulum_sim.node.errors import JointError
-        from pendulum_sim.node.joint import SimulatedJoint
 
         c = self.configs[j]
         try:

@@ -20,6 +20,9 @@ from typing import Any
 
 import yaml
 
+from pendulum_sim.joint.errors import JointError
+from pendulum_sim.joint.parameters import check, joint_config
+
 from .errors import GymError
 
 # Any importable law with a keyword target: the campaign parser needs a controller to accept a
@@ -33,7 +36,7 @@ class Episode:
     """One episode's node parameters, joint configuration and target (rad)."""
 
     values: dict[str, Any]
-    config: Any   # pendulum_sim.node.joint.JointConfig
+    config: Any   # pendulum_sim.joint.joint.JointConfig
     target: float
 
 
@@ -122,8 +125,6 @@ class Scenarios:
 
     def episode(self, seed: int, index: int) -> Episode:
         """Return episode ``index`` of a campaign seeded ``seed`` (the campaign's draw)."""
-        from pendulum_sim.node.errors import JointError
-        from pendulum_sim.node.parameters import check, joint_config
         from pendulum_sim.testing.campaign.scenarios import episode_scenario
         from pendulum_sim.testing.scene import epoch_ns
 

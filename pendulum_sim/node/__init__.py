@@ -1,5 +1,10 @@
-"""The ROS 2 adapter: ``pendulum_node`` serves the core's pendulum as a real-time joint.
+"""The ROS 2 adapter: ``pendulum_node`` wires the simulated joint to ROS.
 
-Everything ROS lives here; the physics stays in :mod:`pendulum_sim.core` and the node only drives
-a :class:`~pendulum_sim.core.Stepper` and fills messages.
+Only what imports rclpy or message types lives here: the node, its command line, parameter
+declarations, QoS, diagnostics and serialized messages. The joint itself (configuration,
+servo, sensors, the synchronous exchange, drivers, scenes, URDF, the Foxglove view) is the
+ROS-free :mod:`pendulum_sim.joint`; its old names here still import, with a deprecation warning.
 """
+from .moved import install
+
+install()

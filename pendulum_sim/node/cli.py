@@ -65,15 +65,15 @@ from pendulum_sim.dds import (  # noqa: E402
     shut_down,
     use_loopback_profile,
 )
-
-from .errors import NodeError, SceneError  # noqa: E402
-from .scenes import (  # noqa: E402
+from pendulum_sim.joint.scenes import (  # noqa: E402
     available_scenes,
     find_scene,
     known_parameters,
     read_params_file,
     unknown_parameter,
 )
+
+from .errors import NodeError, SceneError  # noqa: E402
 
 if TYPE_CHECKING:
 
@@ -291,8 +291,9 @@ def _run(executor_kind: str, signals: Signals) -> int:
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
     from rclpy.executors import Executor, ExternalShutdownException
 
+    from pendulum_sim.joint.status import StatusLine
+
     from .pendulum_node import PendulumNode
-    from .status import StatusLine
 
     node: PendulumNode | None = None
     executor: Executor | None = None

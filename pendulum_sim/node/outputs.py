@@ -10,9 +10,10 @@ import sys
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from pendulum_sim.joint.foxglove import LiveView, snapshot
+from pendulum_sim.joint.joint import SimulatedJoint
+
 from .errors import JointError
-from .foxglove import LiveView, snapshot
-from .joint import SimulatedJoint
 from .serialized import ClockBytes, Float64Bytes, JointStateBytes
 
 

@@ -26,30 +26,30 @@ from std_msgs.msg import Float64, Float64MultiArray, String, UInt32
 from std_srvs.srv import SetBool, Trigger
 
 from pendulum_sim import __version__
-
-from . import commands, replies
-from . import diagnostics as diag
-from .drivers import WAKE_BUDGET_NS, make_driver, wake_period
-from .errors import ParameterError
-from .exchange import Gate, StepError
-from .foxglove import LiveView
-from .joint import SimulatedJoint
-from .outputs import Recording, StateOutputs
-from .parameters import (
+from pendulum_sim.joint import commands, replies
+from pendulum_sim.joint.drivers import WAKE_BUDGET_NS, make_driver, wake_period
+from pendulum_sim.joint.exchange import Gate, StepError
+from pendulum_sim.joint.foxglove import LiveView
+from pendulum_sim.joint.joint import SimulatedJoint
+from pendulum_sim.joint.parameters import (
     SPEC_BY_NAME,
     Value,
     check,
-    declare_all,
     effort_input_active,
     joint_config,
     refusal,
     start_epoch_ns,
 )
+from pendulum_sim.joint.realtime import WakeStats
+from pendulum_sim.joint.status import StatusLine, summary_text
+from pendulum_sim.joint.telemetry import Telemetry
+from pendulum_sim.joint.urdf import urdf_from_values
+
+from . import diagnostics as diag
+from .declare import declare_all
+from .errors import ParameterError
+from .outputs import Recording, StateOutputs
 from .qos import COMMAND_QOS, JOINT_STATE_QOS, LATCHED_QOS, SERVICE_QOS, STEP_QOS, SYNC_COMMAND_QOS
-from .realtime import WakeStats
-from .status import StatusLine, summary_text
-from .telemetry import Telemetry
-from .urdf import urdf_from_values
 
 ENERGY_TERMS = ('kinetic', 'potential', 'dissipated_power', 'residual')
 

@@ -15,7 +15,7 @@ has. An episode outside it, or one the batch cannot follow exactly (its speed co
 ``max_velocity`` within a period, where the joint would cut the torque; a non-finite state;
 a law that raises), is run again by the scalar joint, which decides for it. The scalar path
 stays the one implementation of every rule; the batch is a faster driver of the same one,
-and ``test/test_testing_batch.py`` holds them to each other.
+and ``test/testing/test_testing_batch.py`` holds them to each other.
 """
 from __future__ import annotations
 
@@ -25,6 +25,8 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
+
+from pendulum_sim.joint.parameters import joint_config
 
 from .errors import TestingError
 from .loop import answer_reason, run_in_process
@@ -37,7 +39,6 @@ BatchLaw = Callable[[float, Any, Any], Any]
 
 def batchable(values: Mapping[str, Value]) -> str:
     """Return why the episode with parameters ``values`` cannot be batched ('' if it can)."""
-    from pendulum_sim.node.parameters import joint_config
 
     return batchable_config(joint_config(values, epoch_ns(values)))
 
@@ -52,7 +53,7 @@ def batchable_config(c: Any) -> str:
 
     Parameters
     ----------
-    c : pendulum_sim.node.joint.JointConfig
+    c : pendulum_sim.joint.joint.JointConfig
         The simulated joint's configuration (typed ``Any``: the testing package imports the
         node's modules only where it uses them).
 
@@ -100,7 +101,6 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]], periods: i
     """
     from pendulum_sim.core.errors import PendulumError
     from pendulum_sim.core.sweep import Sweep
-    from pendulum_sim.node.parameters import joint_config
 
     results: list[ClosedLoopRun | TestingError | None] = [None] * len(episodes)
     given = (np.array(targets, dtype=float) if targets is not None and takes_target(law)

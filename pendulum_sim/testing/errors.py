@@ -3,8 +3,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from pendulum_sim.core.errors import PendulumError
 
-class TestingError(ValueError):
+
+class TestingError(PendulumError, ValueError):
     """A metric, a closed-loop run or a campaign cannot be computed as asked (says why)."""
 
     __test__ = False   # not a pytest test class, whatever its name

@@ -1,7 +1,7 @@
 """The live view of an in-process closed loop: ``closed_loop(..., foxglove_port=)``.
 
 The run in this process hands each state it sends to a
-:class:`~pendulum_sim.node.foxglove.LiveView`, as ``pendulum_node`` does. While a client
+:class:`~pendulum_sim.joint.foxglove.LiveView`, as ``pendulum_node`` does. While a client
 watches, the run is paced to the scene's ``real_time_factor`` of wall time (so the swing can be
 seen); with nobody watching it runs as fast as it computes.
 """
@@ -10,9 +10,10 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 
-from pendulum_sim.node.foxglove import LiveView, snapshot
-from pendulum_sim.node.joint import Sample, SimulatedJoint
-from pendulum_sim.node.urdf import urdf_from_values
+from pendulum_sim.joint.errors import LiveError
+from pendulum_sim.joint.foxglove import LiveView, snapshot
+from pendulum_sim.joint.joint import Sample, SimulatedJoint
+from pendulum_sim.joint.urdf import urdf_from_values
 
 from .errors import TestingError
 from .scene import Value
@@ -22,7 +23,6 @@ class LiveLoop:
     """Serve the states of an in-process run; a context manager (None port: nothing)."""
 
     def __init__(self, values: Mapping[str, Value], target: float | None) -> None:
-        from pendulum_sim.node.errors import LiveError
 
         try:
             self.view = LiveView.of(values, urdf_from_values(values), target)

@@ -1,14 +1,14 @@
 """``closed_loop``: a controller against the simulated joint, in-process or over DDS.
 
 The in-process path runs a Python callable ``(t, position, velocity) -> command`` against
-:class:`~pendulum_sim.node.joint.SimulatedJoint` exactly as ``pendulum_node`` runs it in
+:class:`~pendulum_sim.joint.joint.SimulatedJoint` exactly as ``pendulum_node`` runs it in
 synchronous lockstep (``synchronous: true``): at the start of each control period the joint is
 measured (the state the node publishes, stamped ``epoch + k h``), the controller answers that
-state, and the node's synchronous driver and exchange (``pendulum_sim.node.drivers``,
-``pendulum_sim.node.exchange``, the same objects ``pendulum_node`` runs) apply the answer and
+state, and the node's synchronous driver and exchange (``pendulum_sim.joint.drivers``,
+``pendulum_sim.joint.exchange``, the same objects ``pendulum_node`` runs) apply the answer and
 advance the joint to the next period boundary. No rclpy, no DDS. The command-line path
 (:mod:`pendulum_sim.testing.ros`) runs the same exchange across processes; for the same law
-both give the same trajectory bit for bit (``test/test_testing_loop.py``).
+both give the same trajectory bit for bit (``test/testing/test_testing_loop.py``).
 
 A run of ``periods`` control periods holds the ``periods`` states at the start of each period
 (``t``, ``position``, ``velocity``; ``effort`` is the torque applied in the step before each
@@ -22,6 +22,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from pendulum_sim.joint.drivers import WAKE_BUDGET_NS, SyncDriver
+from pendulum_sim.joint.errors import JointError
+from pendulum_sim.joint.exchange import Gate, SyncExchange
+from pendulum_sim.joint.joint import Sample, SimulatedJoint
+from pendulum_sim.joint.parameters import joint_config
 
 from .errors import ControllerFailed, TestingError
 from .run import ClosedLoopRun, FloatArray
@@ -127,17 +133,12 @@ def run_in_process(law: Law, values: Mapping[str, Value], periods: int,
                    target: float | None = None) -> ClosedLoopRun:
     """Run ``law`` against a :class:`SimulatedJoint` built from ``values`` (no ROS).
 
-    The node's own synchronous driver (:class:`~pendulum_sim.node.drivers.SyncDriver` with its
-    :class:`~pendulum_sim.node.exchange.SyncExchange`) decides which answer is applied and when
+    The node's own synchronous driver (:class:`~pendulum_sim.joint.drivers.SyncDriver` with its
+    :class:`~pendulum_sim.joint.exchange.SyncExchange`) decides which answer is applied and when
     the joint advances; here the controller is always connected, answers each state at once
     (unstamped, counted as the node counts them) and the steady clock stands still, so no
     timeout fires and every wake finishes its period.
     """
-    from pendulum_sim.node.drivers import WAKE_BUDGET_NS, SyncDriver
-    from pendulum_sim.node.errors import JointError
-    from pendulum_sim.node.exchange import Gate, SyncExchange
-    from pendulum_sim.node.joint import Sample, SimulatedJoint
-    from pendulum_sim.node.parameters import joint_config
 
     from .live import LiveLoop
 

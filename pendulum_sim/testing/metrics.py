@@ -125,7 +125,7 @@ def _step_info(t: FloatArray, y: FloatArray, yfinal: FloatArray) -> dict[str, Fl
     The one implementation of the step-response fields: :func:`step_metrics` runs it on one
     row, :func:`step_metrics_batch` on many. Every operation is elementwise, or a reduction
     along a row that does not depend on the others, so a row gets the same numbers alone or
-    among others (``test/test_testing_metrics.py`` holds them to it).
+    among others (``test/testing/test_testing_metrics.py`` holds them to it).
     """
     lo, hi = RISE_LIMITS
     n, size = y.shape

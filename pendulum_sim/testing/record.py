@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pendulum_sim.joint.parameters import joint_name_refusal
+
 from .errors import TestingError
 from .run import ClosedLoopRun
 from .scene import Value
@@ -27,7 +29,6 @@ def write_run(run: ClosedLoopRun, path: Path, joint_name: str | None = None) -> 
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
 
-    from pendulum_sim.node.parameters import joint_name_refusal
     from pendulum_sim.recording import McapRecorder
 
     name = joint_name or str(run.parameters.get('joint_name', 'pendulum_joint'))

@@ -29,6 +29,9 @@ from typing import IO
 
 import yaml
 
+from pendulum_sim.joint.joint import SimulatedJoint
+from pendulum_sim.joint.parameters import SPEC_BY_NAME, joint_config
+
 from .errors import ControllerFailed, TestingError
 from .run import ClosedLoopRun
 from .scene import Value, epoch_ns
@@ -47,7 +50,6 @@ def node_command() -> list[str]:
 
 def _params_file(values: Mapping[str, Value], path: Path) -> None:
     """Write the values that differ from the node's defaults as a ROS 2 parameter file."""
-    from pendulum_sim.node.parameters import SPEC_BY_NAME
 
     changed = {k: v for k, v in values.items() if SPEC_BY_NAME[k].default != v}
     path.write_text(yaml.safe_dump({'/**': {'ros__parameters': changed}}))
@@ -103,8 +105,6 @@ def run_command_line(cmd: list[str], values: Mapping[str, Value], periods: int,
     ``target`` is the run's reference, kept in the returned run (the node's recording does not
     hold it).
     """
-    from pendulum_sim.node.joint import SimulatedJoint
-    from pendulum_sim.node.parameters import joint_config
 
     from .record import load_run
 

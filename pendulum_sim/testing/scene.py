@@ -13,6 +13,10 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from pendulum_sim.joint.errors import SceneError
+from pendulum_sim.joint.parameters import SPEC_BY_NAME, SPECS, check, start_epoch_ns
+from pendulum_sim.joint.scenes import find_scene, read_params_file, unknown_parameter
+
 from .errors import TestingError
 
 Value = bool | int | float | str
@@ -45,9 +49,6 @@ def read_scene(scene: str) -> dict[str, Value]:
     TestingError
         If the scene cannot be found or read.
     """
-    from pendulum_sim.node.errors import SceneError
-    from pendulum_sim.node.parameters import SPECS
-    from pendulum_sim.node.scenes import find_scene, read_params_file
 
     values: dict[str, Value] = {s.name: s.default for s in SPECS}
     try:
@@ -66,8 +67,6 @@ def with_overrides(scene: Mapping[str, Value],
     TestingError
         As :func:`scene_values`, for everything but reading the scene.
     """
-    from pendulum_sim.node.parameters import SPEC_BY_NAME, check
-    from pendulum_sim.node.scenes import unknown_parameter
 
     values = dict(scene)
     for name, value in (overrides or {}).items():
@@ -112,7 +111,6 @@ def _typed(name: str, value: Any, default: Value) -> Value:
 
 def epoch_ns(values: Mapping[str, Value]) -> int:
     """Return the stamp of step 0 in lockstep: ``start_time`` (s), 0 when negative."""
-    from pendulum_sim.node.parameters import start_epoch_ns
 
     return start_epoch_ns(values, 0)   # the node's rule; no wall clock in a test bench run
 

@@ -2,7 +2,7 @@
 
 The arrays in ``core.npz`` are what ``simulate``, ``Stepper`` and ``sweep`` return on a grid of
 methods, exponents n, damping coefficients γ (stiff ones included) and torques;
-``test/test_core_golden.py`` recomputes them and asserts they are equal to the last bit, so a
+``test/core/test_core_golden.py`` recomputes them and asserts they are equal to the last bit, so a
 restructuring of the core cannot change a result unnoticed. Regenerate only for a deliberate
 change of the numerics (and say so in the changelog).
 """

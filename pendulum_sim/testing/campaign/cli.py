@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from pendulum_sim.arguments import positive_int
+from pendulum_sim.joint.foxglove import check_port
 
 from ..errors import CampaignError
 
@@ -108,7 +109,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise CampaignError('--workers sizes the local cluster; it cannot go with '
                                 '--scheduler')
         if args.foxglove_port:
-            from pendulum_sim.node.foxglove import check_port
 
             reason = check_port(args.foxglove_port)
             if reason is not None:

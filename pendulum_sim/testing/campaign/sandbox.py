@@ -42,7 +42,8 @@ from .watch import CLOCK, SIZE, LawClock
 
 POLL_S = 0.02
 # What a batch runs with besides the episode module, imported by the episode process at start.
-PRELOAD = ('pendulum_sim.core.sweep', 'pendulum_sim.node.parameters', 'pendulum_sim.testing.batch')
+PRELOAD = ('pendulum_sim.core.sweep', 'pendulum_sim.joint.parameters',
+           'pendulum_sim.testing.batch')
 _HEADER = struct.Struct('<Q')
 
 

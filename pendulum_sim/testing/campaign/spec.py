@@ -24,6 +24,9 @@ from typing import Any
 
 import yaml
 
+from pendulum_sim.joint.errors import SceneError
+from pendulum_sim.joint.scenes import find_scene, unknown_parameter
+
 from ..errors import CampaignError
 from ..metrics import METRIC_NAMES
 from ..scene import FORCED
@@ -343,8 +346,6 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
     missing = [k for k in REQUIRED if k not in data]
     if missing:
         raise CampaignError(f'{label}: missing key {shown(missing[0])}')
-    from pendulum_sim.node.errors import SceneError
-    from pendulum_sim.node.scenes import find_scene, unknown_parameter
 
     scene = data.get('scene', 'controller_test')
     if not isinstance(scene, str):
