@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from pendulum_sim.joint.errors import JointError
-from pendulum_sim.joint.joint import SimulatedJoint
+from pendulum_sim.joint.joint import JointConfig, SimulatedJoint
 
 from .errors import GymError
 
@@ -53,7 +53,7 @@ class Pendulums:
         self._sweep: Any = None
         self._swept = np.empty(0, dtype=np.int64)
 
-    def start(self, i: int, config: Any) -> None:
+    def start(self, i: int, config: JointConfig) -> None:
         """Start joint ``i`` at rest at its configuration's initial state."""
 
         check(config)
@@ -145,7 +145,7 @@ class Pendulums:
         return joint.failed
 
 
-def check(config: Any) -> None:
+def check(config: JointConfig) -> None:
     """Refuse a joint configuration the environments cannot step (``batchable_config``'s why)."""
     from pendulum_sim.testing.batch import batchable_config
 

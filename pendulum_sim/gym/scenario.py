@@ -21,6 +21,7 @@ from typing import Any
 import yaml
 
 from pendulum_sim.joint.errors import JointError
+from pendulum_sim.joint.joint import JointConfig
 from pendulum_sim.joint.parameters import check, joint_config
 
 from .errors import GymError
@@ -36,7 +37,7 @@ class Episode:
     """One episode's node parameters, joint configuration and target (rad)."""
 
     values: dict[str, Any]
-    config: Any   # pendulum_sim.joint.joint.JointConfig
+    config: JointConfig
     target: float
 
 

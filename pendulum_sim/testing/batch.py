@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from pendulum_sim.joint.joint import JointConfig
 from pendulum_sim.joint.parameters import joint_config
 
 from .errors import TestingError
@@ -43,7 +44,7 @@ def batchable(values: Mapping[str, Value]) -> str:
     return batchable_config(joint_config(values, epoch_ns(values)))
 
 
-def batchable_config(c: Any) -> str:
+def batchable_config(c: JointConfig) -> str:
     """Return why the joint configuration ``c`` cannot be batched ('' if it can).
 
     The batch's one rule (the module docstring): effort commands, an ideal sensor, no

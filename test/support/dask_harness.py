@@ -14,6 +14,7 @@ import time
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 BIN = Path(sys.executable).parent
 
@@ -84,3 +85,19 @@ def dask_cluster(folder: Path, workers: int = 2, *, nanny: bool = True,
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+# Run on the workers or the scheduler by reference: importable there from test/support.
+def worker_profiling(dask_worker: Any) -> bool:
+    """Return True when the worker runs Dask's statistical profiler (its periodic sampling)."""
+    return 'profile' in dask_worker.periodic_callbacks
+
+
+def scheduler_tick(dask_scheduler: Any) -> float:
+    """Return the seconds between the scheduler's event-loop health checks."""
+    return float(dask_scheduler._tick_interval)
+
+
+def worker_tick(dask_worker: Any) -> float:
+    """Return the seconds between the worker's event-loop health checks."""
+    return float(dask_worker._tick_interval)

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 from dask_harness import dask_cluster as start_dask_cluster
+from dask_harness import scheduler_tick, worker_profiling, worker_tick
 
 from pendulum_sim.testing.campaign.cli import main
 from pendulum_sim.testing.campaign.episode import RUN_COLUMNS, run_episode
@@ -312,6 +313,7 @@ def test_a_controller_that_raises_or_answers_nan_fails_its_episode_with_the_reas
 def test_the_scene_is_read_once_per_process(tmp_path: Path,
                                             monkeypatch: pytest.MonkeyPatch) -> None:
     from pendulum_sim.joint import scenes
+    from pendulum_sim.testing import scene as test_scene
     from pendulum_sim.testing.campaign import episode
 
     reads: list[object] = []
@@ -321,7 +323,7 @@ def test_the_scene_is_read_once_per_process(tmp_path: Path,
         reads.append(path)
         return real(path)
 
-    monkeypatch.setattr(scenes, 'read_params_file', counted)
+    monkeypatch.setattr(test_scene, 'read_params_file', counted)   # where the bench reads it
     episode.cached_spec.cache_clear()
     episode._scene.cache_clear()
     scene = tmp_path / 'scene.yaml'
@@ -485,21 +487,6 @@ def dask_cluster(tmp_path: Path) -> Iterator[tuple[str, list[subprocess.Popen[by
         yield running.address, running.workers
 
 
-def _profiling(dask_worker: Any) -> bool:
-    """Return True when the worker runs Dask's statistical profiler (its periodic sampling)."""
-    return 'profile' in dask_worker.periodic_callbacks
-
-
-def _scheduler_tick(dask_scheduler: Any) -> float:
-    """Return the seconds between the scheduler's event-loop health checks."""
-    return float(dask_scheduler._tick_interval)
-
-
-def _tick(dask_worker: Any) -> float:
-    """Return the seconds between the worker's event-loop health checks."""
-    return float(dask_worker._tick_interval)
-
-
 def test_the_local_cluster_runs_without_the_profiler_and_with_slower_ticks() -> None:
     import dask
     import distributed  # its defaults join dask.config
@@ -512,9 +499,9 @@ def test_the_local_cluster_runs_without_the_profiler_and_with_slower_ticks() -> 
     client = make_client(None, 1)
     cluster = client.cluster
     try:
-        assert list(client.run(_profiling).values()) == [False]
-        assert list(client.run(_tick).values()) == [0.2]
-        assert client.run_on_scheduler(_scheduler_tick) == 0.2
+        assert list(client.run(worker_profiling).values()) == [False]
+        assert list(client.run(worker_tick).values()) == [0.2]
+        assert client.run_on_scheduler(scheduler_tick) == 0.2
     finally:
         client.close()
         cluster.close()
@@ -541,8 +528,8 @@ def test_a_campaign_on_a_dask_cluster_gets_exactly_the_local_table(
     from distributed import Client
 
     with Client(address, timeout='30s') as client:   # the documented settings took effect
-        assert list(client.run(_profiling).values()) == [False, False]
-        assert list(client.run(_tick).values()) == [0.2, 0.2]
+        assert list(client.run(worker_profiling).values()) == [False, False]
+        assert list(client.run(worker_tick).values()) == [0.2, 0.2]
     path = campaign(tmp_path, episodes=50, periods=150)
     remote = cli(str(path), '--out', str(tmp_path / 'remote'), '--scheduler', address)
     local = cli(str(path), '--out', str(tmp_path / 'local'), '--workers', '2')
