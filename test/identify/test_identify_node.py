@@ -14,7 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from node_harness import NodeProcess, Probe, stamp_ns
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from std_msgs.msg import UInt32
 
 from pendulum_sim.joint.scenes import find_scene, read_params_file
 
@@ -23,6 +25,11 @@ INERTIA = 0.2
 """The node's default inertia in kg m² (the free_swing scene keeps it), with m = 0.2 kg,
 l = 1 m and g = 9.8 m/s²: ω0² = m g l / I."""
 OMEGA0 = math.sqrt(0.2 * 9.8 * 1.0 / INERTIA)
+PERIOD = 1.0 / float(read_params_file(find_scene('free_swing'))['publish_rate'])
+"""The free_swing scene's publish period in s: one ~/step_periods period."""
+RELIABLE = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
 
 
 def identify(tmp_path: Path, overrides: dict[str, Any], seconds: float, *extra: str
@@ -30,9 +37,15 @@ def identify(tmp_path: Path, overrides: dict[str, Any], seconds: float, *extra: 
     """Record ``seconds`` of simulated time of free_swing (with ``overrides``), run
     pendulum_identify on the file, and return models.csv's rows by law, in rank order."""
     path = tmp_path / 'swing.mcap'
-    params = {**overrides, 'recording.path': str(path), 'status_line': False}
+    # Paused at the start and stepped exactly ``seconds`` of publish periods (10 ms): the record
+    # is the same whatever the machine's load, not as long as the node ran before the stop.
+    params = {**overrides, 'recording.path': str(path), 'status_line': False,
+              'start_paused': True}
     with NodeProcess('free_swing', params) as node, Probe() as probe:
         states = probe.subscribe(JointState, f'{node.namespace}/joint_states')
+        step = probe.node.create_publisher(UInt32, f'{node.fqn}/step_periods', RELIABLE)
+        probe.spin_until(lambda: step.get_subscription_count() >= 1, 30.0, '~/step_periods')
+        step.publish(UInt32(data=round(seconds / PERIOD)))
         probe.spin_until(lambda: len(states) > 0 and stamp_ns(states.msgs[-1]) >= seconds * 1e9,
                          120.0, f'{seconds} s of simulated time')
         assert node.stop() == 0, node.output()
