@@ -27,7 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description='Run a controller against the fitted joint (a scene, as pendulum_identify '
                     "writes fit.yaml) from a record's first state for the record's length, and "
-                    'compare the recorded run with its twin: the angle\'s fit in % (NRMSE), and '
+                    "compare the recorded run with its twin: the angle's fit in % (NRMSE), and "
                     'with --target the step metrics of both, their difference and whether each '
                     f'recorded metric lies in the central {100 * SPREAD:g} % of a campaign over '
                     'campaign_parameters.yaml. Writes twin.csv, twin.yaml and twin.png into '

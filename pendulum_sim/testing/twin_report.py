@@ -364,8 +364,9 @@ def _at_record_times(rec: Recorded, run: ClosedLoopRun,
     k = int(np.searchsorted(t, sim_t[-1] + ALIGNED / rate, side='right'))
     if k <= sim_t.size and np.all(np.abs(t[:k] - sim_t[:k]) <= ALIGNED / rate):
         return run.position[:k].copy(), run.velocity[:k].copy(), run.effort[:k].copy()
-    return tuple(np.interp(t[:k], sim_t, column)   # type: ignore[return-value]
-                 for column in (run.position, run.velocity, run.effort))
+    position, velocity, effort = (np.interp(t[:k], sim_t, column)
+                                  for column in (run.position, run.velocity, run.effort))
+    return position, velocity, effort
 
 
 def _measure(t: FloatArray, position: FloatArray, effort: FloatArray | None, target: float,
