@@ -76,6 +76,7 @@ def test_fit_percent_is_matlab_compares_nrmse() -> None:
         fit_percent(y, np.array([0.0, math.nan, 2.0, 3.0]))
 
 
+@pytest.mark.ros
 def test_a_record_of_closed_loop_is_twinned_exactly_by_the_same_law_and_scene(
         recorded: tuple[Path, Path, ClosedLoopRun]) -> None:
     path, scene, original = recorded
@@ -111,6 +112,25 @@ def test_a_record_of_closed_loop_is_twinned_exactly_by_the_same_law_and_scene(
     assert all(m.inside is None and math.isnan(m.spread_low) for m in report.metrics)
 
 
+@pytest.mark.ros
+def test_a_recording_pendulum_node_made_over_dds_is_twinned_exactly(tmp_path: Path) -> None:
+    """The PD controller's own node against pendulum_node, recorded by the node; then its law
+    in this process on the same scene: the in-process joint decides as the node does."""
+    scene = write_scene(tmp_path / 'fit.yaml')
+    controller = str(Path(sys.executable).parent / 'pendulum_pd_controller')
+    run = closed_loop([controller, '--ros-args', '-p', f'target:={TARGET}'], scene=str(scene),
+                      periods=300, record=tmp_path / 'dds.mcap')
+    report = twin(tmp_path / 'dds.mcap', str(scene), PD, target=TARGET, episodes=0)
+    assert report.record.source.endswith('/joint_states, joint pendulum_joint)')
+    # The node records the state after the last answer too: one sample more than the run.
+    assert report.compared == run.t.size + 1
+    assert report.simulated.position[:-1].tobytes() == run.position.tobytes()
+    assert report.predicted.tobytes() == report.record.position.tobytes()
+    assert report.fit_percent == 100.0
+    assert report.metric('overshoot').difference == 0.0
+
+
+@pytest.mark.ros
 def test_a_perturbed_scene_differs_and_the_campaign_spread_says_so(
         recorded: tuple[Path, Path, ClosedLoopRun], tmp_path: Path) -> None:
     path, true_scene, original = recorded
@@ -152,6 +172,7 @@ def _episode_overshoots(report: TwinReport, scene: Path, folder: Path) -> list[f
     return out
 
 
+@pytest.mark.ros
 def test_a_csv_at_half_the_rate_without_velocity_is_twinned_from_the_differentiated_state(
         recorded: tuple[Path, Path, ClosedLoopRun], tmp_path: Path) -> None:
     _, scene, original = recorded
@@ -174,6 +195,7 @@ def test_a_csv_at_half_the_rate_without_velocity_is_twinned_from_the_differentia
     assert report.controller == PD   # the callable is named by what imports it
 
 
+@pytest.mark.ros
 def test_the_command_line_writes_the_report_and_its_files_agree(
         recorded: tuple[Path, Path, ClosedLoopRun], tmp_path: Path) -> None:
     path, scene, original = recorded
@@ -202,6 +224,7 @@ def test_the_command_line_writes_the_report_and_its_files_agree(
 BAD_RECORD = b'not an mcap file at all'
 
 
+@pytest.mark.ros
 @pytest.mark.parametrize('case, message', [
     ('no record', '{tmp}/none.mcap does not exist; pass a .mcap recording or a .csv file'),
     ('malformed record', '{tmp}/bad.mcap is not an MCAP file (it does not start with the MCAP '
@@ -252,6 +275,7 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(
     assert not out.exists()
 
 
+@pytest.mark.ros
 def test_a_controller_that_raises_fails_the_twin_in_its_own_process(
         recorded: tuple[Path, Path, ClosedLoopRun], tmp_path: Path) -> None:
     path, scene, _ = recorded
@@ -270,6 +294,7 @@ def test_a_controller_that_raises_fails_the_twin_in_its_own_process(
     assert not out.exists()
 
 
+@pytest.mark.ros
 def test_the_api_refuses_what_it_cannot_run(recorded: tuple[Path, Path, ClosedLoopRun],
                                             tmp_path: Path) -> None:
     path, scene, _ = recorded
