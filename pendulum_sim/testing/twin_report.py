@@ -387,7 +387,7 @@ def _spread(rows: Sequence[dict[str, Any]], name: str) -> tuple[float, float, in
     return float(low), float(high), int(values.size)
 
 
-def twin(record: str | Path, scene: str, controller: str | Callable[..., Any], *,
+def twin(record: str | Path, scene: str | Path, controller: str | Callable[..., Any], *,
          target: float | None = None, campaign: str | Path | None = None,
          episodes: int = EPISODES, seed: int = 0, topic: str | None = None,
          joint: str | None = None, columns: str = 't,position',
@@ -398,7 +398,7 @@ def twin(record: str | Path, scene: str, controller: str | Callable[..., Any], *
     ----------
     record : path
         The recorded run: a rosbag2 MCAP file or folder, or a CSV (``columns``, ``units``).
-    scene : str
+    scene : str or path
         The fitted joint: a scene file (``fit/fit.yaml``) or a scene name.
     controller : str or callable
         ``module:function`` (what ``pendulum_campaign`` imports), or the law itself,
@@ -428,6 +428,7 @@ def twin(record: str | Path, scene: str, controller: str | Callable[..., Any], *
 
     from .loop import closed_loop
 
+    scene = str(scene)
     if target is not None and (isinstance(target, bool) or not isinstance(target, (int, float))
                                or not math.isfinite(target)):
         raise TestingError(f'target must be a finite number (rad), got {target!r}')
