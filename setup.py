@@ -69,6 +69,7 @@ setup(
             'pendulum_demo = pendulum_sim.demo:main',
             'pendulum_campaign = pendulum_sim.testing.campaign.cli:main',
             'pendulum_identify = pendulum_sim.identify.cli:main',
+            'pendulum_twin = pendulum_sim.testing.twin_cli:main',
         ],
         'pytest11': ['pendulum_sim = pendulum_sim.testing.pytest_plugin'],
         # Gymnasium's plugin group before 1.0 (1.x registers on `import pendulum_sim.gym`).

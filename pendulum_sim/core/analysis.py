@@ -172,3 +172,29 @@ def convergence_quotient(params: PendulumParams, phi0: float, dphi0: float, t_en
     with np.errstate(divide='ignore', invalid='ignore'):
         q = np.where(d2 > 0.0, d1 / d2, np.nan)
     return ConvergenceQuotient(runs[0].t, q, d1, d2)
+
+
+def fit_percent(measured: FloatArray, predicted: FloatArray) -> float:
+    """Return how well ``predicted`` reproduces ``measured``, in %: MATLAB ``compare``'s fit.
+
+    ``100 (1 − ‖y − ŷ‖ / ‖y − mean(y)‖)`` with the 2-norm over the samples (the normalised
+    root-mean-square error, MathWorks, System Identification Toolbox, ``compare``): 100 for a
+    perfect prediction, 0 for one no better than the measurement's mean, negative for worse.
+    NaN when the measurement is constant (its spread is zero: no scale to judge by).
+
+    Raises
+    ------
+    ModelError
+        If the two are not 1-D arrays of one length, at least one sample, all finite.
+    """
+    y = np.asarray(measured, dtype=np.float64)
+    y_hat = np.asarray(predicted, dtype=np.float64)
+    if y.ndim != 1 or y.shape != y_hat.shape or y.size == 0:
+        raise ModelError(f'measured and predicted must be 1-D arrays of one length (at least '
+                         f'one sample), got shapes {y.shape} and {y_hat.shape}')
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(y_hat))):
+        raise ModelError('measured and predicted must be finite')
+    spread = float(np.linalg.norm(y - y.mean()))
+    if spread == 0.0:
+        return math.nan
+    return 100.0 * (1.0 - float(np.linalg.norm(y - y_hat)) / spread)

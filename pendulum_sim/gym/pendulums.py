@@ -1,11 +1,12 @@
 """N simulated joints stepped one control period at a time in one batched core call.
 
 Each joint is one pendulum of the joint's common path (effort commands, an ideal sensor, no
-delays or disturbance, an explicit method; :func:`pendulum_sim.testing.batch.batchable`
-says why a scene is not one). A period saturates each command at the joint's ``max_effort``
-as :meth:`SimulatedJoint.command` does and advances the pendulums together through one
-prepared :class:`pendulum_sim.core.sweep.Sweep` (the Stepper's numerics on arrays), prepared
-again only when an episode starts or the set of pendulums it holds changes.
+delays, disturbance or effort offset, an explicit method;
+:func:`pendulum_sim.testing.batch.batchable` says why a scene is not one). A period saturates
+each command at the joint's ``max_effort`` as :meth:`SimulatedJoint.command` does and
+advances the pendulums together through one prepared :class:`pendulum_sim.core.sweep.Sweep`
+(the Stepper's numerics on arrays), prepared again only when an episode starts or the set of
+pendulums it holds changes.
 
 A joint whose speed could reach its speed bound within the period (where the joint would
 limit the torque), and every joint of a period the sweep refuses, takes that period in a

@@ -10,6 +10,10 @@ transport does:
   servo with gravity feed-forward, ``servo.py``);
 - the sensor path: a delay of ``round(sensor.delay / h)`` steps, seeded Gaussian noise, encoder
   quantisation;
+- the effort offset: a constant torque ``effort_offset`` added to the actuator's torque in
+  every step (a drive's or torque sensor's bias, as a driven fit finds it: the model's
+  ``τ_off``), commanded or not; like the disturbance below it is not in the effort published,
+  and its work counts as input in the energy balance;
 - the disturbance: a torque pulse ``disturbance.torque`` added to the actuator's torque in the
   steps ``k`` with ``round(start / h) <= k < round(start / h) + round(duration / h)`` (step
   ``k`` runs from ``k h`` to ``(k + 1) h`` of simulated time since the start, which goes on
@@ -100,8 +104,12 @@ class JointConfig:
     disturbance_torque: float = 0.0
     disturbance_start_step: int = 0
     disturbance_steps: int = 0
+    effort_offset: float = 0.0
 
     def __post_init__(self) -> None:
+        if not math.isfinite(self.effort_offset):
+            raise JointError(f'effort_offset must be a finite number of N m, got '
+                             f'{self.effort_offset}')
         if not math.isfinite(self.disturbance_torque):
             raise JointError(f'disturbance.torque must be a finite number of N m, got '
                              f'{self.disturbance_torque}')
@@ -157,6 +165,7 @@ class JointConfig:
             if 'disturbance.start' in values else 0,
             disturbance_steps=steps_of('disturbance.duration', num('disturbance.duration'), h)
             if 'disturbance.duration' in values else 0,
+            effort_offset=num('effort_offset') if 'effort_offset' in values else 0.0,
         )
 
     @property
@@ -440,6 +449,7 @@ class SimulatedJoint:
         base = self._base_steps
         disturbed = c.has_disturbance
         disturbance_at = c.disturbance_at
+        offset = c.effort_offset
         done = 0
         tau = self._torque
         try:
@@ -458,8 +468,12 @@ class SimulatedJoint:
                         tau = self._velocity_limited(tau, st.dphi)
                 else:
                     tau = self._torque_for(st.phi, st.dphi)
-                if disturbed:   # an external torque: on the pendulum, not in the effort
-                    step(tau + disturbance_at(base + st.steps))
+                # The one place torque meets the pendulum: the actuator's, the offset's and
+                # the disturbance's (the last two on the pendulum, not in the effort).
+                if disturbed:
+                    step(tau + offset + disturbance_at(base + st.steps))
+                elif offset:
+                    step(tau + offset)
                 else:
                     step(tau)
                 done += 1

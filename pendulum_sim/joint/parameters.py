@@ -136,6 +136,11 @@ SPECS: tuple[Spec, ...] = (
          'measured. Live.', low=0.0, high=1.0, unit='s'),
     Spec('sensor.seed', 0, 'Seed of the sensor noise.', read_only=True, low=0, high=2**31 - 1,
          unit='1'),
+    Spec('effort_offset', 0.0, 'Constant torque in N m added to every torque applied to the '
+         "pendulum, commanded or not (a drive's or torque sensor's bias, as a driven fit finds "
+         'it): at rest it balances gravity at asin(effort_offset / (m g l)). Not in the '
+         'published effort; its work counts as input in the energy balance. Live: applies from '
+         'the next step.', low=-1e6, high=1e6, unit='N m'),
     # Disturbance: an external torque pulse on the joint.
     Spec('disturbance.torque', 0.0, 'Torque of the disturbance pulse in N m, added to the '
          "actuator's torque on the pendulum (an external torque: not in the published effort; "

@@ -15,14 +15,16 @@ if TYPE_CHECKING:
     from pendulum_sim.testing.loop import closed_loop
     from pendulum_sim.testing.metrics import StepMetrics, step_metrics
     from pendulum_sim.testing.run import ClosedLoopRun
+    from pendulum_sim.testing.twin_report import TwinReport, twin
     from pendulum_sim.testing.vector import vectorised
 
 __all__ = ['CampaignError', 'ClosedLoopRun', 'ControllerFailed', 'StepMetrics', 'TestingError',
-           'closed_loop', 'step_metrics', 'vectorised']
+           'TwinReport', 'closed_loop', 'step_metrics', 'twin', 'vectorised']
 
 _WHERE = {'CampaignError': 'errors', 'ControllerFailed': 'errors', 'TestingError': 'errors',
           'ClosedLoopRun': 'run', 'closed_loop': 'loop', 'StepMetrics': 'metrics',
-          'step_metrics': 'metrics', 'vectorised': 'vector'}
+          'step_metrics': 'metrics', 'vectorised': 'vector', 'TwinReport': 'twin_report',
+          'twin': 'twin_report'}
 
 
 def __getattr__(name: str) -> Any:

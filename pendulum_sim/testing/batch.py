@@ -10,12 +10,13 @@ inertia, advance one period together through the core's vectorized driver, a
 Stepper's numerics on arrays: the same decisions, the same results to round-off).
 
 The batch takes the common path of the joint only: effort commands, an ideal sensor, no
-command or sensor delay, a command timeout longer than a period, an explicit method the sweep
-has. An episode outside it, or one the batch cannot follow exactly (its speed could reach
-``max_velocity`` within a period, where the joint would cut the torque; a non-finite state;
-a law that raises), is run again by the scalar joint, which decides for it. The scalar path
-stays the one implementation of every rule; the batch is a faster driver of the same one,
-and ``test/testing/test_testing_batch.py`` holds them to each other.
+command or sensor delay, a command timeout longer than a period, no disturbance pulse or
+effort offset, an explicit method the sweep has. An episode outside it, or one the batch
+cannot follow exactly (its speed could reach ``max_velocity`` within a period, where the joint
+would cut the torque; a non-finite state; a law that raises), is run again by the scalar
+joint, which decides for it. The scalar path stays the one implementation of every rule; the
+batch is a faster driver of the same one, and ``test/testing/test_testing_batch.py`` holds
+them to each other.
 """
 from __future__ import annotations
 
@@ -48,9 +49,9 @@ def batchable_config(c: JointConfig) -> str:
     """Return why the joint configuration ``c`` cannot be batched ('' if it can).
 
     The batch's one rule (the module docstring): effort commands, an ideal sensor, no
-    command or sensor delay, a command timeout longer than a period, no disturbance pulse, an
-    explicit method the sweep has. The Gymnasium environments step the same joints and refuse
-    the others with this reason (``pendulum_sim.gym``).
+    command or sensor delay, a command timeout longer than a period, no disturbance pulse, no
+    effort offset, an explicit method the sweep has. The Gymnasium environments step the same
+    joints and refuse the others with this reason (``pendulum_sim.gym``).
 
     Parameters
     ----------
@@ -74,6 +75,7 @@ def batchable_config(c: JointConfig) -> str:
         (c.timeout_steps == 0 or c.timeout_steps > c.period_steps,
          'command_timeout is shorter than a period'),
         (not c.has_disturbance, 'a disturbance pulse is set'),
+        (c.effort_offset == 0.0, 'effort_offset is not 0'),
         (c.method in SWEEP_METHODS, f'integrator {c.method} is not one of '
          f'{", ".join(SWEEP_METHODS)}'),
     ]

@@ -13,6 +13,7 @@ import re
 import signal
 import time
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -37,6 +38,7 @@ from std_msgs.msg import Float64, String
 from std_srvs.srv import SetBool, Trigger
 
 from pendulum_sim.core import PendulumParams, energy, simulate
+from pendulum_sim.recording import load
 
 pytestmark = pytest.mark.ros
 
@@ -208,6 +210,52 @@ def test_live_parameters_and_rejections() -> None:
     old = simulate(PendulumParams(gamma=1.0, n=1.0), last.position[0], last.velocity[0],
                    t_end=ks[-1] * 1e-3, h=1e-3)
     assert np.max(np.abs(phi - old.phi[ks])) > 1e-3
+
+
+@pytest.mark.slow
+def test_effort_offset_is_live_over_dds_recorded_and_not_in_the_effort(tmp_path: Path) -> None:
+    """effort_offset set over the parameter service while paused: from the paused state every
+    state equals simulate with the offset as a constant torque, the published effort stays 0,
+    an out-of-range value is refused with rclpy's reason, and the recording keeps the change."""
+    path = tmp_path / 'offset.mcap'
+    with NodeProcess('paper', {'start_time': EPOCH_S, 'recording.path': str(path)}) as node, \
+            Probe() as probe:
+        states = probe.subscribe(JointState, f'{node.namespace}/joint_states')
+        probe.spin_until(lambda: len(states) >= 20, 20.0, 'joint_states')
+        pause = probe.call(SetBool, f'{node.fqn}/pause', SetBool.Request(data=True))
+        assert pause.success
+        k0 = round(float(pause.message.removeprefix('paused at t = ').removesuffix(' s')) / 1e-3)
+        probe.spin_until(lambda: steps_of(states.msgs[-1]) == k0, 10.0, 'the paused state')
+        last = states.msgs[-1]
+        n_paused = len(states)
+        (refused,) = probe.set_parameters(node.fqn, {'effort_offset': 2e6})
+        assert not refused.successful
+        assert refused.reason == ('Parameter effort_offset out of range Min: -1000000.0, Max: '
+                                  '1000000.0, value: 2000000.0')
+        (result,) = probe.set_parameters(node.fqn, {'effort_offset': 0.5})
+        assert result.successful
+        assert probe.get_parameters(node.fqn, ['effort_offset']) == {'effort_offset': 0.5}
+        resume = probe.call(SetBool, f'{node.fqn}/pause', SetBool.Request(data=False))
+        assert resume.success
+        probe.spin_until(lambda: len(states) >= n_paused + 60, 20.0, 'joint_states after resume')
+        assert node.alive()
+        assert_clean_exit(node)
+
+    after = states.msgs[n_paused:]
+    assert all(list(m.effort) == [0.0] for m in states.msgs)   # the offset is not the effort
+    ks = np.array([steps_of(m) for m in after]) - k0
+    assert ks[0] > 0 and np.all(np.diff(ks) > 0)
+    phi = np.array([m.position[0] for m in after])
+    pushed = simulate(PendulumParams(gamma=1.0, n=1.0), last.position[0], last.velocity[0],
+                      t_end=ks[-1] * 1e-3, h=1e-3, torque=0.5)
+    np.testing.assert_allclose(phi, pushed.phi[ks], rtol=0, atol=1e-9)
+    free = simulate(PendulumParams(gamma=1.0, n=1.0), last.position[0], last.velocity[0],
+                    t_end=ks[-1] * 1e-3, h=1e-3)
+    assert np.max(np.abs(phi - free.phi[ks])) > 1e-3   # the offset mattered
+    rec = load(path)
+    assert rec.scene['effort_offset'] == '0.0'
+    assert [p.value.double_value for _, e in rec.parameter_events for p in e.changed_parameters
+            if p.name == 'effort_offset'] == [0.5]
 
 
 @pytest.mark.slow

@@ -23,7 +23,9 @@ CASES = {
     'exchange': ('import pendulum_sim.joint.exchange', ROS),
     'controller law': ('import pendulum_sim.controller, pendulum_sim.controller.pd_law', ROS),
     'test bench': ('import pendulum_sim.testing as t; t.step_metrics; t.closed_loop; '
-                   't.vectorised; t.ClosedLoopRun; import pendulum_sim.testing.pytest_plugin; '
+                   't.vectorised; t.ClosedLoopRun; t.twin; t.TwinReport; '
+                   'import pendulum_sim.testing.twin_cli; '
+                   'import pendulum_sim.testing.pytest_plugin; '
                    'import pendulum_sim.testing.campaign.cli, '
                    'pendulum_sim.testing.campaign.execute',
                    (*ROS, 'matplotlib', 'dask', 'distributed')),
