@@ -144,6 +144,7 @@ def closed_loop_figure(run: Drawn, target: float, path: Path,
                    f'{m.settling_time:.3g} s, overshoot {m.overshoot:.3g} %, '
                    f'max |τ| {m.max_effort:.3g} N m', fontsize=10)
     fig.tight_layout()
+    readable_ticks(fig)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -138,6 +138,10 @@ def test_values_all_equal_are_one_marker_per_metric(tmp_path: Path) -> None:
     assert f'{NOTE}n only 2.' in texts(fig)          # a list of one value, declared to vary
     assert pass_rate_figure(spec, rows) is None       # nothing varies: no pass rate to draw
     save(fig, tmp_path / 'metric_distributions.png')
+    write_summary(spec, rows, tmp_path, ['metric_distributions.png'])
+    summary = (tmp_path / 'summary.md').read_text()
+    assert 'No pass rate figure: no numeric scenario dimension varies.' in summary
+    assert f'{NOTE}n only 2.' in summary
 
 
 def test_values_a_billionth_apart_are_markers_and_offset_axes(tmp_path: Path) -> None:

@@ -104,6 +104,8 @@ def write_summary(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path,
                      f'{"yes" if r["passed"] else "no"} | {r["reason"]} | {rec} |')
     lines += ['', '## Figures', '']
     lines += [f'![{name}](figures/{name})' for name in figures] or ['No figures drawn.']
+    if figures and 'pass_rate.png' not in figures:
+        lines += ['', 'No pass rate figure: no numeric scenario dimension varies.']
     lines += ['', f'Rerun one episode bit for bit: `pendulum_campaign --rerun {out} EPISODE`.',
               '']
     path = out / 'summary.md'
