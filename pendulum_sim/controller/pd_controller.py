@@ -8,6 +8,11 @@ where the joint waits for the answer to each state, a run is reproducible bit fo
 the settle report, is the states' ``header.stamp`` (simulated time in lockstep), so the
 controller behaves the same with or without ``use_sim_time`` and at any real-time factor.
 
+The settle report names its rule and gives, beside it, the step-response settling time that
+the test bench reports for the same run (python-control's ``step_info``, 2 % of the step):
+``settled at t = 2.670 s (state stamp) by the controller's rule: ...; step-response settling
+time t = 1.300 s so far ...`` for the README's run, two measures of one response.
+
 Run it as::
 
     pendulum_pd_controller --ros-args -p target:=0.5 -p kp:=4.0
@@ -45,7 +50,15 @@ from pendulum_sim.dds import (
 )
 
 from .errors import ControllerError
-from .pd_law import PDGains, SettleDetector, SettleEvent, SettleLimits, pd_torque, wrap_angle
+from .pd_law import (
+    PDGains,
+    SettleDetector,
+    SettleEvent,
+    SettleLimits,
+    StepSettling,
+    pd_torque,
+    wrap_angle,
+)
 
 NODE_NAME = 'pendulum_pd_controller'
 # Reliable and in order both ways: in synchronous mode the joint waits for the answer to every
@@ -108,6 +121,7 @@ class PDControllerNode(Node):
         # Values given at start-up are checked here (rclpy has already checked the ranges).
         self._gains, limits = _law(self._values)
         self._settle = SettleDetector(limits)
+        self._step = StepSettling()
         self._joint = str(self._values['joint_name'])
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
@@ -148,7 +162,10 @@ class PDControllerNode(Node):
         for p in params:
             if p.name in self._values:
                 self._values[p.name] = p.value
+        target = self._gains.target
         self._gains, limits = _law(self._values)
+        if self._gains.target != target:
+            self._step.restart()   # a new target: a new step, from the next state
         if limits != self._settle.limits:
             self._settle = SettleDetector(limits)
         self._joint = str(self._values['joint_name'])
@@ -179,15 +196,17 @@ class PDControllerNode(Node):
             return
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         error = wrap_angle(phi - self._gains.target)
+        self._step.update(stamp_ns, phi, self._gains.target)
         event = self._settle.update(stamp_ns, error, dphi)
         if event is SettleEvent.SETTLED:
             since = self._settle.inside_since_ns or stamp_ns
             lim = self._settle.limits
             self.get_logger().info(
-                f'settled at t = {stamp_ns / 1e9:.3f} s (state stamp): |angle - target| < '
-                f'{lim.position:g} rad and |velocity| < {lim.velocity:g} rad/s since '
-                f't = {since / 1e9:.3f} s; angle {phi:.6f} rad, target '
-                f'{self._gains.target:g} rad')
+                f"settled at t = {stamp_ns / 1e9:.3f} s (state stamp) by the controller's "
+                f'rule: |angle - target| < {lim.position:g} rad and |velocity| < '
+                f'{lim.velocity:g} rad/s since t = {since / 1e9:.3f} s (settle_hold '
+                f'{lim.hold:g} s); angle {phi:.6f} rad, target {self._gains.target:g} rad; '
+                f'{self._step.text()}')
         elif event is SettleEvent.LEFT:
             self.get_logger().info(
                 f'left the target at t = {stamp_ns / 1e9:.3f} s (state stamp): angle '

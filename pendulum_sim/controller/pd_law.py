@@ -13,13 +13,23 @@ gravity compensation scheme, e.g. Spong, Hutchinson & Vidyasagar, *Robot Modelin
 ch. 8). The angle error is wrapped to [−π, π] so that the controller turns the short way round.
 
 Everything here is a pure function of its arguments: no clock, no state but the settle
-detector's, which is driven by the simulated time stamps of the states it is given.
+detectors', which are driven by the simulated time stamps of the states they are given.
+
+Two measures of "settled" are kept apart here, and the controller's log names both:
+:class:`SettleDetector` is the controller's own rule (angle and velocity errors within
+absolute tolerances, held for a time: a verdict it can give while running), and
+:class:`StepSettling` follows the test bench's ``settling_time`` (python-control's
+``step_info``: the time after which the angle stays within 2 % of the step around the target).
 """
 from __future__ import annotations
 
 import enum
 import math
 from dataclasses import dataclass
+
+import numpy as np
+
+from pendulum_sim.testing.metrics import SETTLING_THRESHOLD, outside_settling_band
 
 from .errors import ControllerError
 
@@ -172,3 +182,63 @@ class SettleDetector:
         else:
             self.inside_since_ns = None
         return event
+
+
+class StepSettling:
+    """Follow, state by state, the test bench's settling time of the step in progress.
+
+    The step runs from the angle φ₀ of the first state (of the first after :meth:`restart`)
+    to the target. A state is inside the settling band when
+    ``|(φ − φ₀)/(φ_ref − φ₀) − 1| < 2 %``, the rule of
+    :func:`pendulum_sim.testing.metrics.outside_settling_band` applied to the same numbers, so
+    ``since_ns``, the stamp of the first state of the current stretch inside the band, is the
+    ``settling_time`` that ``run.metrics(target)`` gives for the run so far: the run's, if the
+    angle stays in the band to its end.
+    """
+
+    def __init__(self) -> None:
+        self.start: float | None = None
+        self.target: float | None = None
+        self.since_ns: int | None = None
+        self._last_ns: int | None = None
+
+    def restart(self) -> None:
+        """Start a new step at the next state (after a reset or a change of target)."""
+        self.start = None
+        self.since_ns = None
+
+    def update(self, stamp_ns: int, phi: float, target: float) -> None:
+        """Take the state at ``stamp_ns`` with angle ``phi`` (rad) towards ``target`` (rad).
+
+        A stamp earlier than the last one (simulated time went back: a reset) starts a new
+        step at this state.
+        """
+        if self._last_ns is not None and stamp_ns < self._last_ns:
+            self.restart()
+        self._last_ns = stamp_ns
+        if self.start is None:
+            self.start = phi
+        self.target = target
+        if target == self.start:
+            self.since_ns = None   # a step of zero size has no settling time
+            return
+        outside = outside_settling_band(np.array([phi - self.start]),
+                                        np.array([target - self.start]))
+        if bool(outside[0]):
+            self.since_ns = None
+        elif self.since_ns is None:
+            self.since_ns = stamp_ns
+
+    def text(self) -> str:
+        """Return the settling time so far in words, naming its definition."""
+        if self.start is None or self.target is None:
+            return 'no step-response settling time: no state yet'
+        step = f'the step from {self.start:.6g} rad to {self.target:g} rad'
+        if self.target == self.start:
+            return f'no step-response settling time: {step} has zero size'
+        band = f'{100 * SETTLING_THRESHOLD:g} % of {step}'
+        if self.since_ns is None:
+            return f'no step-response settling time yet: the angle is not within {band}'
+        return (f'step-response settling time t = {self.since_ns / 1e9:.3f} s so far (within '
+                f'{band} since; the settling_time of python-control step_info, as '
+                'pendulum_sim.testing measures it)')

@@ -1,19 +1,30 @@
-"""The figure of a closed-loop run: the one drawing behind ``plot()`` and ``pendulum_report``.
+"""The figure of a closed-loop run, and the rule that keeps every test-bench figure readable.
 
-Three panels over time: the angle against the target with the 2 % settling band and the
-settling time marked; the angular velocity; the effort with the joint's saturation band
-(±max_effort) shaded. matplotlib is imported here only, on the Agg backend.
+:func:`closed_loop_figure` is the one drawing behind ``plot()`` and ``pendulum_report``: three
+panels over time, the angle against the target with the 2 % settling band and the settling
+time marked; the angular velocity; the effort with the joint's saturation band (±max_effort)
+shaded. :func:`readable_ticks` thins out (and as a last resort turns) the tick labels of a
+drawn figure until no two of an axis overlap, judged on their extents as drawn; the campaign's
+figures use it too. matplotlib is imported on first use only, on the Agg backend.
 """
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .metrics import SETTLING_THRESHOLD, StepMetrics
+
+if TYPE_CHECKING:
+    from matplotlib.axis import Axis
+    from matplotlib.figure import Figure
+    from matplotlib.text import Text
+
+TICK_BINS = (5, 4, 3, 2)   # the most tick intervals tried per axis, until the labels fit
+TICK_ROTATION = 35.0       # degrees: the labels of an axis still crowded at two intervals
 
 
 class Drawn(Protocol):
@@ -36,6 +47,60 @@ class Drawn(Protocol):
 
     def metrics(self, target: float | None = None, *,
                 initial: float | None = None) -> StepMetrics: ...
+
+
+def drawn_tick_labels(axis: Axis) -> list[Text]:
+    """Return the tick labels ``axis`` shows (after a draw): non-empty, of ticks in its view."""
+    low, high = sorted(axis.get_view_interval())
+    span = high - low
+    out = []
+    for tick in axis.get_major_ticks():
+        label = tick.label1
+        loc = tick.get_loc()
+        if (label.get_visible() and label.get_text() and loc is not None
+                and low - 1e-9 * span <= loc <= high + 1e-9 * span):
+            out.append(label)
+    return out
+
+
+def labels_overlap(axis: Axis) -> bool:
+    """Return True when two of the drawn tick labels of ``axis`` overlap (after a draw)."""
+    boxes = [label.get_window_extent() for label in drawn_tick_labels(axis)]
+    return any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+
+def readable_ticks(fig: Figure) -> None:
+    """Thin out the ticks of each linear axis of ``fig`` until no two labels overlap.
+
+    The figure is drawn, and each axis whose labels overlap is given at most 5, 4, 3, then 2
+    tick intervals (matplotlib's ``MaxNLocator``, keeping its other settings), drawn again
+    after each; labels still crowded at two are turned by :data:`TICK_ROTATION` degrees. Call
+    it after the layout.
+    """
+    from matplotlib.ticker import MaxNLocator
+
+    fig.canvas.draw()
+    for ax in fig.axes:
+        pairs: tuple[tuple[Axis, Literal['x', 'y']], ...] = (
+            (ax.xaxis, 'x'), (ax.yaxis, 'y'))
+        for axis, name in pairs:
+            if axis.get_scale() != 'linear' or not labels_overlap(axis):
+                continue
+            for bins in TICK_BINS:
+                locator = axis.get_major_locator()
+                if isinstance(locator, MaxNLocator):
+                    locator.set_params(nbins=bins)
+                else:
+                    axis.set_major_locator(MaxNLocator(nbins=bins))
+                fig.canvas.draw()
+                if not labels_overlap(axis):
+                    break
+            else:
+                ax.tick_params(axis=name, labelrotation=TICK_ROTATION)
+                if name == 'x':
+                    for label in axis.get_ticklabels():
+                        label.set_horizontalalignment('right')
+                fig.canvas.draw()
 
 
 def closed_loop_figure(run: Drawn, target: float, path: Path,
@@ -79,6 +144,7 @@ def closed_loop_figure(run: Drawn, target: float, path: Path,
                    f'{m.settling_time:.3g} s, overshoot {m.overshoot:.3g} %, '
                    f'max |τ| {m.max_effort:.3g} N m', fontsize=10)
     fig.tight_layout()
+    readable_ticks(fig)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -96,6 +96,23 @@ def _vector(name: str, values: ArrayLike) -> FloatArray:
     return arr
 
 
+def outside_settling_band(change: FloatArray, step: FloatArray) -> NDArray[np.bool_]:
+    """Return where a response is outside its settling band (python-control's ``step_info``).
+
+    ``change`` is the response's change from its initial value and ``step`` the target's
+    (``target − initial``, broadcast against ``change``): a sample is outside when
+    ``|change / step − 1| >= SETTLING_THRESHOLD``, i.e. not within 2 % of the step around the
+    target. The settling time is the time of the sample after the last one outside. The one
+    statement of the rule: the metrics and the example controller's log
+    (:class:`pendulum_sim.controller.pd_law.StepSettling`) both apply it.
+    """
+    band = change / step
+    band -= 1.0
+    np.abs(band, out=band)
+    outside: NDArray[np.bool_] = band >= SETTLING_THRESHOLD
+    return outside
+
+
 def step_info(t: FloatArray, y: FloatArray, yfinal: float) -> dict[str, float]:
     """Return python-control's ``step_info`` of a SISO time series (same names, lower case).
 
@@ -137,10 +154,7 @@ def _step_info(t: FloatArray, y: FloatArray, yfinal: FloatArray) -> dict[str, Fl
     i_lo = _first(signed >= (sgn * (lo * yfinal))[:, np.newaxis])
     i_hi = _first(signed >= (sgn * (hi * yfinal))[:, np.newaxis])
     rise_time = np.where((i_lo >= 0) & (i_hi >= 0), t[i_hi] - t[i_lo], math.nan)
-    band = y / yfinal[:, np.newaxis]
-    band -= 1.0
-    np.abs(band, out=band)
-    outside = band >= SETTLING_THRESHOLD
+    outside = outside_settling_band(y, yfinal[:, np.newaxis])
     settled = np.where(outside.any(axis=1), size - outside[:, ::-1].argmax(axis=1), 0)
     settling_time = np.where(settled < size, t[np.minimum(settled, size - 1)], math.nan)
     # Each row's extremes from i_hi on: segments [row start + i_hi, next row start) of the

@@ -38,7 +38,11 @@ class ClosedLoopRun:
     failed : str or None
         Why the simulation stopped early (the joint's reason), or None.
     target : float or None
-        The reference, when the caller gave one (the figure and ``metrics()`` use it).
+        The reference the run was made with, when the caller gave one.
+
+    ``metrics()`` and ``plot()`` without a target use the last target either was given for this
+    run (``run.metrics(0.3)`` then ``run.plot(path)`` draws the run towards 0.3), else
+    ``target``.
     """
 
     t: FloatArray
@@ -49,6 +53,9 @@ class ClosedLoopRun:
     parameters: dict[str, Value] = field(default_factory=dict)
     failed: str | None = None
     target: float | None = None
+    # The last target metrics() or plot() was given, in a list since the run is frozen; not
+    # part of the run's value (two runs of the same samples are equal whatever they were asked).
+    _given: list[float] = field(default_factory=list, init=False, repr=False, compare=False)
 
     @property
     def max_effort(self) -> float:
@@ -57,10 +64,14 @@ class ClosedLoopRun:
         return float(value)
 
     def _target(self, target: float | None) -> float:
-        chosen = self.target if target is None else target
-        if chosen is None:
+        """Return ``target``; without it the last one given, else the run's own."""
+        if target is not None:
+            return float(target)
+        if self._given:
+            return self._given[0]
+        if self.target is None:
             raise TestingError('no target: give metrics(target) or plot(path, target=...)')
-        return float(chosen)
+        return float(self.target)
 
     def metrics(self, target: float | None = None, *,
                 initial: float | None = None) -> StepMetrics:
@@ -71,15 +82,25 @@ class ClosedLoopRun:
         """
         if self.t.size < 2:
             raise TestingError(f'a run of {self.t.size} sample(s) has no step metrics')
-        return step_metrics(self.t, self.position, self._target(target),
-                            initial=float(self.position[0]) if initial is None else initial,
-                            effort=self.effort, effort_limit=finite_limit(self.parameters))
+        chosen = self._target(target)
+        measured = step_metrics(self.t, self.position, chosen,
+                                initial=float(self.position[0]) if initial is None else initial,
+                                effort=self.effort, effort_limit=finite_limit(self.parameters))
+        self._given[:] = [chosen]   # measured: a target the run can be drawn towards
+        return measured
 
     def plot(self, path: str | Path, *, target: float | None = None) -> Path:
-        """Draw the run's figure (angle, velocity, effort; settling band and time) to ``path``."""
+        """Draw the run's figure (angle, velocity, effort; settling band and time) to ``path``.
+
+        Without ``target``, the run is drawn towards the last target ``metrics()`` or ``plot()``
+        was given, else towards the run's own.
+        """
         from .figure import closed_loop_figure
 
-        return closed_loop_figure(self, self._target(target), Path(path))
+        chosen = self._target(target)
+        drawn = closed_loop_figure(self, chosen, Path(path))
+        self._given[:] = [chosen]
+        return drawn
 
     def with_target(self, target: float) -> ClosedLoopRun:
         """Return the same run with its reference set."""

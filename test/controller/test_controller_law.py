@@ -17,6 +17,7 @@ from pendulum_sim.controller import (
     SettleDetector,
     SettleEvent,
     SettleLimits,
+    StepSettling,
     pd_torque,
     wrap_angle,
 )
@@ -189,3 +190,77 @@ def test_time_going_back_restarts_detection() -> None:
     assert det.update(0, 1.0, 0.0) is SettleEvent.RESTARTED
     assert det.settled_at_ns is None
     assert det.update(1 * MS, 0.0, 0.0) is SettleEvent.SETTLED
+
+
+def readme_run() -> tuple[list[int], list[float], list[float]]:
+    """Return the stamps (ns), angles and rates of the README's run: the example gains from
+    1 rad towards 0.5 rad on the controller_test scene, 400 periods (the test bench's run)."""
+    from pendulum_sim.testing import closed_loop as run_closed_loop
+
+    gains = PDGains(kp=4.0, kd=1.0, target=0.5)
+    run = run_closed_loop(lambda t, x, v: pd_torque(gains, x, v), periods=400)
+    return [round(t * 1e9) for t in run.t], run.position.tolist(), run.velocity.tolist()
+
+
+def test_the_step_settling_time_so_far_is_the_metrics_settling_time_of_the_run_so_far() -> None:
+    # The oracle is the test bench's own metric, computed offline on each prefix of the run:
+    # the online tracker must give the same sample's stamp after every state (None for NaN).
+    from pendulum_sim.testing.metrics import step_metrics
+
+    stamps, phi, _ = readme_run()
+    step = StepSettling()
+    for k, (stamp, x) in enumerate(zip(stamps, phi, strict=True)):
+        step.update(stamp, x, 0.5)
+        if k == 0:
+            continue
+        times = [s / 1e9 for s in stamps[:k + 1]]
+        settling = step_metrics(times, phi[:k + 1], 0.5, initial=phi[0]).settling_time
+        got = None if step.since_ns is None else step.since_ns / 1e9
+        assert (got is None and math.isnan(settling)) or got == settling, k
+    assert step.since_ns == 1_300_000_000   # the README's "settled in 1.30 s"
+    assert step.text() == (
+        'step-response settling time t = 1.300 s so far (within 2 % of the step from 1 rad '
+        'to 0.5 rad since; the settling_time of python-control step_info, as '
+        'pendulum_sim.testing measures it)')
+
+
+def test_the_controllers_rule_and_the_step_settling_time_differ_on_the_readme_run() -> None:
+    # Two measures of one response, each what it says: the hold rule (|error| and |rate|
+    # below 0.01 for 0.5 s of stamps) later than the 2 % band of the 0.5 rad step.
+    stamps, phi, dphi = readme_run()
+    det, step = SettleDetector(SettleLimits()), StepSettling()
+    settled_at = None
+    for stamp, x, v in zip(stamps, phi, dphi, strict=True):
+        step.update(stamp, x, 0.5)
+        if det.update(stamp, wrap_angle(x - 0.5), v) is SettleEvent.SETTLED:
+            settled_at = stamp
+            break
+    # Independently: the first stamp 0.5 s into a stretch with both errors below 0.01.
+    start = None
+    for stamp, x, v in zip(stamps, phi, dphi, strict=True):
+        start = (start if start is not None else stamp) if abs(x - 0.5) < 0.01 and abs(
+            v) < 0.01 else None
+        if start is not None and stamp - start >= 500 * MS:
+            break
+    assert settled_at == stamp == 2_670 * MS and det.inside_since_ns == start == 2_170 * MS
+    assert step.since_ns == 1_300 * MS
+
+
+def test_a_new_step_starts_after_time_goes_back_or_on_restart() -> None:
+    step = StepSettling()
+    assert step.text() == 'no step-response settling time: no state yet'
+    step.update(0, 1.0, 0.5)
+    assert step.text() == ('no step-response settling time yet: the angle is not within 2 % '
+                           'of the step from 1 rad to 0.5 rad')
+    step.update(10 * MS, 0.509, 0.5)                   # within 2 % of 0.5 rad: 0.01 rad
+    assert step.since_ns == 10 * MS
+    step.update(20 * MS, 0.511, 0.5)                   # out again
+    assert step.since_ns is None
+    step.update(0, 0.7, 0.5)                           # a reset: a new step, from 0.7 rad
+    assert step.start == 0.7 and step.since_ns is None
+    step.update(10 * MS, 0.5039, 0.5)                  # 2 % of 0.2 rad is 0.004 rad
+    assert step.since_ns == 10 * MS
+    step.restart()                                     # a new target
+    step.update(20 * MS, 0.5, 0.5)
+    assert step.text() == ('no step-response settling time: the step from 0.5 rad to 0.5 rad '
+                           'has zero size')

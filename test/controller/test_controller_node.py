@@ -130,6 +130,44 @@ def test_settling_is_judged_by_stamps_not_wall_time() -> None:
         assert ctl.stop() == 0
 
 
+def test_the_settle_log_names_its_rule_and_gives_the_metrics_settling_time() -> None:
+    """The README's run, state by state: the controller's own rule says 2.670 s, and the same
+    line gives the test bench's settling time of that run, 1.300 s, as ``metrics()`` does;
+    the first tutorial shows this very line."""
+    from pathlib import Path
+
+    from pendulum_sim.controller.pd_law import PDGains, pd_torque
+    from pendulum_sim.testing import closed_loop
+
+    gains = PDGains(kp=4.0, kd=1.0, target=0.5)
+    run = closed_loop(lambda t, x, v: pd_torque(gains, x, v), periods=400)
+    with Controller(params={'target': 0.5}) as ctl, Probe('pd_probe') as probe:
+        loop = Loop(probe, ctl, joint='pendulum_joint')
+        for t, x, v, tau in zip(run.t, run.position, run.velocity, run.command, strict=True):
+            # The answers are the run's commands, bit for bit: the same loop over DDS.
+            assert loop.answer(round(t * 1e9), float(x), float(v),
+                               names=('pendulum_joint',)) == tau
+            if 'settled at' in ctl.output():
+                break
+        assert ctl.stop() == 0
+        output = ctl.output()
+    (line,) = [ln.split(']: ', 1)[1] for ln in output.splitlines() if 'settled at' in ln]
+    metric = run.metrics(0.5).settling_time
+    assert metric == 1.3
+    assert line == (
+        "settled at t = 2.670 s (state stamp) by the controller's rule: |angle - target| < "
+        '0.01 rad and |velocity| < 0.01 rad/s since t = 2.170 s (settle_hold 0.5 s); angle '
+        f'{run.position[267]:.6f} rad, target 0.5 rad; step-response settling time '
+        f't = {metric:.3f} s so far (within 2 % of the step from 1 rad to 0.5 rad since; the '
+        'settling_time of python-control step_info, as pendulum_sim.testing measures it)')
+    page = (Path(__file__).resolve().parents[2] / 'docs' / 'tutorials'
+            / 'first-controller-test.md').read_text(encoding='utf-8')
+    shown = re.search(r'^    \[pendulum_pd_controller\]: (settled at .*?)\n\n', page,
+                      re.S | re.M)
+    assert shown is not None
+    assert ' '.join(shown[1].split()) == line
+
+
 def test_count_exits_by_itself() -> None:
     with Controller(args=['--count', '3']) as ctl, Probe('pd_probe') as probe:
         loop = Loop(probe, ctl)

@@ -87,6 +87,35 @@ def test_closed_loop_gives_the_target_to_the_law_and_keeps_it_for_the_metrics() 
     assert held.position.tobytes() == fixed.position.tobytes() and held.target == 0.2
 
 
+def test_plot_draws_towards_the_target_the_metrics_were_last_asked_for(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from pendulum_sim.testing import figure
+
+    drawn: list[float] = []
+    draw = figure.closed_loop_figure
+
+    def spy(run: Any, target: float, path: Path, *args: Any) -> Path:
+        drawn.append(target)
+        return draw(run, target, path, *args)
+
+    monkeypatch.setattr(figure, 'closed_loop_figure', spy)
+    run = run_closed_loop(pd, periods=300, target=0.5)
+    run.plot(tmp_path / 'own.png')                   # nothing asked yet: the run's own target
+    asked = run.metrics(0.3)
+    run.plot(tmp_path / 'asked.png')                 # the target the metrics were asked for
+    assert run.metrics() == asked
+    with pytest.raises(TestingError, match='target must be finite, got nan'):
+        run.metrics(math.nan)
+    run.plot(tmp_path / 'kept.png')                  # a refused target is not kept: 0.3 holds
+    run.plot(tmp_path / 'given.png', target=0.1)     # a target given to plot() counts too
+    assert run.metrics() == run.metrics(0.1) != asked
+    assert drawn == [0.5, 0.3, 0.3, 0.1]
+    assert all((tmp_path / f'{name}.png').stat().st_size > 0
+               for name in ('own', 'asked', 'kept', 'given'))
+    # Another run of the same samples starts from its own target again.
+    assert run.with_target(0.2).metrics() == run.metrics(0.2)
+
+
 def test_the_pytest_fixture_passes_the_target_on(
         closed_loop: Callable[..., ClosedLoopRun]) -> None:
     run = closed_loop(pd, periods=300, target=-0.4)

@@ -1,4 +1,5 @@
-"""The campaign's results: the episode table (Parquet and CSV), ``summary.md``, figures.
+"""The campaign's results: the episode table (Parquet and CSV), ``summary.md``, the figures
+(drawn by :mod:`~pendulum_sim.testing.campaign.figures`).
 
 Table columns: ``episode``, one per scenario parameter (named as the parameter), ``target`` (the
 episode's reference, always there, fixed or drawn), one per metric
@@ -18,6 +19,7 @@ import numpy as np
 
 from ..metrics import METRIC_NAMES
 from .episode import RUN_COLUMNS, failure_path
+from .figures import point_like, point_like_note, shown, write_figures
 from .spec import CampaignSpec, describe
 
 QUANTILES = (0.05, 0.5, 0.95)
@@ -60,25 +62,8 @@ def write_table(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path) -> li
 
 def _fmt(value: Any) -> str:
     if isinstance(value, float):
-        return '–' if math.isnan(value) else f'{value:.4g}'
+        return '–' if math.isnan(value) else shown(value)
     return str(value)
-
-
-def influence(spec: CampaignSpec, rows: list[dict[str, Any]]) -> list[tuple[str, float]]:
-    """Return the numeric scenario dimensions (parameters, target) that vary, by |correlation
-    with passing|, largest first."""
-    passed = np.array([float(r['passed']) for r in rows])
-    ranked: list[tuple[str, float]] = []
-    for name in spec.scenario_names:
-        values = [r[name] for r in rows]
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-            continue
-        x = np.array(values, dtype=float)
-        if np.ptp(x) == 0.0:
-            continue
-        score = 0.0 if np.ptp(passed) == 0.0 else abs(float(np.corrcoef(x, passed)[0, 1]))
-        ranked.append((name, score))
-    return sorted(ranked, key=lambda item: -item[1])
 
 
 def write_summary(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path,
@@ -88,8 +73,10 @@ def write_summary(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path,
     passed = sum(1 for r in rows if r['passed'])
     lines = [f'# Campaign: {n} episodes, {passed} passed ({100.0 * passed / max(n, 1):.1f} %)',
              '', f'Controller `{spec.controller}`, scene `{spec.scene}`, {spec.periods} control '
-             f'periods per episode, target {describe(spec.target)} rad, seed {spec.seed}.', '',
-             '## Requirements', '']
+             f'periods per episode, target {describe(spec.target)} rad, seed {spec.seed}.', '']
+    note = point_like_note(point_like(spec, rows))
+    lines += [note, ''] if note else []
+    lines += ['## Requirements', '']
     lines += [f'- `{r}`: {sum(1 for row in rows if not r.check(row[r.metric]))} of {n} met'
               for r in spec.requirements] or ['- none (every episode that runs passes)']
     lines += ['', '## Metric quantiles', '',
@@ -117,71 +104,13 @@ def write_summary(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path,
                      f'{"yes" if r["passed"] else "no"} | {r["reason"]} | {rec} |')
     lines += ['', '## Figures', '']
     lines += [f'![{name}](figures/{name})' for name in figures] or ['No figures drawn.']
+    if figures and 'pass_rate.png' not in figures:
+        lines += ['', 'No pass rate figure: no numeric scenario dimension varies.']
     lines += ['', f'Rerun one episode bit for bit: `pendulum_campaign --rerun {out} EPISODE`.',
               '']
     path = out / 'summary.md'
     path.write_text('\n'.join(lines), encoding='utf-8')
     return path
-
-
-def write_figures(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path) -> list[str]:
-    """Draw the metric distributions and the pass rate over the two most influential params."""
-    try:
-        from pendulum_sim.pyplot_agg import pyplot
-        plt = pyplot()
-    except ImportError:
-        return []
-    folder = out / 'figures'
-    folder.mkdir(exist_ok=True)
-    names: list[str] = []
-    shown = ('rise_time', 'settling_time', 'overshoot', 'steady_state_error', 'iae',
-             'max_effort', 'effort_energy', 'saturation_fraction')
-    fig, axes = plt.subplots(2, 4, figsize=(13, 6))
-    for ax, name in zip(axes.flat, shown, strict=True):
-        x = np.array([r[name] for r in rows], dtype=float)
-        finite = x[np.isfinite(x)]
-        if finite.size:
-            ax.hist(finite, bins=min(30, max(5, finite.size // 5)), color='C0')
-        ax.set_title(f'{name} ({x.size - finite.size} nan)', fontsize=9)
-        limit = [r for r in spec.requirements if r.metric == name]
-        for req in limit:
-            ax.axvline(req.bound, color='C3', ls='--', label=str(req))
-            ax.legend(fontsize=7)
-    fig.suptitle(f'Metric distributions over {len(rows)} episodes')
-    fig.tight_layout()
-    fig.savefig(folder / 'metric_distributions.png', dpi=100)
-    plt.close(fig)
-    names.append('metric_distributions.png')
-    ranked = influence(spec, rows)
-    if ranked:
-        passed = np.array([float(r['passed']) for r in rows])
-        fig, ax = plt.subplots(figsize=(6.5, 5))
-        x = np.array([r[ranked[0][0]] for r in rows], dtype=float)
-        if len(ranked) >= 2:
-            y = np.array([r[ranked[1][0]] for r in rows], dtype=float)
-            bins = max(2, min(10, int(math.sqrt(len(rows) / 2))))
-            total, xe, ye = np.histogram2d(x, y, bins=bins)
-            good, _, _ = np.histogram2d(x, y, bins=(xe, ye), weights=passed)
-            with np.errstate(invalid='ignore', divide='ignore'):
-                rate = np.where(total > 0, good / total, np.nan)
-            mesh = ax.pcolormesh(xe, ye, 100 * rate.T, cmap='RdYlGn', vmin=0, vmax=100)
-            fig.colorbar(mesh, ax=ax, label='pass rate (%)')
-            ax.scatter(x, y, c=np.where(passed > 0, 'k', 'r'), s=6)
-            ax.set_ylabel(ranked[1][0])
-        else:
-            bins = max(2, min(20, len(rows) // 5))
-            total, xe = np.histogram(x, bins=bins)
-            good, _ = np.histogram(x, bins=xe, weights=passed)
-            with np.errstate(invalid='ignore', divide='ignore'):
-                ax.stairs(100 * np.where(total > 0, good / total, np.nan), xe)
-            ax.set_ylabel('pass rate (%)')
-        ax.set_xlabel(ranked[0][0])
-        ax.set_title('pass rate over the most influential parameters', fontsize=10)
-        fig.tight_layout()
-        fig.savefig(folder / 'pass_rate.png', dpi=100)
-        plt.close(fig)
-        names.append('pass_rate.png')
-    return names
 
 
 def _import_writers() -> None:
