@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pendulum_sim.testing.metrics import SETTLING_THRESHOLD, outside_settling_band
+from pendulum_sim.core.analysis import SETTLING_THRESHOLD, outside_settling_band
 
 from .errors import ControllerError
 
@@ -190,7 +190,7 @@ class StepSettling:
     The step runs from the angle φ₀ of the first state (of the first after :meth:`restart`)
     to the target. A state is inside the settling band when
     ``|(φ − φ₀)/(φ_ref − φ₀) − 1| < 2 %``, the rule of
-    :func:`pendulum_sim.testing.metrics.outside_settling_band` applied to the same numbers, so
+    :func:`pendulum_sim.core.analysis.outside_settling_band` applied to the same numbers, so
     ``since_ns``, the stamp of the first state of the current stretch inside the band, is the
     ``settling_time`` that ``run.metrics(target)`` gives for the run so far: the run's, if the
     angle stays in the band to its end.

@@ -9,6 +9,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from .errors import ModelError
 from .model import FloatArray, PendulumParams
@@ -198,3 +199,25 @@ def fit_percent(measured: FloatArray, predicted: FloatArray) -> float:
     if spread == 0.0:
         return math.nan
     return 100.0 * (1.0 - float(np.linalg.norm(y - y_hat)) / spread)
+
+
+SETTLING_THRESHOLD = 0.02
+"""The settling band of a step response: 2 % of the step around the target (python-control's
+``step_info`` default)."""
+
+
+def outside_settling_band(change: FloatArray, step: FloatArray) -> npt.NDArray[np.bool_]:
+    """Return where a response is outside its settling band (python-control's ``step_info``).
+
+    ``change`` is the response's change from its initial value and ``step`` the target's
+    (``target − initial``, broadcast against ``change``): a sample is outside when
+    ``|change / step − 1| >= SETTLING_THRESHOLD``, i.e. not within 2 % of the step around the
+    target. The settling time is the time of the sample after the last one outside. The one
+    statement of the rule: the metrics and the example controller's log
+    (:class:`pendulum_sim.controller.pd_law.StepSettling`) both apply it, from here.
+    """
+    band = change / step
+    band -= 1.0
+    np.abs(band, out=band)
+    outside: npt.NDArray[np.bool_] = band >= SETTLING_THRESHOLD
+    return outside

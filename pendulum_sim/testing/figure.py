@@ -16,7 +16,9 @@ from typing import TYPE_CHECKING, Literal, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from .metrics import SETTLING_THRESHOLD, StepMetrics
+from pendulum_sim.core.analysis import SETTLING_THRESHOLD
+
+from .metrics import StepMetrics
 
 if TYPE_CHECKING:
     from matplotlib.axis import Axis

@@ -38,11 +38,12 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from pendulum_sim.core.analysis import outside_settling_band
+
 from .errors import TestingError
 
 FloatArray = NDArray[np.float64]
 
-SETTLING_THRESHOLD = 0.02
 RISE_LIMITS = (0.1, 0.9)
 
 
@@ -94,23 +95,6 @@ def _vector(name: str, values: ArrayLike) -> FloatArray:
         bad = int(np.flatnonzero(~np.isfinite(arr))[0])
         raise TestingError(f'{name} must be finite, got {arr[bad]} at index {bad}')
     return arr
-
-
-def outside_settling_band(change: FloatArray, step: FloatArray) -> NDArray[np.bool_]:
-    """Return where a response is outside its settling band (python-control's ``step_info``).
-
-    ``change`` is the response's change from its initial value and ``step`` the target's
-    (``target − initial``, broadcast against ``change``): a sample is outside when
-    ``|change / step − 1| >= SETTLING_THRESHOLD``, i.e. not within 2 % of the step around the
-    target. The settling time is the time of the sample after the last one outside. The one
-    statement of the rule: the metrics and the example controller's log
-    (:class:`pendulum_sim.controller.pd_law.StepSettling`) both apply it.
-    """
-    band = change / step
-    band -= 1.0
-    np.abs(band, out=band)
-    outside: NDArray[np.bool_] = band >= SETTLING_THRESHOLD
-    return outside
 
 
 def step_info(t: FloatArray, y: FloatArray, yfinal: float) -> dict[str, float]:

@@ -7,11 +7,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pendulum_sim.core.analysis import SETTLING_THRESHOLD
 from pendulum_sim.testing import StepMetrics, TestingError, step_metrics
 from pendulum_sim.testing import run as run_module
 from pendulum_sim.testing.batch import run_batch
 from pendulum_sim.testing.examples import pd_batch
-from pendulum_sim.testing.metrics import RISE_LIMITS, SETTLING_THRESHOLD, step_metrics_batch
+from pendulum_sim.testing.metrics import RISE_LIMITS, step_metrics_batch
 from pendulum_sim.testing.run import ClosedLoopRun, runs_metrics
 from pendulum_sim.testing.scene import scene_values
 from pendulum_sim.testing.vector import vectorised
