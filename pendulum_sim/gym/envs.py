@@ -109,8 +109,8 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
             raise GymError(f'reset takes no options, got {sorted(options)}')
         super().reset(seed=seed)
         r = self._runner
-        r.reset(0, seed, self.np_random)
-        episode = r.episodes[0]
+        r.reset(_ONE, [seed], self.np_random)
+        episode = r.episode(0)
         info = {'seed': r.seeds[0], 'episode': r.index[0], 'target': float(r.target[0]),
                 'parameters': {k: episode.values[k] for k in r.scenarios.spec.parameter_names}}
         return r.observe(_ONE)[0], info

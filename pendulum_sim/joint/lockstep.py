@@ -197,6 +197,12 @@ class Lockstep:
                                                              + config.max_effort / p.inertia)
         self._sweep = None
 
+    def stop(self, ids: IntArray) -> None:
+        """Idle the joints ``ids`` until they are started again."""
+        for j in ids.tolist():
+            self.configs[j] = None
+            self._joints.pop(j, None)
+
     def advance(self, command: FloatArray, live: IntArray) -> dict[int, str]:
         """Take one control period of the joints ``live`` under ``command`` (N m, one each).
 
