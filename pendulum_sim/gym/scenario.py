@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 
 from pendulum_sim.joint.errors import JointError
 from pendulum_sim.joint.joint import JointConfig
-from pendulum_sim.joint.parameters import check, check_states, joint_config
+from pendulum_sim.joint.parameters import check_states, joint_config
 
 from .errors import GymError
 

@@ -29,7 +29,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-
 FloatArray = NDArray[np.float64]
 BIG = float(np.finfo(np.float64).max)
 TAU_WEIGHT = 0.001

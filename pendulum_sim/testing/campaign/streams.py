@@ -32,6 +32,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from ..errors import TestingError
+
 U32 = NDArray[np.uint32]
 U64 = NDArray[np.uint64]
 FloatArray = NDArray[np.float64]
@@ -74,7 +76,7 @@ class _Hash:
 
 
 def _mix(x: U32, y: U32) -> U32:
-    result = _u32(MIX_MULT_L) * x - _u32(MIX_MULT_R) * y
+    result: U32 = _u32(MIX_MULT_L) * x - _u32(MIX_MULT_R) * y
     return result ^ (result >> np.uint32(XSHIFT))
 
 
@@ -83,7 +85,7 @@ def _words(values: Sequence[int], name: str) -> tuple[U32, U32, NDArray[np.bool_
     the high one counts (numpy's ``_int_to_uint32_array``: 0 is one word, [1, 2**32) one)."""
     if any(v < 0 or v >= MAX_WORD for v in values):
         bad = next(v for v in values if v < 0 or v >= MAX_WORD)
-        raise ValueError(f'{name} must be an integer in [0, 2**64), got {bad}')
+        raise TestingError(f'{name} must be an integer in [0, 2**64), got {bad}')
     arr = np.array(values, dtype=np.uint64)
     low = (arr & np.uint64(MASK32)).astype(np.uint32)
     high = (arr >> np.uint64(32)).astype(np.uint32)
@@ -132,7 +134,7 @@ def _mul_high(a: U64, b: U64) -> U64:
     b0, b1 = b & m32, b >> s32
     p00, p01, p10, p11 = a0 * b0, a0 * b1, a1 * b0, a1 * b1
     mid = (p00 >> s32) + (p01 & m32) + (p10 & m32)
-    return p11 + (p01 >> s32) + (p10 >> s32) + (mid >> s32)
+    return np.asarray(p11 + (p01 >> s32) + (p10 >> s32) + (mid >> s32), dtype=np.uint64)
 
 
 def _add128(hi: U64, lo: U64, add_hi: U64, add_lo: U64) -> tuple[U64, U64]:
@@ -152,7 +154,7 @@ class Streams:
 
     def __init__(self, seeds: Sequence[int], episodes: Sequence[int]) -> None:
         if len(seeds) != len(episodes):
-            raise ValueError(f'one seed per episode: got {len(seeds)} seeds for '
+            raise TestingError(f'one seed per episode: got {len(seeds)} seeds for '
                              f'{len(episodes)} episodes')
         s_hi, s_lo, i_hi, i_lo = _generate_state(_pool(seeds, episodes), 4)
         one = np.uint64(1)
@@ -178,7 +180,8 @@ class Streams:
         self._step()
         rot = self._hi >> np.uint64(58)
         x = self._hi ^ self._lo
-        return (x >> rot) | (x << ((np.uint64(64) - rot) & np.uint64(63)))
+        return np.asarray((x >> rot) | (x << ((np.uint64(64) - rot) & np.uint64(63))),
+                          dtype=np.uint64)
 
     def uniform(self, low: float, high: float) -> FloatArray:
         """Return each stream's ``Generator.uniform(low, high)`` (one draw from each)."""
