@@ -124,6 +124,8 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
         info: dict[str, Any] = {'effort': float(r.pendulums.effort[0])}
         if failed:
             info['failed'] = failed[0]
+        if terminated[0] or truncated[0]:
+            info.update({key: values[0] for key, values in r.end_info(_ONE).items()})
         return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), info
 
     def render(self) -> NDArray[np.uint8] | None:

@@ -188,6 +188,15 @@ class Runner:
             self.ended[j] = f'truncated after {limit} steps'
         return self.observe(live), reward, terminated, truncated, failed
 
+    def end_info(self, ended: IntArray) -> dict[str, list[Any]]:
+        """Return what ``info`` carries for the environments whose episodes ``ended`` this step.
+
+        Each key holds one entry per environment of ``ended``; both environments call it at
+        the step an episode ends (the place for an episode's own metrics, such as issue 38's
+        swing-up metrics). Nothing yet.
+        """
+        return {}
+
     def check_running(self, i: int) -> None:
         """Refuse to step environment ``i`` before its first reset or after its episode."""
         if self.index[i] < 0:

@@ -67,6 +67,10 @@ class Drawn:
         state is its first episode's.
     columns : dict
         Each scenario parameter's drawn values, one per episode.
+    base : dict
+        The node parameters the draws replace (the scene and the fixed keywords).
+    group_of : numpy array
+        Each episode's index in ``groups``.
     """
 
     seeds: list[int]
@@ -77,14 +81,14 @@ class Drawn:
     groups: list[tuple[JointConfig, IntArray]]
     columns: dict[str, Any]
     base: dict[str, Any]
+    group_of: IntArray
 
     def episode(self, row: int) -> Episode:
         """Return the episode of row ``row`` as :meth:`Scenarios.episode` gives it."""
         values = dict(self.base)
         values.update({name: _item(col[row]) for name, col in self.columns.items()})
-        config = next(c for c, rows in self.groups if row in rows)
-        config = dataclasses.replace(config, phi0=float(self.phi0[row]),
-                                     dphi0=float(self.dphi0[row]))
+        config = dataclasses.replace(self.groups[int(self.group_of[row])][0],
+                                     phi0=float(self.phi0[row]), dphi0=float(self.dphi0[row]))
         return Episode(values, config, float(self.target[row]))
 
 
@@ -226,5 +230,8 @@ class Scenarios:
         if refused:
             row, reason = min(refused)
             raise GymError(f'episode {indices[row]} of seed {seeds[row]}: {reason}')
+        group_of = np.empty(size, dtype=np.int64)
+        for g, (_, rows_g) in enumerate(groups):
+            group_of[rows_g] = g
         return Drawn(list(seeds), list(indices), phi0, dphi0, drawn.target, groups, columns,
-                     self.base)
+                     self.base, group_of)

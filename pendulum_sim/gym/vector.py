@@ -112,6 +112,12 @@ class JointVectorEnv(VectorEnv[FloatArray, FloatArray, FloatArray]):
             infos['failed'] = np.array([failed.get(i, '') for i in range(self.num_envs)],
                                        dtype=object)
             infos['_failed'] = np.array([i in failed for i in range(self.num_envs)])
+        ended = np.flatnonzero(self._autoreset)
+        if ended.size:   # Gymnasium's vector info: an array per key and its mask '_key'
+            for key, values in r.end_info(ended).items():
+                infos[key] = np.empty(self.num_envs, dtype=object)
+                infos[key][ended] = values
+                infos[f'_{key}'] = self._autoreset.copy()
         return obs, reward, terminated, truncated, infos
 
     def render(self) -> tuple[NDArray[np.uint8], ...] | None:

@@ -14,11 +14,11 @@ arrays: the same decisions, the same results to round-off), prepared again only 
 of joints it holds changes or a joint is started.
 
 The joint's own rules decide everywhere the sweep cannot follow it exactly. A joint whose
-speed could reach its speed bound within the period (:func:`~pendulum_sim.joint.joint.
-speed_bound`, where the joint would limit its torque) takes that period in a SimulatedJoint
-started from its state (kept while it stays there), as does every joint of a period the
-sweep refuses and a joint the sweep leaves non-finite; a joint that fails there ends with
-the joint's reason. :class:`LockstepStats` counts the periods each way, so a batch that
+speed could reach its speed bound within the period
+(:func:`~pendulum_sim.joint.joint.speed_bound`, where the joint would limit its torque) takes
+that period in a SimulatedJoint started from its state (kept while it stays there), as does
+every joint of a period the sweep refuses and a joint the sweep leaves non-finite; a joint
+that fails there ends with the joint's reason. :class:`LockstepStats` counts the periods each way, so a batch that
 silently leaves the sweep shows in its counters.
 """
 from __future__ import annotations
