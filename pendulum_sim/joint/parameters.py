@@ -244,6 +244,8 @@ def check_states(values: Mapping[str, Value], phi0: FloatArray, dphi0: FloatArra
     reason = alone(0)
     if reason is not None:
         return 0, reason
+    if phi0.size == 1:
+        return None
     params = physics(values)
     with np.errstate(over='ignore', invalid='ignore'):
         kin = kinetic_energy(params, dphi0)
