@@ -13,13 +13,13 @@ through one prepared :class:`pendulum_sim.core.sweep.Sweep` (the Stepper's numer
 arrays: the same decisions, the same results to round-off), prepared again only when the set
 of joints it holds changes or a joint is started.
 
-The joint's own rules decide everywhere the sweep cannot follow it exactly. A joint whose
-speed could reach its speed bound within the period
-(:func:`~pendulum_sim.joint.joint.speed_bound`, where the joint would limit its torque) takes
-that period in a SimulatedJoint started from its state (kept while it stays there), as does
-every joint of a period the sweep refuses and a joint the sweep leaves non-finite; a joint
-that fails there ends with the joint's reason. :class:`LockstepStats` counts the periods each way, so a batch that
-silently leaves the sweep shows in its counters.
+The joint's own rules decide everywhere the sweep cannot follow it exactly. A joint whose speed
+could reach its speed bound within the period (:func:`~pendulum_sim.joint.joint.speed_bound`,
+where the joint would limit its torque) takes that period in a SimulatedJoint started from its
+state (kept while it stays there), as does every joint of a period the sweep refuses and a
+joint the sweep leaves non-finite; a joint that fails there ends with the joint's reason.
+:class:`LockstepStats` counts the periods each way, so a batch that silently leaves the sweep
+shows in its counters.
 """
 from __future__ import annotations
 
@@ -46,8 +46,8 @@ def batchable_config(c: JointConfig) -> str:
 
     The lockstep's one rule: effort commands, an ideal sensor, no command or sensor delay, a
     command timeout longer than a period, no disturbance pulse, no effort offset, an explicit
-    method the sweep has. The test bench runs the other episodes one by one on the scalar joint; the Gymnasium
-    environments refuse the other scenes with this reason.
+    method the sweep has. The test bench runs the other episodes one by one on the scalar
+    joint; the Gymnasium environments refuse the other scenes with this reason.
 
     Returns
     -------
