@@ -8,14 +8,17 @@ For N = 1, 64, 1024, 16384 (``--sizes``): environment steps per second (N per ca
     handling, 10 substeps per 10 ms control period, all N in one batched core call
     (``Sweep``), random torques in the action space;
 (b) the same with episodes of 10 steps, so that every 10th step autoresets every
-    environment (drawing its episode from the campaign spaces and preparing the sweep anew);
+    environment (drawing their episodes from the campaign spaces together, over arrays, and
+    preparing the sweep anew);
 (c) ``gymnasium.make_vec('Pendulum-v1', num_envs=N, vectorization_mode='sync')``
     (``SyncVectorEnv``: N ``PendulumEnv``, one explicit Euler step of 50 ms each);
 (d) Pendulum-v1's vector entry point, where Gymnasium registers one.
 
 Each figure times whole ``step`` calls after a reset and a warm-up, for at least
-``--seconds`` of wall time; (a) / (c) is printed beside (a). Target (issue 28): (a) >= 5 x (c)
-at N >= 1024. Figures to read, not assertions.
+``--seconds`` of wall time; (a) / (c) and (b) / (c) are printed beside them, and how the
+vector env's periods were taken in (b) (``Lockstep.stats``: in the sweep, by a joint near its
+speed bound). Targets: (a) >= 5 x (c) at N >= 1024 (issue 28); (b) >= 5 x (c) at N >= 1024,
+resets batched like steps (issue 38). Figures to read, not assertions.
 
     .venv/bin/python bench/bench_gym.py
     .venv/bin/python bench/record.py bench/bench_gym.py
@@ -35,7 +38,10 @@ SIZES = (1, 64, 1024, 16384)
 
 
 def rate(env: Any, seconds: float, seed: int = 0) -> float:
-    """Return environment steps per second of ``env`` (a vector env) under random actions."""
+    """Return environment steps per second of ``env`` (a vector env) under random actions.
+
+    ``env`` is reset and stepped once before the clock starts, then stepped on.
+    """
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     space = env.action_space
@@ -77,9 +83,10 @@ def main() -> None:
     for n in args.sizes:
         a = rate(gymnasium.make_vec('pendulum_sim/DampedPendulum-v0', num_envs=n,
                                     vectorization_mode='vector_entry_point'), args.seconds)
-        b = rate(gymnasium.make_vec('pendulum_sim/DampedPendulum-v0', num_envs=n,
-                                    vectorization_mode='vector_entry_point',
-                                    max_episode_steps=10), args.seconds)
+        short = gymnasium.make_vec('pendulum_sim/DampedPendulum-v0', num_envs=n,
+                                   vectorization_mode='vector_entry_point', max_episode_steps=10)
+        b = rate(short, args.seconds)
+        taken = short.unwrapped.runner.pendulums.stats
         c = rate(gymnasium.make_vec('Pendulum-v1', num_envs=n, vectorization_mode='sync'),
                  args.seconds)
         line = (f'N = {n:5d}: (a) {a:12,.0f}  (b) {b:12,.0f}  (c) {c:12,.0f} steps/s  '
@@ -89,6 +96,8 @@ def main() -> None:
                                         vectorization_mode='vector_entry_point'), args.seconds)
             line += f'  (d) {d:12,.0f}  (a)/(d) = {a / d:6.2f} x'
         print(line, flush=True)
+        print(f'          (b) periods: {taken.swept:,} in the sweep, {taken.by_joint} by a joint, '
+              f'{taken.prepared} sweeps prepared', flush=True)
 
 
 if __name__ == '__main__':

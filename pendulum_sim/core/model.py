@@ -297,6 +297,18 @@ def speed_limit(gamma: float, n: float) -> float:
     return MAX_SPEED if log_v >= math.log(MAX_SPEED) else math.exp(log_v)
 
 
+def states_accepted(phi0: Any, dphi0: Any, params: PendulumParams | None = None) -> Any:
+    """Return where :func:`validate_state` accepts the states (φ0, φ'0): its rule, element-wise.
+
+    A finite angle and a velocity within ±:func:`speed_limit` of the damping (±``MAX_SPEED``
+    without ``params``; the speed limit is never above it); NaN and infinities are refused.
+    Floats give a numpy bool, arrays an array of them (many episodes' start states at once).
+    """
+    bound = MAX_SPEED if params is None else speed_limit(params.gamma, params.n)
+    with np.errstate(invalid='ignore'):
+        return np.isfinite(phi0) & (np.abs(dphi0) <= bound)
+
+
 def validate_state(phi0: float, dphi0: float,
                    params: PendulumParams | None = None) -> tuple[float, float]:
     """Check an initial state and return it as floats: the core's one state validation.
@@ -307,6 +319,8 @@ def validate_state(phi0: float, dphi0: float,
     """
     phi = check_finite('phi0', phi0)
     dphi = check_finite('dphi0', dphi0)
+    if states_accepted(phi, dphi, params):
+        return phi, dphi
     if abs(dphi) > MAX_SPEED:
         raise ModelError(f'dphi0 must be within +-{MAX_SPEED:g} rad/s (the state bound that '
                          f'keeps energy and damping finite), got {dphi:g}')

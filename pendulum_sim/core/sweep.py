@@ -201,7 +201,7 @@ def _validate(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, torque:
     if not fine.all():
         i = int(np.flatnonzero(~fine)[0])
         _one(arrs, i, lambda: _params(out, i))
-    lim = _each(speed_limit, gam, nn)
+    lim = _on_unique(speed_limit, gam, nn)   # once per distinct (γ, n)
     bad = ~(np.isfinite(out['phi0']) & (np.abs(out['dphi0']) <= lim)
             & (np.abs(out['torque']) <= MAX_INPUT_ACCEL))
     if bad.any():
@@ -210,11 +210,6 @@ def _validate(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, torque:
         _one(arrs, i, lambda: validate_state(out['phi0'][i], out['dphi0'][i], p))
         _one(arrs, i, lambda: check_torque(out['torque'][i], p))
     return tuple(out.values())
-
-
-def _each(fn: Any, *arrays: FloatArray) -> FloatArray:
-    """Apply a scalar function of the model element-wise (its one implementation)."""
-    return np.asarray(np.frompyfunc(fn, len(arrays), 1)(*arrays), dtype=np.float64)
 
 
 def _params(out: dict[str, FloatArray], i: int) -> PendulumParams:
@@ -435,7 +430,7 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard
             step = functools.partial(compile_step_with_n(tab, val, vector=True), n=col)
         damped, coulomb, nonsmooth = (flags[:, k] != 0.0 for k in range(3))
         out.append(_Group(sl=sl, n=val, step=step, nn=col,
-                          batchable=_each(batchable_law, nn[sl]) != 0.0,
+                          batchable=_on_unique(batchable_law, nn[sl]) != 0.0,
                           nonsmooth=nonsmooth, coulomb=coulomb, damped=damped,
                           reach=flags[:, 3].copy(), v_acc=flags[:, 4].copy(),
                           cf=fr[sl].copy()))
@@ -669,7 +664,7 @@ class Sweep:
         self._om2, self._gam, self._nn, self._fr = om2[order], gam[order], nn[order], fr[order]
         self._phi, self._v, self._tau = p0[order].copy(), v0[order].copy(), tau[order]
         # The state bound, held along the run where the guard is on (as in the Stepper).
-        self._vmax = (_each(run_speed_limit, self._gam, self._nn, self._om2) if self.guard
+        self._vmax = (_on_unique(run_speed_limit, self._gam, self._nn, self._om2) if self.guard
                       else np.full(order.size, np.inf))
         # numpy takes a group in cache-sized blocks; a compiled run keeps each state in
         # registers over its steps, so it takes each exponent's pendulums in one run.

@@ -109,8 +109,8 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
             raise GymError(f'reset takes no options, got {sorted(options)}')
         super().reset(seed=seed)
         r = self._runner
-        r.reset(0, seed, self.np_random)
-        episode = r.episodes[0]
+        r.reset(_ONE, [seed], self.np_random)
+        episode = r.episode(0)
         info = {'seed': r.seeds[0], 'episode': r.index[0], 'target': float(r.target[0]),
                 'parameters': {k: episode.values[k] for k in r.scenarios.spec.parameter_names}}
         return r.observe(_ONE)[0], info
@@ -124,6 +124,8 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
         info: dict[str, Any] = {'effort': float(r.pendulums.effort[0])}
         if failed:
             info['failed'] = failed[0]
+        if terminated[0] or truncated[0]:
+            info.update({key: values[0] for key, values in r.end_info(_ONE).items()})
         return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), info
 
     def render(self) -> NDArray[np.uint8] | None:

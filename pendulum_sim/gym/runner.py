@@ -15,18 +15,30 @@ command (and as ``Pendulum-v1`` clips its action).
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from pendulum_sim.joint.joint import JointConfig
+from pendulum_sim.joint.lockstep import Lockstep, batchable_config, common, common_text
+
 from .errors import GymError
-from .pendulums import Pendulums, check
-from .scenario import Scenarios
+from .scenario import Drawn, Episode, Scenarios
 from .tasks import Task
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 MAX_SEED = 2**63 - 1
+
+
+def check(config: JointConfig) -> None:
+    """Refuse a joint configuration the environments cannot step (``batchable_config``'s why)."""
+    why = batchable_config(config)
+    if why:
+        raise GymError(f'the environment steps the joint of effort commands with an ideal '
+                       f'sensor and an explicit method; this scene cannot: {why}')
 
 
 def torques(action: Any, shape: tuple[int, ...]) -> FloatArray:
@@ -51,7 +63,12 @@ def torques(action: Any, shape: tuple[int, ...]) -> FloatArray:
 
 
 class Runner:
-    """N environments' episodes of one task over one set of scenarios."""
+    """N environments' episodes of one task over one set of scenarios.
+
+    The N joints are one :class:`~pendulum_sim.joint.lockstep.Lockstep` (``pendulums``):
+    a period of any of them is one batched core call, a reset of any of them one draw over
+    arrays and one start.
+    """
 
     def __init__(self, task: Task, scenarios: Scenarios, size: int,
                  max_episode_steps: int | None) -> None:
@@ -72,31 +89,73 @@ class Runner:
         self.size = size
         self.max_effort = limit
         self.max_episode_steps = max_episode_steps
-        self.pendulums = Pendulums(size)
+        self.pendulums = Lockstep(size)
         self.seeds = [0] * size
         self.index = [-1] * size     # the episode running (-1: none yet)
         self.steps = np.zeros(size, dtype=np.int64)
         self.target = np.zeros(size)
         self.ended = [''] * size     # why the episode ended ('' while it runs)
-        self.episodes: list[Any] = [None] * size
+        self._drawn: list[tuple[Drawn, int] | None] = [None] * size
 
-    def reset(self, i: int, seed: int | None, rng: np.random.Generator) -> None:
-        """Start the next episode of environment ``i`` (episode 0 of ``seed`` when given)."""
-        if seed is not None:
-            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not (
-                    0 <= seed <= MAX_SEED):
-                raise GymError(f'seed must be an integer in [0, {MAX_SEED}], got {seed!r}')
-            self.seeds[i], self.index[i] = int(seed), 0
-        else:
-            if self.index[i] < 0:
-                self.seeds[i] = int(rng.integers(0, MAX_SEED))
-            self.index[i] += 1
-        episode = self.scenarios.episode(self.seeds[i], self.index[i])
-        self.pendulums.start(i, episode.config)
-        self.episodes[i] = episode
-        self.target[i] = episode.target
-        self.steps[i] = 0
-        self.ended[i] = ''
+    def episode(self, i: int) -> Episode:
+        """Return the episode environment ``i`` runs (its parameters, configuration, target)."""
+        held = self._drawn[i]
+        if held is None:
+            raise GymError('no episode before reset(): call reset() first')
+        return held[0].episode(held[1])
+
+    @property
+    def episodes(self) -> list[Episode | None]:
+        """Return each environment's episode (None before its first reset)."""
+        return [None if d is None else d[0].episode(d[1]) for d in self._drawn]
+
+    def reset(self, ids: IntArray, seeds: Sequence[int | None] | None,
+              rng: np.random.Generator) -> None:
+        """Start the next episode of the environments ``ids`` (episode 0 of a seed given).
+
+        ``seeds`` holds one seed or None per environment (None for all when None). The
+        episodes are drawn and checked together before any environment changes.
+        """
+        wanted = [None] * ids.size if seeds is None else list(seeds)
+        new_seeds, new_index = [], []
+        for i, seed in zip(ids.tolist(), wanted, strict=True):
+            if seed is not None:
+                if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not (
+                        0 <= seed <= MAX_SEED):
+                    raise GymError(f'seed must be an integer in [0, {MAX_SEED}], got {seed!r}')
+                new_seeds.append(int(seed))
+                new_index.append(0)
+            else:
+                new_seeds.append(self.seeds[i] if self.index[i] >= 0
+                                 else int(rng.integers(0, MAX_SEED)))
+                new_index.append(self.index[i] + 1)
+        drawn = self.scenarios.episodes(new_seeds, new_index)
+        for config, _ in drawn.groups:
+            check(config)
+        self._check_common(ids, drawn)
+        self.pendulums.stop(ids)
+        for config, rows in drawn.groups:
+            self.pendulums.start(ids[rows], config, drawn.phi0[rows], drawn.dphi0[rows])
+        for row, i in enumerate(ids.tolist()):
+            self.seeds[i], self.index[i] = new_seeds[row], new_index[row]
+            self._drawn[i] = (drawn, row)
+            self.ended[i] = ''
+        self.target[ids] = drawn.target
+        self.steps[ids] = 0
+
+    def _check_common(self, ids: IntArray, drawn: Drawn) -> None:
+        """Refuse episodes that would not step with the others (one h, period, method, guard)."""
+        starting = set(ids.tolist())
+        running = self.pendulums.common if any(
+            c is not None and j not in starting
+            for j, c in enumerate(self.pendulums.configs)) else None
+        want = running if running is not None else common(drawn.groups[0][0])
+        for config, _ in drawn.groups:
+            if common(config) != want:
+                raise GymError(f'every pendulum of a vector environment steps with one h, '
+                               f'control period, integrator and guard; episode has '
+                               f'{common_text(common(config))}, the others '
+                               f'{common_text(want)}')
 
     def observe(self, live: NDArray[np.int64]) -> FloatArray:
         """Return the observations of the environments ``live``, shape (len, d)."""
@@ -117,16 +176,26 @@ class Runner:
         self.steps[live] += 1
         reward = np.asarray(self.task.reward(phi0, vel0, p.phi[live], p.vel[live],
                                              p.effort[live], self.target[live], p.period))
-        terminated = np.array([j in failed for j in live.tolist()], dtype=bool)
+        terminated = np.zeros(live.size, dtype=bool)
+        if failed:
+            terminated = np.isin(live, np.fromiter(failed, dtype=np.int64))
         limit = self.max_episode_steps
         truncated = (~terminated & (self.steps[live] >= limit) if limit is not None
                      else np.zeros(live.size, dtype=bool))
-        for n, j in enumerate(live.tolist()):
-            if terminated[n]:
-                self.ended[j] = f'terminated: {failed[j]}'
-            elif truncated[n]:
-                self.ended[j] = f'truncated after {limit} steps'
+        for j in live[terminated].tolist():
+            self.ended[j] = f'terminated: {failed[j]}'
+        for j in live[truncated].tolist():
+            self.ended[j] = f'truncated after {limit} steps'
         return self.observe(live), reward, terminated, truncated, failed
+
+    def end_info(self, ended: IntArray) -> dict[str, list[Any]]:
+        """Return what ``info`` carries for the environments whose episodes ``ended`` this step.
+
+        Each key holds one entry per environment of ``ended``; both environments call it at
+        the step an episode ends (the place for an episode's own metrics, such as issue 38's
+        swing-up metrics). Nothing yet.
+        """
+        return {}
 
     def check_running(self, i: int) -> None:
         """Refuse to step environment ``i`` before its first reset or after its episode."""

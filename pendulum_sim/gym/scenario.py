@@ -8,6 +8,12 @@ by the campaign's own parser and drawn by its own rule
 (:func:`pendulum_sim.testing.campaign.scenarios.episode_scenario`): after ``reset(seed=s)``
 the environment's episode ``k`` (``k = 0`` for that reset, then one more per ``reset()``)
 runs with the parameters and target of episode ``k`` of a campaign seeded ``s``.
+
+:meth:`Scenarios.episodes` draws the episodes of many environments at once (a vector
+environment's reset and autoreset): their draws over arrays
+(:func:`~pendulum_sim.testing.campaign.scenarios.episode_scenarios`), one joint configuration
+for the episodes that differ only in their start state, checked once, and their start states
+checked together (:func:`~pendulum_sim.joint.parameters.check_states`).
 """
 from __future__ import annotations
 
@@ -18,11 +24,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
+from numpy.typing import NDArray
 
 from pendulum_sim.joint.errors import JointError
 from pendulum_sim.joint.joint import JointConfig
-from pendulum_sim.joint.parameters import check, joint_config
+from pendulum_sim.joint.parameters import check_states, joint_config
 
 from .errors import GymError
 
@@ -30,6 +38,9 @@ from .errors import GymError
 # target that varies; the environments never call it.
 _PARSE_CONTROLLER = 'pendulum_sim.testing.examples:pd'
 FLOAT_KEYWORDS = ('h', 'control_period')
+STATE = ('phi0', 'dphi0')   # what episodes of one joint configuration may differ in
+IntArray = NDArray[np.int64]
+FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -39,6 +50,50 @@ class Episode:
     values: dict[str, Any]
     config: JointConfig
     target: float
+
+
+@dataclass(frozen=True)
+class Drawn:
+    """Many episodes drawn at once: their start states, targets and configurations.
+
+    Attributes
+    ----------
+    seeds, indices : lists of int
+        Each episode's seed and number.
+    phi0, dphi0, target : numpy arrays
+        Each episode's start state (rad, rad/s) and target (rad).
+    groups : list of (JointConfig, numpy array)
+        The episodes (their rows) of each joint configuration; the configuration's start
+        state is its first episode's.
+    columns : dict
+        Each scenario parameter's drawn values, one per episode.
+    base : dict
+        The node parameters the draws replace (the scene and the fixed keywords).
+    group_of : numpy array
+        Each episode's index in ``groups``.
+    """
+
+    seeds: list[int]
+    indices: list[int]
+    phi0: FloatArray
+    dphi0: FloatArray
+    target: FloatArray
+    groups: list[tuple[JointConfig, IntArray]]
+    columns: dict[str, Any]
+    base: dict[str, Any]
+    group_of: IntArray
+
+    def episode(self, row: int) -> Episode:
+        """Return the episode of row ``row`` as :meth:`Scenarios.episode` gives it."""
+        values = dict(self.base)
+        values.update({name: _item(col[row]) for name, col in self.columns.items()})
+        config = dataclasses.replace(self.groups[int(self.group_of[row])][0],
+                                     phi0=float(self.phi0[row]), dphi0=float(self.dphi0[row]))
+        return Episode(values, config, float(self.target[row]))
+
+
+def _item(value: Any) -> Any:
+    return value.item() if isinstance(value, np.generic) else value
 
 
 class Scenarios:
@@ -113,6 +168,9 @@ class Scenarios:
             raise GymError(str(exc)) from None
         self.fixed = fixed
         self._floats = {name for name, v in self.base.items() if isinstance(v, float)}
+        from pendulum_sim.testing.campaign.spec import varies
+
+        self._varies = {name: varies(space) for name, space in self.spec.parameters}
 
     def varies(self, name: str) -> bool:
         """Return True when the spaces can give parameter ``name`` different values."""
@@ -126,21 +184,54 @@ class Scenarios:
 
     def episode(self, seed: int, index: int) -> Episode:
         """Return episode ``index`` of a campaign seeded ``seed`` (the campaign's draw)."""
-        from pendulum_sim.testing.campaign.scenarios import episode_scenario
+        return self.episodes([seed], [index]).episode(0)
+
+    def episodes(self, seeds: list[int], indices: list[int]) -> Drawn:
+        """Return the episodes ``indices[i]`` of seeds ``seeds[i]``, drawn and checked at once.
+
+        The first episode that cannot run raises GymError (``episode k of seed s: why``).
+        """
+        from pendulum_sim.testing.campaign.scenarios import episode_scenarios
         from pendulum_sim.testing.scene import epoch_ns
 
-        drawn = episode_scenario(dataclasses.replace(self.spec, seed=seed), index)
-        values = dict(self.base)
-        for name, value in drawn.values.items():
+        drawn = episode_scenarios(self.spec, indices, seeds)
+        size = len(indices)
+        columns: dict[str, Any] = {}
+        for name, col in drawn.values.items():
             # As scene_values types an override: an int where a float is wanted is a float.
-            values[name] = (float(value) if name in self._floats and isinstance(value, int)
-                            and not isinstance(value, bool) else value)
-        reason = check(values)
-        if reason is None:
+            columns[name] = (col if isinstance(col, np.ndarray) or name not in self._floats
+                             else [float(v) if isinstance(v, int) and not isinstance(v, bool)
+                                   else v for v in col])
+        phi0, dphi0 = (np.asarray(columns[name], dtype=np.float64) if name in columns
+                       else np.full(size, float(self.base[name])) for name in STATE)
+        # The episodes of one configuration: alike in every drawn value but the start state.
+        keyed = [name for name in columns if name not in STATE and self._varies[name]]
+        rows_of: dict[tuple[Any, ...], list[int]] = {}
+        for row, key in enumerate(zip(*(columns[name] for name in keyed), strict=True)
+                                  if keyed else [()] * size):
+            rows_of.setdefault(tuple(_item(v) for v in key), []).append(row)
+        groups: list[tuple[JointConfig, IntArray]] = []
+        refused: list[tuple[int, str]] = []
+        for rows in rows_of.values():
+            first = rows[0]
+            values = dict(self.base)
+            values.update({name: _item(col[first]) for name, col in columns.items()})
+            mine = np.array(rows, dtype=np.int64)
+            found = check_states(values, phi0[mine], dphi0[mine])
+            if found is not None:
+                refused.append((rows[found[0]], found[1]))
+                continue
             try:
                 config = joint_config(values, epoch_ns(values))
             except JointError as exc:
-                reason = str(exc)
-        if reason is not None:
-            raise GymError(f'episode {index} of seed {seed}: {reason}')
-        return Episode(values, config, drawn.target)
+                refused.append((first, str(exc)))
+                continue
+            groups.append((config, mine))
+        if refused:
+            row, reason = min(refused)
+            raise GymError(f'episode {indices[row]} of seed {seeds[row]}: {reason}')
+        group_of = np.empty(size, dtype=np.int64)
+        for g, (_, rows_g) in enumerate(groups):
+            group_of[rows_g] = g
+        return Drawn(list(seeds), list(indices), phi0, dphi0, drawn.target, groups, columns,
+                     self.base, group_of)

@@ -29,12 +29,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .pendulums import wrap
-
 FloatArray = NDArray[np.float64]
 BIG = float(np.finfo(np.float64).max)
 TAU_WEIGHT = 0.001
 SPEED_WEIGHT = 0.1
+
+
+def wrap(angle: FloatArray) -> FloatArray:
+    """Return ``angle`` wrapped into [−π, π) (Pendulum-v1's ``angle_normalize``)."""
+    return np.asarray(((angle + math.pi) % (2 * math.pi)) - math.pi)
 
 
 def swing_up_observation(phi: FloatArray, vel: FloatArray, target: FloatArray) -> FloatArray:

@@ -2,14 +2,16 @@
 
 ``gymnasium.make_vec('pendulum_sim/DampedPendulum-v0', num_envs=N,
 vectorization_mode='vector_entry_point')`` makes one. The N pendulums advance together
-through one prepared :class:`pendulum_sim.core.sweep.Sweep` (:mod:`pendulum_sim.gym.pendulums`)
-and the episodes are those of N scalar environments (:mod:`pendulum_sim.gym.runner`): with
+through one prepared :class:`pendulum_sim.core.sweep.Sweep` (a
+:class:`pendulum_sim.joint.lockstep.Lockstep`, the test bench's batches' as well) and the
+episodes are those of N scalar environments (:mod:`pendulum_sim.gym.runner`): with
 ``reset(seed=s)`` environment ``i`` is the scalar environment reset with ``seed=s + i``, as
 Gymnasium's ``SyncVectorEnv`` seeds its environments, bit for bit.
 
 Autoreset is Gymnasium 1.x's default, next-step (``AutoresetMode.NEXT_STEP``): the step after
 an environment's episode ended ignores its action, resets it (the next episode of its seed)
-and returns its first observation with reward 0 and neither terminated nor truncated.
+and returns its first observation with reward 0 and neither terminated nor truncated. The
+environments that reset in a step are drawn and started together, over arrays (issue 38).
 """
 from __future__ import annotations
 
@@ -76,8 +78,7 @@ class JointVectorEnv(VectorEnv[FloatArray, FloatArray, FloatArray]):
                 raise GymError(f'reset needs one seed per environment: got {len(seeds)} for '
                                f'{n} environments')
         super().reset(seed=seeds[0])
-        for i, s in enumerate(seeds):
-            self._runner.reset(i, s, self.np_random)
+        self._runner.reset(self._all, seeds, self.np_random)
         self._autoreset[:] = False
         r = self._runner
         return r.observe(self._all), {'seed': np.array(r.seeds),
@@ -93,8 +94,8 @@ class JointVectorEnv(VectorEnv[FloatArray, FloatArray, FloatArray]):
         torque = torques(actions, (self.num_envs, 1))
         resetting = np.flatnonzero(self._autoreset)
         live = np.flatnonzero(~self._autoreset)
-        for i in resetting.tolist():
-            r.reset(i, None, self.np_random)
+        if resetting.size:   # every environment that ended, in one draw and one start
+            r.reset(resetting, None, self.np_random)
         obs = np.empty((self.num_envs, r.task.size))
         reward = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
@@ -111,6 +112,12 @@ class JointVectorEnv(VectorEnv[FloatArray, FloatArray, FloatArray]):
             infos['failed'] = np.array([failed.get(i, '') for i in range(self.num_envs)],
                                        dtype=object)
             infos['_failed'] = np.array([i in failed for i in range(self.num_envs)])
+        ended = np.flatnonzero(self._autoreset)
+        if ended.size:   # Gymnasium's vector info: an array per key and its mask '_key'
+            for key, values in r.end_info(ended).items():
+                infos[key] = np.empty(self.num_envs, dtype=object)
+                infos[key][ended] = values
+                infos[f'_{key}'] = self._autoreset.copy()
         return obs, reward, terminated, truncated, infos
 
     def render(self) -> tuple[NDArray[np.uint8], ...] | None:

@@ -239,6 +239,37 @@ def energy_terms(params: PendulumParams, phi: float, dphi: float,
     return terms
 
 
+def speed_bound(config: JointConfig) -> float:
+    """Return the speed no torque may drive the joint past (rad/s): the joint's one rule.
+
+    ``max_velocity``, or the core's state bound for the damping
+    (:func:`pendulum_sim.core.model.speed_limit`) where that is lower. :class:`SimulatedJoint`
+    limits its torque by it (``_velocity_limited``), and the batched lockstep
+    (:mod:`pendulum_sim.joint.lockstep`) hands a joint that could reach it within a period to a
+    SimulatedJoint for that period.
+    """
+    p = config.params
+    return min(config.max_velocity, speed_limit(p.gamma, p.n))
+
+
+def whole_ns(h: float) -> int:
+    """Return the step ``h`` in whole nanoseconds, or 0 when it is not a whole number of them."""
+    h_ns = h * NS
+    return round(h_ns) if abs(h_ns - round(h_ns)) < 1e-6 else 0
+
+
+def stamp_ns(epoch_ns: int, step: int, h: float) -> int:
+    """Return the stamp of step ``step`` (ns): ``epoch + step h``, the joint's stamp grid.
+
+    An exact integer grid where ``h`` is a whole number of nanoseconds, else ``step h``
+    rounded to the nanosecond.
+    """
+    h_int = whole_ns(h)
+    if h_int:
+        return epoch_ns + step * h_int
+    return epoch_ns + round(step * h * NS)
+
+
 def check_config(config: JointConfig) -> None:
     """Raise JointError if the joint cannot run ``config``: its start state must be publishable.
 
@@ -279,10 +310,8 @@ class SimulatedJoint:
         self._commanded = False
         self._servo = Servo(config.servo, config.params, config.max_effort,
                             config.max_velocity, config.h)
-        h_ns = config.h * NS
-        self._h_ns_int = round(h_ns) if abs(h_ns - round(h_ns)) < 1e-6 else 0
         self._epoch_ns = config.epoch_ns
-        self._vmax = self._speed_bound(config)
+        self._vmax = speed_bound(config)
         self._inertia_per_h = config.params.inertia / config.h
 
     # ------------------------------------------------------------------ state
@@ -324,9 +353,7 @@ class SimulatedJoint:
     def stamp_ns(self, step: int | None = None) -> int:
         """Return the stamp of step ``step`` (default: now): ``epoch + step h`` in ns."""
         k = self._base_steps + self._stepper.steps if step is None else step
-        if self._h_ns_int:   # whole nanoseconds: an exact integer grid
-            return self._epoch_ns + k * self._h_ns_int
-        return self._epoch_ns + round(k * self._config.h * NS)
+        return stamp_ns(self._epoch_ns, k, self._config.h)
 
     def energy(self) -> float:
         """Return the energy of the true state now, J (finite, or JointError)."""
@@ -411,16 +438,10 @@ class SimulatedJoint:
             tau = self._servo.torque(c.command_interface, self._target, phi, dphi)
         return self._velocity_limited(tau, dphi)
 
-    @staticmethod
-    def _speed_bound(config: JointConfig) -> float:
-        """Return the speed no torque may drive the joint past: max_velocity, or the core's
-        state bound for the damping (``speed_limit``) if that is lower."""
-        p = config.params
-        return min(config.max_velocity, speed_limit(p.gamma, p.n))
-
     def _velocity_limited(self, tau: float, dphi: float) -> float:
         """Return ``tau``, limited (counted) so that it drives the joint no faster than the
-        speed bound: 0 at or past it, and never more than one step of it takes to reach it."""
+        speed bound (:func:`speed_bound`): 0 at or past it, and never more than one step of it
+        takes to reach it."""
         vmax = self._vmax
         speed = abs(dphi)
         pushing = tau * dphi > 0.0
@@ -564,7 +585,7 @@ class SimulatedJoint:
         if config.sensor_delay_steps != old.sensor_delay_steps:
             self._history.clear()   # its steps were kept for the old delay
         self._config = config
-        self._vmax = self._speed_bound(config)
+        self._vmax = speed_bound(config)
         servo = self._servo
         servo.gains = config.servo
         servo.max_effort = config.max_effort

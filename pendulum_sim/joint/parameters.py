@@ -14,14 +14,24 @@ import unicodedata
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
+import numpy as np
+from numpy.typing import NDArray
+
 from pendulum_sim.core import METHODS, ModelError, PendulumError, PendulumParams
-from pendulum_sim.core.model import validate_state
+from pendulum_sim.core.model import (
+    dissipated_power,
+    kinetic_energy,
+    potential_energy,
+    states_accepted,
+    validate_state,
+)
 
 from .errors import JointError
 from .foxglove import check_port
 from .joint import INTERFACES, JointConfig, SimulatedJoint, check_config
 
 Value = bool | int | float | str
+FloatArray = NDArray[np.float64]
 
 FIXED = 'Read-only: fixed when the node starts (restart the node to change it).'
 SWITCH = 'Read-only: a scene builds only what it enables.'
@@ -208,6 +218,45 @@ def _checked(values: Mapping[str, Value]) -> tuple[str | None, PendulumParams | 
     except ModelError as exc:
         return str(exc), None
     return _check_rest(values, params), params
+
+
+def check_states(values: Mapping[str, Value], phi0: FloatArray, dphi0: FloatArray
+                 ) -> tuple[int, str] | None:
+    """Return the first start state that :func:`check` refuses with the rest of ``values``.
+
+    Many episodes of one parameter set that differ only in their start state (φ0, φ'0), as a
+    vector environment's episodes drawing their start: the set is checked once with the first
+    state, and the others screened over arrays for what :func:`check` asks of a state (the
+    core's state bound, :func:`~pendulum_sim.core.model.states_accepted`, and finite energy
+    terms, ``check_config``); a state the screen stops is checked by :func:`check` itself,
+    which decides and gives the reason.
+
+    Returns
+    -------
+    tuple of (int, str) or None
+        The index of the first state refused and the reason, or None when all are fine.
+    """
+    def alone(i: int) -> str | None:
+        return check({**values, 'phi0': float(phi0[i]), 'dphi0': float(dphi0[i])})
+
+    if phi0.size == 0:
+        return None
+    reason = alone(0)
+    if reason is not None:
+        return 0, reason
+    if phi0.size == 1:
+        return None
+    params = physics(values)
+    with np.errstate(over='ignore', invalid='ignore'):
+        kin = kinetic_energy(params, dphi0)
+        pot = potential_energy(params, phi0)
+        fine = (states_accepted(phi0, dphi0, params) & np.isfinite(kin) & np.isfinite(pot)
+                & np.isfinite(kin + pot) & np.isfinite(dissipated_power(params, dphi0)))
+    for i in np.flatnonzero(~fine).tolist():
+        reason = alone(i)
+        if reason is not None:
+            return i, reason
+    return None
 
 
 def joint_name_refusal(name: str) -> str | None:

@@ -407,8 +407,14 @@ def test_a_vector_env_refuses_episodes_of_different_steps_naming_both() -> None:
     message = ('every pendulum of a vector environment steps with one h, control period, '
                'integrator and guard; episode has h = 0.002 s, 5 steps a period, rk4, guard '
                'True, the others h = 0.001 s, 10 steps a period, rk4, guard True')
+    # The environments reset together: episode 0 of seed 0 again (1 ms) for the first, the
+    # next episode of its seed (2 ms) for the other.
     with pytest.raises(GymError, match=re.escape(message)):
-        vec.reset()   # episode 1: h = 2 ms for the first, 1 ms still running for the other
+        vec.reset(seed=[0, None])
+    # The refused reset changed nothing: both run their episode 0 on.
+    assert vec.unwrapped.runner.index == [0, 0]
+    vec.step(np.zeros((2, 1)))
+    assert vec.reset()[1]['episode'].tolist() == [1, 1]   # both 2 ms: one step, no refusal
 
 
 @pytest.mark.parametrize(('keywords', 'message'), [

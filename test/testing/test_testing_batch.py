@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from pendulum_sim.core.jit import available as jit_available
+from pendulum_sim.joint.lockstep import LockstepStats
 from pendulum_sim.testing import TestingError, vectorised
-from pendulum_sim.testing.batch import batchable, run_batch
+from pendulum_sim.testing.batch import BatchStats, batchable, run_batch
 from pendulum_sim.testing.campaign.episode import RUN_COLUMNS, run_episode, run_episodes
 from pendulum_sim.testing.campaign.spec import parse_spec
 from pendulum_sim.testing.errors import CampaignError
@@ -224,3 +225,68 @@ def test_the_jit_key_is_a_bool(value: str, message: str) -> None:
     text = CAMPAIGN.format(law='pd_batch').replace('episodes: 24', f'episodes: 24\njit: {value}')
     with pytest.raises(CampaignError, match=re.escape(message)):
         parse_spec(text)
+
+
+# ------------------------------------------------------------------ one lockstep, counted
+def test_a_batch_runs_every_batchable_episode_in_its_lockstep_and_says_so() -> None:
+    """BatchStats fails a batch that silently leaves the lockstep for the scalar joint."""
+    episodes = scenarios(12, seed=3)
+    stats = BatchStats()
+    runs = run_batch(pd_batch, episodes, 120, stats=stats)
+    assert all(isinstance(r, ClosedLoopRun) and r.failed is None for r in runs)
+    assert (stats.lockstep, stats.scalar, stats.groups) == (12, {}, 1)
+    assert stats.periods == LockstepStats(swept=12 * 120, by_joint=0, prepared=1)
+    # Off the common path, or past the speed bound: the stats say which way each went.
+    noisy = scene_values('controller_test', {'sensor.position_noise': 1e-3})
+    fast = scene_values('controller_test', {'max_velocity': 0.5})
+    stats = BatchStats()
+    run_batch(pd_batch, [episodes[0], noisy, fast], 120, stats=stats)
+    assert (stats.lockstep, stats.scalar) == (2, {1: 'the sensor is not ideal'})
+    assert stats.periods.by_joint > 0   # the fast joint's periods near max_velocity
+
+
+def test_episodes_of_other_steps_run_in_a_lockstep_of_their_own_as_alone() -> None:
+    """Another h, and an h of no whole nanoseconds (its stamps rounded as the joint's)."""
+    plain = scenarios(3, seed=4)
+    other = [dict(v, h=0.002) for v in scenarios(2, seed=6)]
+    odd = [dict(v, h=1.0 / 3000.0) for v in scenarios(2, seed=7)]
+    episodes = [plain[0], other[0], odd[0], plain[1], odd[1], other[1], plain[2]]
+    stats = BatchStats()
+    runs = run_batch(pd_batch, episodes, 150, stats=stats)
+    assert (stats.lockstep, stats.scalar, stats.groups) == (7, {}, 3)
+    for values, got in zip(episodes, runs, strict=True):
+        assert isinstance(got, ClosedLoopRun)
+        want = run_in_process(scalar, values, 150)
+        for name in FIELDS:
+            assert getattr(got, name).tobytes() == getattr(want, name).tobytes(), name
+    assert runs[2].t[1] == 0.01 and runs[1].t[1] == 0.01   # type: ignore[union-attr]
+
+
+@vectorised
+def push(t: float, p: Any, v: Any) -> Any:
+    return np.full_like(p, 0.001)
+
+
+def test_the_batch_cuts_the_torque_at_the_joints_speed_bound_as_the_joint() -> None:
+    """max_velocity may be up to 1e6 rad/s, but the joint's bound is the core's 1e4 rad/s.
+
+    Bounded by max_velocity alone, the batch pushed on at 1e4 rad/s where the joint cuts the
+    torque (its speed_bound), and this run differed from the joint's (by 2e-5 rad in 20 periods).
+    """
+    values = scene_values('controller_test', {'gamma': 0.0, 'max_velocity': 1e6, 'phi0': 0.0,
+                                              'dphi0': 1e4, 'max_effort': 1.0})
+    stats = BatchStats()
+    got = run_batch(push, [values], 20, stats=stats)[0]
+    want = run_in_process(lambda t, p, v: 0.001, values, 20)
+    assert isinstance(got, ClosedLoopRun) and stats.scalar == {}
+    for name in FIELDS:
+        assert getattr(got, name).tobytes() == getattr(want, name).tobytes(), name
+    assert 0.0 in got.effort[1:].tolist()   # the joint cut the torque at its bound
+    assert stats.periods.by_joint == 20
+
+
+def test_a_batched_campaign_runs_all_its_episodes_in_lockstep() -> None:
+    stats = BatchStats()
+    rows = run_episodes(CAMPAIGN.format(law='pd_batch'), list(range(24)), None, stats=stats)
+    assert len(rows) == 24 and (stats.lockstep, stats.scalar) == (24, {})
+    assert stats.periods.by_joint == 0 and stats.periods.swept > 0

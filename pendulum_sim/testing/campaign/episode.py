@@ -18,7 +18,7 @@ import os
 import socket
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ControllerFailed, TestingError
 from ..loop import ClosedLoopRun, closed_loop, run_in_process
@@ -29,6 +29,9 @@ from ..vector import is_vectorised
 from .scenarios import episode_scenario
 from .spec import CampaignSpec, load_controller, parse_spec
 from .watch import loop_done, watched
+
+if TYPE_CHECKING:
+    from ..batch import BatchStats
 
 # Columns that say where and when an episode ran: not part of its result.
 RUN_COLUMNS = ('worker_host', 'worker_pid', 'wall_time_s')
@@ -167,10 +170,13 @@ def run_episode(text: str, episode: int, out: str | None,
     return row
 
 
-def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[str, Any]]:
+def run_episodes(text: str, episodes: list[int], out: str | None,
+                 stats: BatchStats | None = None) -> list[dict[str, Any]]:
     """Run the episodes of a campaign whose law is vectorised, as one batch; return the rows.
 
-    ``wall_time_s`` of each row is the batch's time divided by its size.
+    ``wall_time_s`` of each row is the batch's time divided by its size. ``stats``, when
+    given, is filled with how the batch ran them (``testing.batch.BatchStats``: in lockstep,
+    or one by one on the scalar joint and why).
     """
     from ..batch import run_batch, warm_up_batch
     from ..run import runs_metrics
@@ -192,7 +198,7 @@ def run_episodes(text: str, episodes: list[int], out: str | None) -> list[dict[s
         started = time.perf_counter()
     try:
         batch = run_batch(law, [params[i] for i in ok], spec.periods,
-                          targets=[drawn[i].target for i in ok], jit=spec.jit)
+                          targets=[drawn[i].target for i in ok], jit=spec.jit, stats=stats)
     finally:
         loop_done()
     for i, res in zip(ok, batch, strict=True):
