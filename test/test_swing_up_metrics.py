@@ -8,13 +8,13 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pendulum_sim.core.model import wrap_pi
 from pendulum_sim.testing import (
     SwingUpMetrics,
     TestingError,
     swing_up_metrics,
     swing_up_metrics_batch,
 )
-from pendulum_sim.testing.swing_up.metrics import wrap
 
 PI = math.pi
 
@@ -70,7 +70,7 @@ def test_a_run_that_never_enters() -> None:
 def test_upright_is_pi_plus_any_whole_turn(phi: float) -> None:
     m = swing_up_metrics([0.0, 1.0], [0.0, phi], [0.0, 0.0], [0.0, 0.0])
     assert m.success and m.stays and m.swing_up_time == 1.0 and m.settle_time == 1.0
-    assert -PI <= float(wrap(phi - PI)) < PI
+    assert -PI <= float(wrap_pi(phi - PI)) < PI
 
 
 def test_the_box_is_strict() -> None:

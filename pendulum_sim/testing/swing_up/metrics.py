@@ -36,6 +36,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from pendulum_sim.core.model import wrap_pi
+
 from ..errors import TestingError
 from ..metrics import _first, _trapezoid, _vector
 
@@ -78,12 +80,6 @@ class SwingUpMetrics:
 SWING_UP_NAMES: tuple[str, ...] = tuple(f.name for f in fields(SwingUpMetrics))
 
 
-def wrap(x: ArrayLike) -> FloatArray:
-    """Return ``x`` wrapped into ``[−π, π)`` (the angle equal to ``x`` modulo 2π)."""
-    wrapped: FloatArray = np.remainder(np.add(x, math.pi), 2.0 * math.pi) - math.pi
-    return wrapped
-
-
 def check_box(goal: float, box: Sequence[float]) -> tuple[float, float, float]:
     """Return ``(goal, angle half-width, rate half-width)``, or raise why the box is unusable.
 
@@ -115,7 +111,7 @@ def _columns(t: FloatArray, position: FloatArray, velocity: FloatArray, effort: 
     """
     n, size = position.shape
     rows = np.arange(n)
-    inside = np.abs(wrap(position - goal[:, np.newaxis])) < box[0]
+    inside = np.abs(wrap_pi(position - goal[:, np.newaxis])) < box[0]
     inside &= np.abs(velocity) < box[1]
     first = _first(inside)
     success = first >= 0
