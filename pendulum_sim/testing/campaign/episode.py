@@ -22,8 +22,10 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ControllerFailed, TestingError
 from ..loop import ClosedLoopRun, closed_loop, run_in_process
-from ..metrics import METRIC_NAMES, StepMetrics
+from ..metrics import StepMetrics
+from ..run import runs_metrics, runs_swing_up_metrics
 from ..scene import Value, read_scene, with_overrides
+from ..swing_up.metrics import SwingUpMetrics
 from ..target import bind_target
 from ..vector import is_vectorised
 from .scenarios import episode_scenario
@@ -69,28 +71,50 @@ def failure_path(out: Path, episode: int) -> Path:
     return out / 'failures' / f'episode-{episode:06d}.mcap'
 
 
-def verdict(spec: CampaignSpec, metrics: StepMetrics | dict[str, float]) -> str:
+Measured = StepMetrics | SwingUpMetrics
+
+
+def verdict(spec: CampaignSpec, metrics: Measured | dict[str, Any]) -> str:
     """Return why the metrics fail the requirements ('' when they meet them all)."""
-    values = metrics.as_dict() if isinstance(metrics, StepMetrics) else metrics
+    values = metrics if isinstance(metrics, dict) else metrics.as_dict()
     reasons = [r.check(values[r.metric]) for r in spec.requirements]
     return '; '.join(r for r in reasons if r)
 
 
+def measure(spec: CampaignSpec, run: ClosedLoopRun, target: float) -> Measured:
+    """Return the metrics of the campaign's task of ``run`` towards ``target``.
+
+    ``step``: ``run.metrics(target)``; ``swing_up``: ``run.swing_up_metrics(target,
+    spec.goal_box)``. Raises the TestingError they raise.
+    """
+    if spec.task == 'swing_up':
+        return run.swing_up_metrics(target, spec.goal_box)
+    return run.metrics(target)
+
+
+def measure_runs(spec: CampaignSpec, runs: list[ClosedLoopRun],
+                 targets: list[float]) -> list[Measured | TestingError]:
+    """Return :func:`measure` of each run, computed together (a batch's runs)."""
+    if spec.task == 'swing_up':
+        return list(runs_swing_up_metrics(runs, targets, spec.goal_box))
+    return list(runs_metrics(runs, targets))
+
+
 def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any], target: float,
            run: ClosedLoopRun | None, reason: str, started: float,
-           measured: StepMetrics | TestingError | None = None) -> dict[str, Any]:
+           measured: Measured | TestingError | None = None) -> dict[str, Any]:
     """Return the table row of an episode (a run of None failed before it had samples).
 
-    The metrics are measured towards the episode's ``target``, over the run up to its fault
-    when ``reason`` says why it stopped early; ``measured`` is ``run.metrics(target)`` (or
-    the TestingError it raises) when the caller has it already (a batch's runs, measured
-    together by :func:`~pendulum_sim.testing.run.runs_metrics`).
+    The metrics of the campaign's task are measured towards the episode's ``target``, over
+    the run up to its fault when ``reason`` says why it stopped early; ``measured`` is
+    :func:`measure` (or the TestingError it raises) when the caller has it already (a batch's
+    runs, measured together by :func:`measure_runs`). A metric not measured is NaN.
     """
-    metrics: dict[str, float] = {name: math.nan for name in METRIC_NAMES}
+    metrics: dict[str, Any] = {name: math.nan for name in spec.metric_names}
     if run is not None:
         if measured is None:
             try:
-                measured = run.metrics(target)
+                measured = measure(spec, run, target)
             except TestingError as exc:
                 measured = exc
         if isinstance(measured, TestingError):
@@ -179,7 +203,6 @@ def run_episodes(text: str, episodes: list[int], out: str | None,
     or one by one on the scalar joint and why).
     """
     from ..batch import run_batch, warm_up_batch
-    from ..run import runs_metrics
 
     started = time.perf_counter()
     spec = cached_spec(text)
@@ -206,7 +229,7 @@ def run_episodes(text: str, episodes: list[int], out: str | None,
     runs = [res if isinstance(res, ClosedLoopRun) else failed_run(res) for res in results]
     runs = [None if run is None else run.with_target(d.target)
             for run, d in zip(runs, drawn, strict=True)]
-    measured = iter(runs_metrics([run for run in runs if run is not None],
+    measured = iter(measure_runs(spec, [run for run in runs if run is not None],
                                  [d.target for run, d in zip(runs, drawn, strict=True)
                                   if run is not None]))
     rows = []

@@ -37,8 +37,11 @@ if TYPE_CHECKING:
 SIGNIFICANT = 4        # digits of a number in summary.md and in the figures' notes
 POINT_LIKE = 0.01      # a varying dimension spanning less than this fraction of its size
 REACH = 4.0            # a requirement is drawn on the axis if the axis stays <= REACH x the data
-SHOWN_METRICS = ('rise_time', 'settling_time', 'overshoot', 'steady_state_error', 'iae',
-                 'max_effort', 'effort_energy', 'saturation_fraction')
+SHOWN_METRICS = {'step': ('rise_time', 'settling_time', 'overshoot', 'steady_state_error',
+                          'iae', 'max_effort', 'effort_energy', 'saturation_fraction'),
+                 'swing_up': ('swing_up_time', 'settle_time', 'energy', 'effort_energy',
+                              'smoothness', 'max_effort', 'saturation_fraction', 'swings')}
+"""Per task, the eight metrics whose distributions are drawn."""
 REQUIREMENT_COLOUR = 'C3'
 # The episodes over the pass-rate map: seen on every colour of the map and on white.
 EPISODE_MARKERS = {'passed': {'marker': 'o', 'color': 'k', 'ms': 3},
@@ -210,7 +213,7 @@ def metric_figure(spec: CampaignSpec, rows: Sequence[dict[str, Any]]) -> Figure:
     plt = pyplot()
     fig: Figure
     fig, axes = plt.subplots(2, 4, figsize=(13, 6))
-    for ax, name in zip(axes.flat, SHOWN_METRICS, strict=True):
+    for ax, name in zip(axes.flat, SHOWN_METRICS[spec.task], strict=True):
         column = np.array([r[name] for r in rows], dtype=float)
         _metric_panel(ax, name, column, [r for r in spec.requirements if r.metric == name])
     fig.suptitle(f'Metric distributions over {len(rows)} episodes')
