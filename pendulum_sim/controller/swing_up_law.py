@@ -49,9 +49,9 @@ def lqr(a: FloatArray, b: FloatArray, q: FloatArray,
     Riccati equation and ``K = R⁻¹ Bᵀ S``.
     """
     try:
-        import control
+        import control  # type: ignore[import-untyped]
     except ImportError:
-        from scipy.linalg import solve_continuous_are
+        from scipy.linalg import solve_continuous_are  # type: ignore[import-untyped]
 
         s = solve_continuous_are(a, b, q, r)
         return np.linalg.solve(r, b.T @ s), s

@@ -31,7 +31,8 @@ def frame_indices(t: np.ndarray, fps: float) -> np.ndarray:
     if t.size == 0:
         raise TestingError('a run of 0 samples has nothing to animate')
     times = t[0] + np.arange(math.floor((t[-1] - t[0]) * fps + 1e-9) + 1) / fps
-    return np.maximum(np.searchsorted(t, times + 1e-12, side='right') - 1, 0)
+    index: np.ndarray = np.maximum(np.searchsorted(t, times + 1e-12, side='right') - 1, 0)
+    return index
 
 
 def _indexed(image: Any, rgb: NDArray[np.uint8]) -> Any:
