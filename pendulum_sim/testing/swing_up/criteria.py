@@ -52,6 +52,8 @@ DAMPING_SPAN = (0.5, 1.5)              # factor of the scene's gamma
 FRICTION_SHARE = 0.05                  # of the torque limit: the largest Coulomb friction
 MAX_EPISODES = 1000                    # per drawn criterion (the sensitivity's lists)
 MAX_GRID = 200
+ROA_GRID = 50                          # start states per axis
+LIMITS = 20                            # torque limits on the torque_limit criterion's list
 TAU = 2.0 * math.pi
 ROA_SPAN = ((0.0, TAU), (-3.0 * math.pi, 3.0 * math.pi))
 
@@ -96,9 +98,9 @@ class Settings:
     goal_box: tuple[float, float] = BOX
     torque_limit: float | None = None
     criteria: tuple[str, ...] = CRITERIA
-    roa_grid: int = 50
+    roa_grid: int = ROA_GRID
     roa_span: tuple[tuple[float, float], tuple[float, float]] = ROA_SPAN
-    limits: int = 20
+    limits: int = LIMITS
     jit: bool = False
     episode_timeout: float = 600.0
     base: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
