@@ -269,3 +269,49 @@ def test_a_scene_without_torque_is_refused_and_a_used_folder_too(tmp_path: Path)
     with pytest.raises(BenchmarkError, match=r"^--resume: '.*c' holds no benchmark"):
         benchmark(energy_lqr, out=tmp_path / 'c', resume=True)
     assert not (tmp_path / 'a').exists() and not (tmp_path / 'c').exists()
+
+
+# ------------------------------------------------------------------ animations
+def test_the_gif_shows_the_runs_frames_in_real_time(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from pendulum_sim.frames import frame
+    from pendulum_sim.testing.swing_up.animation import frame_indices, write_gif
+
+    run = closed_loop(energy_lqr, scene='swing_up', periods=400)   # 2 s
+    path = write_gif(run, tmp_path / 'run.gif', goal=PI, fps=10, size=64)
+    index = frame_indices(run.t, 10)
+    assert index.tolist() == [round(k * 20) for k in range(20)]   # 10 frames a second
+    with Image.open(path) as gif:
+        assert gif.info['duration'] == 100 and gif.info['loop'] == 0
+        shown = []
+        for k in range(gif.n_frames):
+            gif.seek(k)
+            shown.append(np.asarray(gif.convert('RGB')))
+    # Each frame is the environments' frame of its sample (equal frames are merged in a GIF).
+    want = [frame(float(run.position[i]), float(run.effort[i]), 0.98, PI, size=64)
+            for i in index]
+    merged = [w for k, w in enumerate(want) if k == 0 or not np.array_equal(w, want[k - 1])]
+    assert len(shown) == len(merged) and all(
+        np.array_equal(a, b) for a, b in zip(shown, merged, strict=True))
+
+
+@pytest.mark.ros
+def test_pendulum_report_animates_a_recording(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from pendulum_sim.testing.record import write_run
+
+    run = closed_loop(energy_lqr, scene='swing_up', periods=300).with_target(PI)
+    write_run(run, tmp_path / 'run.mcap')
+    gif = tmp_path / 'run.gif'
+    cmd = [str(BIN / 'pendulum_report'), 'animate', str(tmp_path / 'run.mcap'), '--out',
+           str(gif), '--fps', '20', '--size', '48']
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
+    assert res.returncode == 0, res.stderr
+    assert res.stderr == f'wrote {gif} (1.495 s of the run)\n'
+    with Image.open(gif) as image:
+        assert image.size == (48, 48) and image.info['duration'] == 50
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
+    assert (again.returncode, again.stderr) == (
+        2, f"pendulum_report animate: error: --out '{gif}' exists; --force replaces it\n")
