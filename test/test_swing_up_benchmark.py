@@ -21,12 +21,19 @@ from pendulum_sim.testing import BenchmarkResult, benchmark, closed_loop
 from pendulum_sim.testing.batch import batchable
 from pendulum_sim.testing.campaign.spec import parse_spec
 from pendulum_sim.testing.errors import BenchmarkError
-from pendulum_sim.testing.examples import BALANCE, SWING_UP, energy_lqr, lqr_balance, saturated_pd
+from pendulum_sim.testing.examples import (
+    SWING_UP,
+    energy_lqr,
+    lqr_balance,
+    reference_balance,
+    saturated_pd,
+)
 from pendulum_sim.testing.scene import scene_values
 from pendulum_sim.testing.swing_up.criteria import CRITERIA, Settings, bodies, campaign_text
 from pendulum_sim.testing.swing_up.criteria import torque_limit as limit_of
 
 HERE = Path(__file__).resolve().parent
+BALANCE = reference_balance()
 PI = math.pi
 BIN = Path(sys.executable).parent
 

@@ -161,16 +161,23 @@ def run_pending_all(jobs: list[Job], client: Any, progress: bool = True,
     chunks: dict[str, tuple[int, list[int]]] = {}   # task key: (job, episodes)
     counts = []
     workers = _workers(client)
-    for j, (spec, store, _) in enumerate(jobs):
+    pendings = []
+    for spec, store, _ in jobs:
         done = store.done()
         done_before += len(done)
         passed_before += store.passed()
-        pending = [i for i in range(spec.episodes) if i not in done]
+        pendings.append([i for i in range(spec.episodes) if i not in done])
+    batches = [batched(spec) for spec, _, _ in jobs]
+    in_batches = sum(len(p) for p, b in zip(pendings, batches, strict=True) if b)
+    for j, ((spec, store, _), pending) in enumerate(zip(jobs, pendings, strict=True)):
         counts.append(len(pending))
         if not pending:
             continue
         tag = hashlib.sha1((spec.text + str(store.out.resolve())).encode()).hexdigest()[:12]
-        size = chunk_size(len(pending), workers, batched(spec))
+        # Batches share the workers in proportion to their episodes: a small campaign beside
+        # a large one is one batch, not many small ones (each costs the law's call a period).
+        share = len(pending) / in_batches if batches[j] else 1.0
+        size = chunk_size(len(pending), max(1, round(workers * share)), batches[j])
         for a in range(0, len(pending), size):
             chunk = pending[a:a + size]
             chunks[f'episodes-{chunk[0]}-{chunk[-1]}-{tag}'] = (j, chunk)

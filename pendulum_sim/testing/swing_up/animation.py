@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,14 +45,16 @@ def _indexed(image: Any, rgb: NDArray[np.uint8]) -> Any:
     return out
 
 
-def write_gif(run: ClosedLoopRun, path: str | Path, *, goal: float | None = None,
-              fps: float = FPS, size: int = 200) -> Path:
+def write_gif(run: ClosedLoopRun, path: str | Path | BinaryIO, *,
+              goal: float | None = None, fps: float = FPS, size: int = 200) -> Any:
     """Write ``run`` as an animated GIF to ``path`` (replaced); return the path.
 
     Parameters
     ----------
     run : ClosedLoopRun
         The run to draw.
+    path : path or binary file
+        Where the GIF goes (a file object is written to and returned as it is).
     goal : float, optional
         The angle drawn as the goal ray (rad); the run's target where None (none if it has
         none).
@@ -85,9 +87,9 @@ def write_gif(run: ClosedLoopRun, path: str | Path, *, goal: float | None = None
     images = [_indexed(Image, frame(float(run.position[i]), float(run.effort[i]), limit,
                                     ray, size=size))
               for i in frame_indices(run.t, fps).tolist()]
-    out = Path(path)
+    out = path if hasattr(path, 'write') else Path(path)
     try:
-        images[0].save(out, save_all=True, append_images=images[1:],
+        images[0].save(out, format='GIF', save_all=True, append_images=images[1:],
                        duration=round(1000.0 / fps), loop=0, optimize=False)
     except OSError as exc:
         raise TestingError(f"cannot write '{out}': {exc}") from None

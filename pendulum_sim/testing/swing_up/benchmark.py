@@ -12,14 +12,16 @@ The results (:data:`~.criteria.KEYS`): ``swing_up_time`` (s), ``energy`` (J) and
 ``smoothness`` (N m), the mean over the nominal runs; ``consistency``, ``robustness`` and
 ``sensitivity``, the % of their episodes that swing up (enter the goal box and stay);
 ``min_torque_limit`` (N m); ``frequency``, the controller's calls per second (an in-process
-law's one-state calls over the nominal run, timed alone; a command line's answers per
-wall-clock second of its nominal closed loop, DDS and node included); ``roa_area`` (rad²/s).
+law called on the nominal run's states one at a time, timed alone after the campaigns; a
+command line's answers per wall-clock second of its nominal closed loop, DDS and node
+included); ``roa_area`` (rad²/s).
 A result whose criterion did not run is null.
 """
 from __future__ import annotations
 
 import math
 import shlex
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -224,11 +226,17 @@ def benchmark(controller: str | Sequence[str] | Callable[..., Any], *, out: str 
         check_address(scheduler)
     from ..campaign.execute import run_campaigns
     from ..campaign.store import CAMPAIGN_FILE
-    from ..campaign.summary import write_summary, write_table
+    from ..campaign.summary import import_writers, write_summary, write_table
 
     folders = {c: root / CAMPAIGNS / c for c in settings.criteria}
     jobs = [(specs[c], folders[c], resume and (folders[c] / CAMPAIGN_FILE).is_file())
             for c in settings.criteria]
+    # Meanwhile this process runs the nominal episode again (for the animation) and imports
+    # what it writes with: it mostly waits for the cluster.
+    side = Nominal(settings, gif) if 'nominal' in settings.criteria else None
+    waiting = [import_writers()] if figures else []
+    if side is not None:
+        side.start()
     results = run_campaigns(jobs, scheduler=scheduler, workers=workers, progress=progress)
     rows = dict(zip(settings.criteria, results, strict=True))
     for c in settings.criteria:
@@ -236,12 +244,13 @@ def benchmark(controller: str | Sequence[str] | Callable[..., Any], *, out: str 
         write_summary(specs[c], rows[c], folders[c], [])
     values, outcome = summarise(settings, specs, rows)
     files: list[Path] = []
-    nominal = None
-    if 'nominal' in settings.criteria:
-        nominal, frequency = nominal_run(settings)
-        values['frequency'] = frequency
+    if side is not None:
+        side.join()
+        values['frequency'] = side.frequency()
     result = BenchmarkResult(values, outcome, root, _settings_record(settings), files)
     files.append(write_yaml(result))
+    for thread in waiting:
+        thread.join()
     if figures:
         from .figures import comparison_figure, roa_figure
 
@@ -253,14 +262,89 @@ def benchmark(controller: str | Sequence[str] | Callable[..., Any], *, out: str 
                                root / 'roa.png')
             if drawn is not None:
                 files.append(drawn)
-    if gif and nominal is not None:
-        from .animation import write_gif
-
-        try:
-            files.append(write_gif(nominal, root / 'swing_up.gif', goal=GOAL))
-        except TestingError:
-            pass   # no Pillow, or no samples: the benchmark stands without its animation
+    if side is not None and side.animation is not None:
+        path = root / 'swing_up.gif'
+        path.write_bytes(side.animation)
+        files.append(path)
     return result
+
+
+class Nominal(threading.Thread):
+    """The nominal episode run again in this process, its animation and the call rate.
+
+    :meth:`run` (in a thread, while the campaigns run on the cluster) makes the closed loop
+    and, with ``gif``, the animation's bytes; :meth:`frequency` (after the campaigns, on a
+    quiet process) times the law's calls.
+    """
+
+    def __init__(self, settings: Settings, gif: bool) -> None:
+        super().__init__(name='nominal-run', daemon=True)
+        self.settings = settings
+        self.gif = gif
+        self.closed: Any = None
+        self.wall = math.nan
+        self.animation: bytes | None = None
+
+    def run(self) -> None:
+        """Run the nominal closed loop; draw its animation."""
+        s = self.settings
+        overrides = {'max_effort': s.torque_limit} if s.torque_limit is not None else None
+        controller = list(s.controller) if isinstance(s.controller, tuple) else one_state_law(
+            s.controller)
+        began = time.perf_counter()
+        try:
+            self.closed = closed_loop_of(controller, s.scene, periods(s), overrides)
+        except TestingError:
+            return
+        self.wall = time.perf_counter() - began
+        if self.gif and self.closed.t.size:
+            from io import BytesIO
+
+            from .animation import write_gif
+
+            buffer = BytesIO()
+            try:
+                write_gif(self.closed, buffer, goal=GOAL)
+            except TestingError:
+                return   # no Pillow: the benchmark stands without its animation
+            self.animation = buffer.getvalue()
+
+    def frequency(self) -> float:
+        """Return the controller's calls per second (the module's ``frequency``)."""
+        run = self.closed
+        if run is None or run.t.size == 0:
+            return math.nan
+        if isinstance(self.settings.controller, tuple):
+            return float(run.t.size / self.wall)
+        law = one_state_law(self.settings.controller)
+        began = time.perf_counter()
+        for t, position, velocity in zip(run.t.tolist(), run.position.tolist(),
+                                         run.velocity.tolist(), strict=True):
+            law(t, position, velocity)
+        return float(run.t.size / (time.perf_counter() - began))
+
+
+def one_state_law(name: str) -> Callable[[float, float, float], Any]:
+    """Return the law ``name`` as a law of one state (a vectorised one on 1-element arrays,
+    as a campaign runs it alone), with the goal as its ``target`` if it takes one."""
+    from ..batch import _scalar
+    from ..campaign.spec import load_controller
+    from ..target import bind_target, takes_target
+    from ..vector import is_vectorised
+
+    law = load_controller(name)
+    if is_vectorised(law):
+        return _scalar(law, GOAL if takes_target(law) else None)
+    return bind_target(law, GOAL)
+
+
+def closed_loop_of(controller: Any, scene: str, steps: int,
+                   overrides: dict[str, Any] | None) -> Any:
+    """Return the closed loop of ``controller`` on ``scene`` towards upright."""
+    from ..loop import closed_loop
+
+    return closed_loop(controller, scene=scene, periods=steps, overrides=overrides,
+                       target=None if callable(controller) else GOAL).with_target(GOAL)
 
 
 def _settings_record(s: Settings) -> dict[str, Any]:
@@ -313,61 +397,18 @@ def summarise(s: Settings, specs: dict[str, Any], rows: dict[str, list[dict[str,
 
 
 def estimate(s: Settings) -> Any:
-    """Return the controller's region-of-attraction estimate (its ``roa_estimate``), or None."""
+    """Return the controller's region-of-attraction estimate, or None.
+
+    A law provides one as its attribute ``roa_estimate``: an ellipse (``center``,
+    ``matrix``, ``level``, ``area()``, as :class:`pendulum_sim.controller.swing_up_law.Ellipse`)
+    or a function of no arguments returning one.
+    """
     if isinstance(s.controller, tuple):
         return None
     from ..campaign.spec import load_controller
 
-    return getattr(load_controller(s.controller), 'roa_estimate', None)
-
-
-def nominal_run(s: Settings) -> tuple[Any, float]:
-    """Return the nominal run (run again here, for its animation) and the controller's calls
-    per second (the module's definition of ``frequency``)."""
-    from ..campaign.spec import load_controller
-    from ..loop import closed_loop
-    from ..target import bind_target
-    from ..vector import is_vectorised
-
-    overrides = {'max_effort': s.torque_limit} if s.torque_limit is not None else None
-    steps = periods(s)
-    if isinstance(s.controller, tuple):
-        began = time.perf_counter()
-        try:
-            run = closed_loop(list(s.controller), scene=s.scene, periods=steps,
-                              overrides=overrides, target=GOAL)
-        except TestingError:
-            return None, math.nan
-        return run, run.t.size / (time.perf_counter() - began)
-    law = load_controller(s.controller)
-    if is_vectorised(law):
-        from ..batch import _scalar
-
-        one = _scalar(law, GOAL if _takes_target(law) else None)
-    else:
-        one = bind_target(law, GOAL)
-    spent = [0.0, 0]
-
-    def timed(t: float, position: float, velocity: float) -> Any:
-        began = time.perf_counter()
-        try:
-            return one(t, position, velocity)
-        finally:
-            spent[0] += time.perf_counter() - began
-            spent[1] += 1
-
-    try:
-        run = closed_loop(timed, scene=s.scene, periods=steps, overrides=overrides,
-                          target=GOAL)
-    except TestingError:
-        return None, (spent[1] / spent[0] if spent[0] > 0 else math.nan)
-    return run, (spent[1] / spent[0] if spent[0] > 0 else math.nan)
-
-
-def _takes_target(law: Any) -> bool:
-    from ..target import takes_target
-
-    return takes_target(law)
+    found = getattr(load_controller(s.controller), 'roa_estimate', None)
+    return found() if callable(found) else found
 
 
 def write_yaml(result: BenchmarkResult) -> Path:
