@@ -69,6 +69,7 @@ setup(
         'console_scripts': [
             'pendulum_node = pendulum_sim.node.cli:entry',
             'pendulum_pd_controller = pendulum_sim.controller.pd_controller:entry',
+            'pendulum_swing_up_controller = pendulum_sim.controller.swing_up_controller:entry',
             'pendulum_replay = pendulum_sim.recording.replay:main',
             'pendulum_report = pendulum_sim.reports.cli:main',
             'pendulum_demo = pendulum_sim.demo:main',

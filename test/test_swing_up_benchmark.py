@@ -322,3 +322,25 @@ def test_pendulum_report_animates_a_recording(tmp_path: Path) -> None:
     again = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
     assert (again.returncode, again.stderr) == (
         2, f"pendulum_report animate: error: --out '{gif}' exists; --force replaces it\n")
+
+
+# ------------------------------------------------------------------ the reference as a ROS node
+@pytest.mark.ros
+def test_the_swing_up_node_answers_as_the_in_process_law_bit_for_bit() -> None:
+    """pendulum_swing_up_controller against pendulum_node over DDS, in synchronous lockstep."""
+    node = closed_loop([str(BIN / 'pendulum_swing_up_controller')], scene='swing_up',
+                       periods=900)
+    local = closed_loop(energy_lqr, scene='swing_up', periods=900)
+    for name in ('t', 'position', 'velocity', 'effort', 'command'):
+        assert getattr(node, name).tobytes() == getattr(local, name).tobytes(), name
+    assert node.swing_up_metrics().success   # it is up within 4.5 s
+
+
+@pytest.mark.ros
+def test_the_swing_up_node_refuses_bad_parameters_with_one_line() -> None:
+    res = subprocess.run([str(BIN / 'pendulum_swing_up_controller'), '--ros-args', '-p',
+                          'max_effort:=0.0'], capture_output=True, text=True, timeout=60,
+                         check=False)
+    assert res.returncode == 2
+    assert 'pendulum_swing_up_controller: max_effort must be a finite number > 0, got 0.0' \
+        in res.stderr
