@@ -16,7 +16,7 @@ import yaml
 from dask_harness import dask_cluster as start_dask_cluster
 
 from pendulum_sim.controller import swing_up_law
-from pendulum_sim.node.parameters import joint_config
+from pendulum_sim.joint.parameters import joint_config
 from pendulum_sim.testing import BenchmarkResult, benchmark, closed_loop
 from pendulum_sim.testing.batch import batchable
 from pendulum_sim.testing.campaign.spec import parse_spec
@@ -32,7 +32,7 @@ from pendulum_sim.testing.scene import scene_values
 from pendulum_sim.testing.swing_up.criteria import CRITERIA, Settings, bodies, campaign_text
 from pendulum_sim.testing.swing_up.criteria import torque_limit as limit_of
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1] / 'support'   # campaign_laws.py, for workers
 BALANCE = reference_balance()
 PI = math.pi
 BIN = Path(sys.executable).parent
