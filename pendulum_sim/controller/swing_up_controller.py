@@ -17,6 +17,7 @@ Run it as::
 """
 from __future__ import annotations
 
+import argparse
 import sys
 from typing import Any, NoReturn
 
@@ -31,7 +32,8 @@ from std_msgs.msg import Float64
 from pendulum_sim.dds import exit_with
 
 from .errors import ControllerError
-from .pd_controller import BIG, RELIABLE_QOS, _parser, serve
+from .pd_controller import BIG, RELIABLE_QOS, serve
+from .pd_controller import _parser as controller_parser
 from .swing_up_law import SwingUpGains, balance, swing_up_torque
 
 NODE_NAME = 'pendulum_swing_up_controller'
@@ -146,6 +148,14 @@ class SwingUpControllerNode(Node):
         return bool(self._pub.wait_for_all_acked(Duration(seconds=timeout)))
 
 
+def _parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``pendulum_swing_up_controller``."""
+    return controller_parser(
+        NODE_NAME, 'The reference swing-up controller for pendulum_node: energy shaping, LQR '
+        'balance near upright; one effort_command per joint_states message.',
+        '-p k_energy:=5.0 -p max_effort:=0.98')
+
+
 def main(args: list[str] | None = None) -> int:
     """Run the controller until Ctrl-C, SIGTERM or ``--count`` answers; return the exit code.
 
@@ -154,10 +164,7 @@ def main(args: list[str] | None = None) -> int:
     synchronous joint that already counts it as connected.
     """
     balance(_G)
-    parser = _parser(NODE_NAME, 'The reference swing-up controller for pendulum_node: energy '
-                     'shaping, LQR balance near upright; one effort_command per joint_states '
-                     'message.', '-p k_energy:=5.0 -p max_effort:=0.98')
-    return serve(list(sys.argv if args is None else args), parser,
+    return serve(list(sys.argv if args is None else args), _parser(),
                  lambda count: SwingUpControllerNode(count=count))
 
 
