@@ -202,45 +202,79 @@ def run_episodes(text: str, episodes: list[int], out: str | None,
     given, is filled with how the batch ran them (``testing.batch.BatchStats``: in lockstep,
     or one by one on the scalar joint and why).
     """
+    return run_episodes_parts([(text, episodes, out)], stats)[0]
+
+
+Part = tuple[str, list[int], str | None]   # a campaign's text, episodes, output folder
+
+
+def same_batch(spec: CampaignSpec) -> tuple[Any, ...]:
+    """Return what campaigns must share for their episodes to run in one batch: the law, the
+    episode length, the compiled sweep or not."""
+    return (spec.controller, spec.periods, spec.jit)
+
+
+def run_episodes_parts(parts: list[Part], stats: BatchStats | None = None
+                       ) -> list[list[dict[str, Any]]]:
+    """Run the episodes of several campaigns of one vectorised law in one batch; return each
+    campaign's rows.
+
+    The campaigns must agree on :func:`same_batch` (the benchmark's criteria do); each
+    episode is drawn, run and measured by its own campaign's rules, as :func:`run_episodes`
+    runs them alone. ``wall_time_s`` of each row is the batch's time divided by its size;
+    ``stats`` as :func:`run_episodes` says.
+    """
     from ..batch import run_batch, warm_up_batch
 
     started = time.perf_counter()
-    spec = cached_spec(text)
-    law = watched(load_controller(str(spec.controller)))
-    drawn = [episode_scenario(spec, i) for i in episodes]
-    params: list[Any] = []
-    for v in (d.values for d in drawn):
-        try:
-            params.append(episode_values(spec, v))
-        except TestingError as exc:
-            params.append(exc)
-    ok = [i for i, p in enumerate(params) if not isinstance(p, TestingError)]
-    results: list[Any] = list(params)
-    if spec.jit and ok:   # compiled (or loaded from the disk cache) before the clock starts
-        warm_up_batch([params[i] for i in ok])
+    specs = [cached_spec(text) for text, _, _ in parts]
+    if len({same_batch(spec) for spec in specs}) != 1:
+        raise TestingError('campaigns of one batch must share their law, periods and jit')
+    first = specs[0]
+    law = watched(load_controller(str(first.controller)))
+    drawn = [[episode_scenario(spec, i) for i in episodes]
+             for spec, (_, episodes, _) in zip(specs, parts, strict=True)]
+    params: list[list[Any]] = []
+    for spec, mine in zip(specs, drawn, strict=True):
+        params.append([])
+        for d in mine:
+            try:
+                params[-1].append(episode_values(spec, d.values))
+            except TestingError as exc:
+                params[-1].append(exc)
+    ok = [(j, i) for j, mine in enumerate(params) for i, p in enumerate(mine)
+          if not isinstance(p, TestingError)]
+    results: list[list[Any]] = [list(mine) for mine in params]
+    if first.jit and ok:   # compiled (or loaded from the disk cache) before the clock starts
+        warm_up_batch([params[j][i] for j, i in ok])
         started = time.perf_counter()
     try:
-        batch = run_batch(law, [params[i] for i in ok], spec.periods,
-                          targets=[drawn[i].target for i in ok], jit=spec.jit, stats=stats)
+        batch = run_batch(law, [params[j][i] for j, i in ok], first.periods,
+                          targets=[drawn[j][i].target for j, i in ok], jit=first.jit,
+                          stats=stats)
     finally:
         loop_done()
-    for i, res in zip(ok, batch, strict=True):
-        results[i] = res
-    runs = [res if isinstance(res, ClosedLoopRun) else failed_run(res) for res in results]
-    runs = [None if run is None else run.with_target(d.target)
-            for run, d in zip(runs, drawn, strict=True)]
-    measured = iter(measure_runs(spec, [run for run in runs if run is not None],
-                                 [d.target for run, d in zip(runs, drawn, strict=True)
-                                  if run is not None]))
-    rows = []
-    for i, d, res, run in zip(episodes, drawn, results, runs, strict=True):
-        reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
-        row = row_of(spec, i, d.values, d.target, run, reason, started,
-                     None if run is None else next(measured))
-        row['wall_time_s'] = (time.perf_counter() - started) / len(episodes)
-        _keep_failure(out, row, run)
-        rows.append(row)
-    return rows
+    for (j, i), res in zip(ok, batch, strict=True):
+        results[j][i] = res
+    total = sum(len(episodes) for _, episodes, _ in parts)
+    out_rows = []
+    for spec, (_, episodes, out), mine, got in zip(specs, parts, drawn, results, strict=True):
+        runs = [res if isinstance(res, ClosedLoopRun) else failed_run(res) for res in got]
+        runs = [None if run is None else run.with_target(d.target)
+                for run, d in zip(runs, mine, strict=True)]
+        measured = iter(measure_runs(spec, [run for run in runs if run is not None],
+                                     [d.target for run, d in zip(runs, mine, strict=True)
+                                      if run is not None]))
+        rows = []
+        for i, d, res, run in zip(episodes, mine, got, runs, strict=True):
+            reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
+            row = row_of(spec, i, d.values, d.target, run, reason, started,
+                         None if run is None else next(measured))
+            row['wall_time_s'] = (time.perf_counter() - started) / total
+            _keep_failure(out, row, run)
+            rows.append(row)
+        out_rows.append(rows)
+    return out_rows
 
 
 def run_chunk(text: str, episodes: list[int], out: str | None,

@@ -25,8 +25,8 @@ from pathlib import Path
 from typing import IO, Any
 
 from ..errors import CampaignError
-from .episode import batched, fault_row
-from .sandbox import Fault, run_chunk_pickled
+from .episode import batched, fault_row, same_batch
+from .sandbox import Fault, run_chunk_pickled, run_parts_pickled
 from .spec import CampaignSpec, shown
 from .store import EpisodeStore
 
@@ -150,15 +150,19 @@ def run_pending_all(jobs: list[Job], client: Any, progress: bool = True,
     ran of each.
 
     Every campaign's tasks are submitted together, so the workers stay busy from the first
-    campaign's last task to the next campaign's first (the benchmark's criteria); each task's
-    rows go to its own campaign's store as it ends (:func:`run_pending` for one campaign).
+    campaign's last task to the next campaign's first (the benchmark's criteria). Campaigns of
+    one vectorised law and episode length (:func:`~.episode.same_batch`) run their episodes
+    in shared batches, about two per worker (:func:`~.sandbox.run_parts`): a batch costs the
+    law's call and the sweep's a period whatever its size, so one batch of all the criteria's
+    episodes runs each episode far faster than many small ones. Each task's rows go to their
+    own campaign's store as it ends (:func:`run_pending` for one campaign).
     """
     from distributed import as_completed
 
     total = sum(spec.episodes for spec, _, _ in jobs)
     done_before = 0
     passed_before = 0
-    chunks: dict[str, tuple[int, list[int]]] = {}   # task key: (job, episodes)
+    tasks: dict[str, list[tuple[int, list[int]]]] = {}   # task key: [(job, episodes)]
     counts = []
     workers = _workers(client)
     pendings = []
@@ -167,55 +171,75 @@ def run_pending_all(jobs: list[Job], client: Any, progress: bool = True,
         done_before += len(done)
         passed_before += store.passed()
         pendings.append([i for i in range(spec.episodes) if i not in done])
-    batches = [batched(spec) for spec, _, _ in jobs]
-    in_batches = sum(len(p) for p, b in zip(pendings, batches, strict=True) if b)
+        counts.append(len(pendings[-1]))
+    groups: dict[tuple[Any, ...], list[int]] = {}
     for j, ((spec, store, _), pending) in enumerate(zip(jobs, pendings, strict=True)):
-        counts.append(len(pending))
         if not pending:
             continue
         tag = hashlib.sha1((spec.text + str(store.out.resolve())).encode()).hexdigest()[:12]
-        # Batches share the workers in proportion to their episodes: a small campaign beside
-        # a large one is one batch, not many small ones (each costs the law's call a period).
-        share = len(pending) / in_batches if batches[j] else 1.0
-        size = chunk_size(len(pending), max(1, round(workers * share)), batches[j])
+        if batched(spec) and not foxglove_port:
+            groups.setdefault((*same_batch(spec), spec.episode_timeout), []).append(j)
+            continue
+        size = chunk_size(len(pending), workers, False)
         for a in range(0, len(pending), size):
             chunk = pending[a:a + size]
-            chunks[f'episodes-{chunk[0]}-{chunk[-1]}-{tag}'] = (j, chunk)
+            tasks[f'episodes-{chunk[0]}-{chunk[-1]}-{tag}'] = [(j, chunk)]
+    for members in groups.values():
+        flat = [(j, i) for j in members for i in pendings[j]]
+        size = chunk_size(len(flat), workers, True)
+        tag = hashlib.sha1(''.join(jobs[j][0].text + str(jobs[j][1].out.resolve())
+                                   for j in members).encode()).hexdigest()[:12]
+        for a in range(0, len(flat), size):
+            parts: list[tuple[int, list[int]]] = []
+            for j, i in flat[a:a + size]:
+                if not parts or parts[-1][0] != j:
+                    parts.append((j, []))
+                parts[-1][1].append(i)
+            tasks[f'batch-{a}-{a + size - 1}-{tag}'] = parts
     bar = ProgressBar(total, done_before, passed_before, enabled=progress)
-    if not chunks:
+    if not tasks:
         bar.close()
         return counts
 
     def submit(key: str) -> Any:
-        j, chunk = chunks[key]
-        spec, store, _ = jobs[j]
-        return client.submit(run_chunk_pickled, spec.text, chunk, str(store.out.resolve()),
-                             spec.episode_timeout, foxglove_port=foxglove_port, pure=False,
-                             key=key)
+        parts = tasks[key]
+        if len(parts) == 1:
+            j, chunk = parts[0]
+            spec, store, _ = jobs[j]
+            return client.submit(run_chunk_pickled, spec.text, chunk,
+                                 str(store.out.resolve()), spec.episode_timeout,
+                                 foxglove_port=foxglove_port, pure=False, key=key)
+        return client.submit(run_parts_pickled,
+                             [(jobs[j][0].text, chunk, str(jobs[j][1].out.resolve()))
+                              for j, chunk in parts],
+                             jobs[parts[0][0]][0].episode_timeout, pure=False, key=key)
 
-    futures = as_completed([submit(key) for key in list(chunks)])
+    futures = as_completed([submit(key) for key in list(tasks)])
     if on_submitted is not None:
         on_submitted()
     try:
         for future in futures:
-            j, chunk = chunks[future.key]
-            spec, store, on_row = jobs[j]
+            parts = tasks[future.key]
             try:
-                results = pickle.loads(future.result())
+                found = pickle.loads(future.result())
+                results = [found] if len(parts) == 1 else found
             except Exception as exc:   # the task itself failed: its worker is gone
-                if len(chunk) > 1:
-                    for i in chunk:
-                        chunks[f'{future.key}-alone-{i}'] = (j, [i])
-                        futures.add(submit(f'{future.key}-alone-{i}'))
+                if len(parts) > 1 or len(parts[0][1]) > 1:
+                    for j, chunk in parts:
+                        for i in chunk:
+                            tasks[f'{future.key}-alone-{j}-{i}'] = [(j, [i])]
+                            futures.add(submit(f'{future.key}-alone-{j}-{i}'))
                     continue
-                results = [Fault(chunk[0], f'worker killed: {type(exc).__name__}')]
-            rows = [fault_row(spec, r.episode, r.reason) if isinstance(r, Fault) else r
-                    for r in results]
-            store.write(rows)
-            for row in rows:
-                bar.update(bool(row['passed']))
-                if on_row is not None:
-                    on_row(row)
+                results = [[Fault(parts[0][1][0], f'worker killed: {type(exc).__name__}')]]
+            for (j, _), got in zip(parts, results, strict=True):
+                spec, store, on_row = jobs[j]
+                rows = [fault_row(spec, r.episode, r.reason) if isinstance(r, Fault) else r
+                        for r in got]
+                store.write(rows)
+                for row in rows:
+                    bar.update(bool(row['passed']))
+                    if on_row is not None:
+                        on_row(row)
     finally:
         bar.close()
     return counts
