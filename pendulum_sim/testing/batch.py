@@ -72,7 +72,7 @@ def batchable(values: Mapping[str, Value]) -> str:
     return batchable_config(joint_config(values, epoch_ns(values)))
 
 
-def _scalar(law: BatchLaw, target: float | None) -> Callable[[float, float, float], float]:
+def scalar_law(law: BatchLaw, target: float | None) -> Callable[[float, float, float], float]:
     """Return the batched law as a scalar one (one-element arrays in, the element out)."""
     extra = {} if target is None else {'target': np.array([target])}
 
@@ -124,7 +124,7 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]], periods: i
     for i in sorted(alone):
         try:
             results[i] = run_in_process(
-                _scalar(law, None if given is None else float(given[i])), episodes[i], periods)
+                scalar_law(law, None if given is None else float(given[i])), episodes[i], periods)
         except TestingError as exc:
             results[i] = exc
     return [r if r is not None else TestingError('not run') for r in results]
@@ -224,4 +224,4 @@ def _lockstep(law: BatchLaw, configs: list[JointConfig], values: list[Mapping[st
 
 
 __all__ = ['BatchLaw', 'BatchStats', 'batchable', 'batchable_config', 'run_batch',
-           'warm_up_batch']
+           'scalar_law', 'warm_up_batch']

@@ -327,14 +327,14 @@ class Nominal(threading.Thread):
 def one_state_law(name: str) -> Callable[[float, float, float], Any]:
     """Return the law ``name`` as a law of one state (a vectorised one on 1-element arrays,
     as a campaign runs it alone), with the goal as its ``target`` if it takes one."""
-    from ..batch import _scalar
+    from ..batch import scalar_law
     from ..campaign.spec import load_controller
     from ..target import bind_target, takes_target
     from ..vector import is_vectorised
 
     law = load_controller(name)
     if is_vectorised(law):
-        return _scalar(law, GOAL if takes_target(law) else None)
+        return scalar_law(law, GOAL if takes_target(law) else None)
     return bind_target(law, GOAL)
 
 
