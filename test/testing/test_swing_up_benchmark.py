@@ -344,3 +344,28 @@ def test_the_swing_up_node_refuses_bad_parameters_with_one_line() -> None:
     assert res.returncode == 2
     assert 'pendulum_swing_up_controller: max_effort must be a finite number > 0, got 0.0' \
         in res.stderr
+
+
+def test_an_interrupted_benchmark_resumes_with_the_same_results(tmp_path: Path,
+                                                                cluster: str) -> None:
+    """Episodes lost to an interruption run again on --resume; the finished ones are kept."""
+    import sqlite3
+
+    out = tmp_path / 'out'
+    kwargs: dict[str, object] = {'criteria': ('nominal', 'torque_limit'), 'limits': 4,
+                                 'duration': 5.0, 'scheduler': cluster, 'figures': False,
+                                 'gif': False}
+    first = benchmark('pendulum_sim.testing.examples:energy_lqr', out=out, **kwargs)
+    store = out / 'campaigns' / 'torque_limit' / 'episodes.sqlite'
+    with sqlite3.connect(store) as db:   # as if the run had stopped before these ended
+        db.execute('DELETE FROM episodes WHERE episode >= 2')
+    (out / 'benchmark.yaml').unlink()
+    with pytest.raises(BenchmarkError, match="is not empty; use --resume"):
+        benchmark('pendulum_sim.testing.examples:energy_lqr', out=out, **kwargs)
+    again = benchmark('pendulum_sim.testing.examples:energy_lqr', out=out, resume=True,
+                      **kwargs)
+    assert {k: v for k, v in again.values.items() if k != 'frequency'} == {
+        k: v for k, v in first.values.items() if k != 'frequency'}
+    assert again.criteria == first.criteria
+    with sqlite3.connect(store) as db:
+        assert db.execute('SELECT COUNT(*) FROM episodes').fetchone() == (4,)
