@@ -360,7 +360,7 @@ def test_an_interrupted_benchmark_resumes_with_the_same_results(tmp_path: Path,
     with sqlite3.connect(store) as db:   # as if the run had stopped before these ended
         db.execute('DELETE FROM episodes WHERE episode >= 2')
     (out / 'benchmark.yaml').unlink()
-    with pytest.raises(BenchmarkError, match="is not empty; use --resume"):
+    with pytest.raises(BenchmarkError, match='is not empty; use --resume'):
         benchmark('pendulum_sim.testing.examples:energy_lqr', out=out, **kwargs)
     again = benchmark('pendulum_sim.testing.examples:energy_lqr', out=out, resume=True,
                       **kwargs)
