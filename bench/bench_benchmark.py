@@ -16,7 +16,8 @@ time; print the figures side by side in one run.
 
 With ``--references`` the reference controllers' results are written to
 ``pendulum_sim/testing/swing_up/references.yaml`` (what ``benchmark.png`` compares with) and
-their ``benchmark.yaml`` and figures kept under ``bench/results/benchmark/``.
+their ``benchmark.yaml`` and figures kept under ``bench/results/benchmark/``, with the LQR
+balance's region of attraction near upright (``lqr_balance_roa.png``).
 
     .venv/bin/python bench/record.py bench/bench_benchmark.py
     .venv/bin/python bench/bench_benchmark.py --serial-sample 10
@@ -93,6 +94,12 @@ def record_references(args: argparse.Namespace) -> None:
             for item in ('benchmark.yaml', 'benchmark.png', 'roa.png', 'swing_up.gif'):
                 if (out / item).is_file():
                     shutil.copy(out / item, keep / f'{name}_{item}')
+    with tempfile.TemporaryDirectory() as tmp:   # the LQR alone: a region worth a map
+        out = Path(tmp) / 'lqr'
+        span = ((math.pi - 1.2, math.pi + 1.2), (-3.0, 3.0))
+        benchmark('pendulum_sim.testing.examples:lqr_balance', out=out, criteria=('roa',),
+                  roa_grid=args.roa_grid, roa_span=span, workers=args.workers, seed=args.seed)
+        shutil.copy(out / 'roa.png', keep / 'lqr_balance_roa.png')
     target = ROOT / 'pendulum_sim' / 'testing' / 'swing_up' / 'references.yaml'
     target.write_text("# The reference controllers' swing-up benchmark results (written by "
                       'bench/bench_benchmark.py --references):\n# what benchmark.png sets '

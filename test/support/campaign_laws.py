@@ -42,3 +42,8 @@ def brittle_swing_up(t: float, position: np.ndarray, velocity: np.ndarray) -> np
         raise RuntimeError('velocity out of range')
     tau = np.asarray(energy_lqr(t, position, velocity), dtype=float)
     return np.where(np.abs(velocity) > 8.0, np.nan, tau)
+
+
+def swing_up_one(t: float, position: float, velocity: float) -> float:
+    """Return the reference swing-up's torque for one state (a law that is not vectorised)."""
+    return float(energy_lqr(t, position, velocity))

@@ -124,3 +124,15 @@ def test_a_batch_of_several_campaigns_that_faults_fails_only_the_faulty_episode(
     faults = [r for r in got[0] if isinstance(r, Fault)]
     assert faults == [Fault(1, 'law exited with 4')]
     assert all(not isinstance(r, Fault) and r['passed'] for r in got[1])
+
+
+def test_a_law_of_one_state_is_measured_as_its_vectorised_twin() -> None:
+    """The scalar path (one episode at a time) and the batch give the same swing-up rows."""
+    scalar = text(controller='campaign_laws:swing_up_one', episodes=2,
+                  parameters={'phi0': [0.0, 2.5]})
+    batched = text(episodes=2, parameters={'phi0': [0.0, 2.5]})
+    keep = ('worker_host', 'worker_pid', 'wall_time_s')
+    for i in range(2):
+        one, many = run_episode(scalar, i, None), run_episode(batched, i, None)
+        assert {k: v for k, v in one.items() if k not in keep} == {
+            k: v for k, v in many.items() if k not in keep}
