@@ -248,6 +248,9 @@ def test_the_command_line_benchmarks_a_law_and_fails_bad_episodes_alone(
      'goal box: box[1] (rad/s) must be a finite number > 0, got -1.0'),
     (['--torque-limit', '0'], 'torque limit must be a finite number of N m > 0, got 0.0'),
     (['--task', 'balance'], "unknown task 'balance'; tasks: swing_up"),
+    (['--criteria', 'roa,nominal,roa'], "criterion 'roa' is given twice"),
+    (['--criteria', ','], 'no criterion to run; criteria: nominal, consistency, robustness, '
+     'sensitivity, torque_limit, roa'),
     (['--scene', 'nosuch'], "unknown scene 'nosuch'; known scenes: "),
 ])
 def test_impossible_input_exits_2_with_one_line_and_writes_nothing(

@@ -113,6 +113,9 @@ def check_settings(s: Settings) -> None:
         raise BenchmarkError(f'unknown criterion {unknown[0]!r}; criteria: {", ".join(CRITERIA)}')
     if not s.criteria:
         raise BenchmarkError(f'no criterion to run; criteria: {", ".join(CRITERIA)}')
+    twice = [c for i, c in enumerate(s.criteria) if c in s.criteria[:i]]
+    if twice:
+        raise BenchmarkError(f'criterion {twice[0]!r} is given twice')
     try:
         check_box(GOAL, s.goal_box)
     except Exception as exc:
