@@ -88,6 +88,7 @@ def test_grids_cover_a_plane_and_pulses_are_drawn_after_the_target() -> None:
      "{'grid': [0.0, 1.0]}"),
     ({'parameters': {'phi0': {'grid': [0.0, 1.0, 0]}}},
      'parameters.phi0.grid count must be an integer in [1, 10000000], got 0'),
+    ({'keep_failures': 'no'}, "keep_failures must be true or false, got 'no'"),
 ])
 def test_bad_keys_are_refused_with_one_line(changes: dict[str, Any], message: str) -> None:
     with pytest.raises(CampaignError) as info:

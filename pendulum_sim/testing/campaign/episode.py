@@ -190,7 +190,7 @@ def run_episode(text: str, episode: int, out: str | None,
         run = failed_run(exc)
         run = None if run is None else run.with_target(drawn.target)
     row = row_of(spec, episode, drawn.values, drawn.target, run, reason, started)
-    _keep_failure(out, row, run)
+    _keep_failure(out if spec.keep_failures else None, row, run)
     return row
 
 
@@ -271,7 +271,7 @@ def run_episodes_parts(parts: list[Part], stats: BatchStats | None = None
             row = row_of(spec, i, d.values, d.target, run, reason, started,
                          None if run is None else next(measured))
             row['wall_time_s'] = (time.perf_counter() - started) / total
-            _keep_failure(out, row, run)
+            _keep_failure(out if spec.keep_failures else None, row, run)
             rows.append(row)
         out_rows.append(rows)
     return out_rows

@@ -9,7 +9,9 @@ distribution ``{distribution: uniform, low, high}``, ``{distribution: normal, me
 target; ``swing_up``: the swing-up metrics into ``goal_box``, ``[angle rad, rate rad/s]``
 around the target, π unless given) and ``disturbances`` (torque pulses, each ``{torque,
 start, duration}`` in N m, s, s, each drawn like a parameter, given to the joint as its
-``disturbance.pulses``). ``target`` is a scenario
+``disturbance.pulses``) and ``keep_failures`` (``true``, the default: each failing episode's
+run is written to ``failures/``; ``false`` for a campaign whose failures are its data, as a
+region of attraction's). ``target`` is a scenario
 dimension read by the same rules as a parameter (a number, a list of numbers or a
 distribution); when it varies, the controller must be able to receive it (a law with a keyword
 ``target``, or a command line with the placeholder ``{target}``). Every problem is a
@@ -39,7 +41,8 @@ from ..swing_up.metrics import BOX, GOAL, SWING_UP_NAMES, check_box
 from ..target import PLACEHOLDER, has_placeholder, takes_target
 
 KEYS = ('controller', 'scene', 'episodes', 'seed', 'periods', 'target', 'parameters',
-        'requirements', 'episode_timeout', 'jit', 'task', 'goal_box', 'disturbances')
+        'requirements', 'episode_timeout', 'jit', 'task', 'goal_box', 'disturbances',
+        'keep_failures')
 REQUIRED = ('controller', 'episodes', 'periods')
 # What an episode is measured by: a step towards the target (StepMetrics), or a swing-up
 # into the goal box around the target (SwingUpMetrics; the target is π, upright, unless
@@ -140,6 +143,7 @@ class CampaignSpec:
     task: str = 'step'
     goal_box: tuple[float, float] = BOX
     disturbances: tuple[Pulse, ...] = ()
+    keep_failures: bool = True   # write each failing episode's run to failures/
 
     @property
     def metric_names(self) -> tuple[str, ...]:
@@ -484,6 +488,9 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
     if timeout <= 0.0:
         raise CampaignError(f'episode_timeout must be > 0 s, got {timeout:g}')
     jit = _jit(data.get('jit', False))
+    keep = data.get('keep_failures', True)
+    if not isinstance(keep, bool):
+        raise CampaignError(f'keep_failures must be true or false, got {shown(keep)}')
     spec = CampaignSpec(
         controller=controller, scene=scene,
         episodes=_integer('episodes', data['episodes'], 1, MAX_EPISODES),
@@ -493,7 +500,7 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
         requirements=tuple(_requirement(r, TASKS[task]) for r in reqs), text=text,
         episode_timeout=timeout, jit=jit, task=task,
         goal_box=_goal_box(data['goal_box']) if 'goal_box' in data else BOX,
-        disturbances=_disturbances(data.get('disturbances') or []))
+        disturbances=_disturbances(data.get('disturbances') or []), keep_failures=keep)
     return spec
 
 

@@ -223,6 +223,7 @@ def campaign(s: Settings, criterion: str) -> dict[str, Any]:
     elif criterion == 'roa':
         (a0, a1), (r0, r1) = s.roa_span
         body['episodes'] = s.roa_grid ** 2
+        body['keep_failures'] = False   # the start states that fail are the map, not faults
         params['phi0'] = {'grid': _cells(a0, a1, s.roa_grid)}
         params['dphi0'] = {'grid': _cells(r0, r1, s.roa_grid), 'stride': s.roa_grid}
     else:   # check_settings refuses it first
