@@ -44,6 +44,7 @@ from pendulum_sim.testing.errors import TestingError
 from pendulum_sim.testing.loop import run_in_process
 from pendulum_sim.testing.scene import read_scene, with_overrides
 from pendulum_sim.testing.swing_up.criteria import CRITERIA, Settings, campaign_text
+from pendulum_sim.testing.swing_up.figures import comparison_figure
 
 ROOT = Path(__file__).resolve().parents[1]
 LAW = 'pendulum_sim.testing.examples:energy_lqr'
@@ -83,6 +84,7 @@ def record_references(args: argparse.Namespace) -> None:
     keep = ROOT / 'bench' / 'results' / 'benchmark'
     keep.mkdir(parents=True, exist_ok=True)
     found: dict[str, dict[str, float | None]] = {}
+    results = {}
     for name, law in REFERENCES.items():
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / name
@@ -91,6 +93,7 @@ def record_references(args: argparse.Namespace) -> None:
             print(f'\n# {name}\n{result.table()}', flush=True)
             found[law] = {k: (None if v is None else float(v)) for k, v in
                           result.values.items()}
+            results[name] = result
             for item in ('benchmark.yaml', 'benchmark.png', 'roa.png', 'swing_up.gif'):
                 if (out / item).is_file():
                     shutil.copy(out / item, keep / f'{name}_{item}')
@@ -105,6 +108,8 @@ def record_references(args: argparse.Namespace) -> None:
                       'bench/bench_benchmark.py --references):\n# what benchmark.png sets '
                       'a controller beside.\n' + yaml.safe_dump(found, sort_keys=False),
                       encoding='utf-8')
+    for name, result in results.items():   # each beside the others, now recorded
+        comparison_figure(result, keep / f'{name}_benchmark.png')
     print(f'\nwrote {target.relative_to(ROOT)} and bench/results/benchmark/')
 
 
