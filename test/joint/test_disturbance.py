@@ -288,3 +288,14 @@ def test_the_node_takes_the_pulse_and_records_the_same_trajectory_as_the_joint(
     after = remote.t > 3.0 + 1e-9
     assert np.abs(remote.position[after] - calm.position[after]).max() > 0.01
     assert (tmp_path / 'pulse.mcap').stat().st_size > 0
+
+
+def test_the_gym_environments_still_refuse_a_pulse() -> None:
+    """The batch steps pulses on period boundaries; the environments do not step pulses."""
+    from pendulum_sim.gym.errors import GymError
+    from pendulum_sim.gym.pendulums import check as gym_check
+
+    values = scene_values('controller_test', PULSE)
+    assert batchable(values) == ''
+    with pytest.raises(GymError, match=r'this scene cannot: a disturbance pulse is set$'):
+        gym_check(joint_config(values))
