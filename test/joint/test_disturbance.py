@@ -293,7 +293,7 @@ def test_the_node_takes_the_pulse_and_records_the_same_trajectory_as_the_joint(
 def test_the_gym_environments_still_refuse_a_pulse() -> None:
     """The batch steps pulses on period boundaries; the environments do not step pulses."""
     from pendulum_sim.gym.errors import GymError
-    from pendulum_sim.gym.pendulums import check as gym_check
+    from pendulum_sim.gym.runner import check as gym_check
 
     values = scene_values('controller_test', PULSE)
     assert batchable(values) == ''
