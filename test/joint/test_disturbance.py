@@ -27,7 +27,7 @@ from pendulum_sim.joint.joint import (
 )
 from pendulum_sim.joint.parameters import SPEC_BY_NAME, SPECS, check, joint_config
 from pendulum_sim.testing import TestingError, closed_loop
-from pendulum_sim.testing.batch import batchable, run_batch
+from pendulum_sim.testing.batch import BatchStats, batchable, run_batch
 from pendulum_sim.testing.campaign.episode import RUN_COLUMNS, run_episode
 from pendulum_sim.testing.campaign.spec import parse_spec
 from pendulum_sim.testing.examples import pd, pd_batch
@@ -299,3 +299,19 @@ def test_the_gym_environments_still_refuse_a_pulse() -> None:
     assert batchable(values) == ''
     with pytest.raises(GymError, match=r'this scene cannot: a disturbance pulse is set$'):
         gym_check(joint_config(values))
+
+
+def test_a_pushed_joint_near_its_speed_bound_keeps_the_pulses_time() -> None:
+    """Near its speed bound the lockstep hands a joint to a SimulatedJoint started from its
+    state: its pulses move back by the steps taken, so they act when the joint's do."""
+    # The PD settles by 3 s; a push from 4 s drives the joint to its speed bound, where the
+    # joint takes its periods, the push still acting.
+    several = {'disturbance.pulses': '-0.5 0.5 0.3; 3.0 4.0 0.5', 'max_velocity': 1.0}
+    values = scene_values('controller_test', several)
+    stats = BatchStats()
+    [batched] = run_batch(pd_batch, [values], 500, stats=stats)
+    scalar = closed_loop(pd_batch_scalar, periods=500, overrides=several)
+    assert not isinstance(batched, TestingError)
+    assert stats.lockstep == 1 and stats.periods.by_joint > 0 and stats.periods.swept > 0
+    for name in ('position', 'velocity', 'effort', 'command'):
+        assert np.array_equal(getattr(batched, name), getattr(scalar, name)), name
