@@ -14,13 +14,13 @@ for that period.
 The episodes of one lockstep share h, the control period, the integrator, the guard and the
 start time; a batch of several such groups runs one lockstep for each. An episode off the
 lockstep's common path (``batchable_config``: effort commands, an ideal sensor, no command or
-sensor delay, a command timeout longer than a period, no disturbance or effort offset, an
-explicit method the sweep has), and one the batch cannot follow exactly (a law that raises,
-where the batch cannot tell whose state it was; a joint that stops, whose reason names its
-time), is run by the scalar joint alone, which decides for it. :class:`BatchStats` says which
-episodes ran which way, and why. The scalar path stays the one implementation of every rule;
-the batch is a faster driver of the same one, and ``test/testing/test_testing_batch.py`` holds
-them to each other.
+sensor delay, a command timeout longer than a period, disturbance pulses on control-period
+boundaries only, no effort offset, an explicit method the sweep has), and one the batch cannot
+follow exactly (a law that raises, where the batch cannot tell whose state it was; a joint that
+stops, whose reason names its time), is run by the scalar joint alone, which decides for it.
+:class:`BatchStats` says which episodes ran which way, and why. The scalar path stays the one
+implementation of every rule; the batch is a faster driver of the same one, and
+``test/testing/test_testing_batch.py`` holds them to each other.
 """
 from __future__ import annotations
 
