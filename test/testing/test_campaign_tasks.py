@@ -137,3 +137,19 @@ def test_a_law_of_one_state_is_measured_as_its_vectorised_twin() -> None:
         one, many = run_episode(scalar, i, None), run_episode(batched, i, None)
         assert {k: v for k, v in one.items() if k not in keep} == {
             k: v for k, v in many.items() if k not in keep}
+
+
+def test_the_results_of_a_campaign_with_pulses_and_grids_are_written(tmp_path: Path) -> None:
+    from pendulum_sim.testing.campaign.summary import write_results
+
+    spec = parse_spec(text(episodes=4, parameters={'phi0': {'grid': [3.0, 3.001, 2]}},
+                           disturbances=[{'torque': {'distribution': 'uniform', 'low': -0.1,
+                                                     'high': 0.1}, 'start': 1.0,
+                                          'duration': 0.5}]))
+    rows = run_episodes_parts([(spec.text, [0, 1, 2, 3], None)])[0]
+    write_results(spec, rows, tmp_path)
+    summary = (tmp_path / 'summary.md').read_text()
+    assert 'Nearly point-like scenario: phi0 3 to 3.001 (' in summary   # the grid is measured
+    header = (tmp_path / 'episodes.csv').read_text().splitlines()[0].split(',')
+    assert header[:4] == ['episode', 'phi0', 'disturbance.pulses', 'target']
+    assert {p.name for p in (tmp_path / 'figures').iterdir()} >= {'metric_distributions.png'}

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .spec import CampaignSpec, Distribution, Requirement
+from .spec import CampaignSpec, Distribution, Grid, Requirement
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -85,13 +85,14 @@ def numeric_column(rows: Sequence[dict[str, Any]], name: str) -> NDArray[np.floa
 def point_like(spec: CampaignSpec, rows: Sequence[dict[str, Any]]) -> list[Spread]:
     """Return the dimensions declared to vary whose values span < POINT_LIKE of their size.
 
-    A dimension varies by declaration when it is a distribution or a list (a fixed value is a
-    constant by choice); its span is measured on the values the episodes drew.
+    A dimension varies by declaration when it is a distribution, a list or a grid (a fixed
+    value is a constant by choice); its span is measured on the values the episodes drew (the
+    drawn ``disturbance.pulses``, a text, is not measured).
     """
     spaces: dict[str, Any] = {**dict(spec.parameters), 'target': spec.target}
     out = []
     for name in spec.scenario_names:
-        if not isinstance(spaces[name], (Distribution, tuple)) or not rows:
+        if not isinstance(spaces.get(name), (Distribution, tuple, Grid)) or not rows:
             continue
         x = numeric_column(rows, name)
         if x is None or not np.all(np.isfinite(x)):
