@@ -18,7 +18,8 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test', 'test.*', 'bench']),
-    package_data={package_name: ['py.typed', 'foxglove_layout.json']},
+    package_data={package_name: ['py.typed', 'foxglove_layout.json',
+                                 'testing/swing_up/references.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -54,6 +55,10 @@ setup(
         ],
         'identify': ['scipy>=1.10', 'matplotlib>=3.7'],
         'campaign': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'matplotlib>=3.7'],
+        # pendulum_benchmark: campaigns, figures, the GIF (Pillow comes with matplotlib) and
+        # the reference controllers' LQR gain from python-control.
+        'benchmark': ['dask[distributed]>=2024.1', 'pyarrow>=14', 'matplotlib>=3.7',
+                      'control>=0.10'],
     },
     zip_safe=True,
     maintainer='pendulum_sim developers',
@@ -64,12 +69,14 @@ setup(
         'console_scripts': [
             'pendulum_node = pendulum_sim.node.cli:entry',
             'pendulum_pd_controller = pendulum_sim.controller.pd_controller:entry',
+            'pendulum_swing_up_controller = pendulum_sim.controller.swing_up_controller:entry',
             'pendulum_replay = pendulum_sim.recording.replay:main',
             'pendulum_report = pendulum_sim.reports.cli:main',
             'pendulum_demo = pendulum_sim.demo:main',
             'pendulum_campaign = pendulum_sim.testing.campaign.cli:main',
             'pendulum_identify = pendulum_sim.identify.cli:main',
             'pendulum_twin = pendulum_sim.testing.twin_cli:main',
+            'pendulum_benchmark = pendulum_sim.testing.swing_up.cli:main',
         ],
         'pytest11': ['pendulum_sim = pendulum_sim.testing.pytest_plugin'],
         # Gymnasium's plugin group before 1.0 (1.x registers on `import pendulum_sim.gym`).

@@ -24,7 +24,8 @@ import argparse
 import os
 import signal
 import sys
-from typing import Any, NoReturn
+from collections.abc import Callable
+from typing import Any, NoReturn, Protocol
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
@@ -225,12 +226,13 @@ class PDControllerNode(Node):
         return bool(self._pub.wait_for_all_acked(Duration(seconds=timeout)))
 
 
-def _parser() -> argparse.ArgumentParser:
+def _parser(prog: str = NODE_NAME, description: str = (
+        'Example controller for pendulum_node: PD with gravity compensation, one '
+        'effort_command per joint_states message.'),
+        example: str = '-p target:=0.5 -p kp:=4.0') -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog=NODE_NAME,
-        description='Example controller for pendulum_node: PD with gravity compensation, one '
-                    'effort_command per joint_states message.',
-        epilog='ROS arguments follow --ros-args, e.g. --ros-args -p target:=0.5 -p kp:=4.0 '
+        prog=prog, description=description,
+        epilog=f'ROS arguments follow --ros-args, e.g. --ros-args {example} '
                '-p use_sim_time:=true -r __ns:=/my_ns')
     parser.add_argument('--count', type=int, default=0, metavar='N',
                         help='exit (code 0) after answering N states; 0 (default) runs until '
@@ -239,12 +241,28 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(args: list[str] | None = None) -> int:
-    """Run the controller until Ctrl-C, SIGTERM or ``--count`` answers; return the exit code."""
-    argv = list(sys.argv if args is None else args)
-    opts = _parser().parse_args(remove_ros_args(argv)[1:])
+class AnsweringNode(Protocol):
+    """What :func:`serve` runs: a node that answers states and counts its answers."""
+
+    answers: int
+    skipped: int
+    done: bool
+
+    def flush(self, timeout: float = 2.0) -> bool:
+        """Wait until every answer is acknowledged."""
+
+
+def serve(argv: list[str], parser: argparse.ArgumentParser,
+          make_node: Callable[[int], Any]) -> int:
+    """Run a controller node until Ctrl-C, SIGTERM or ``--count`` answers; return the code.
+
+    The one ``main`` of the package's controller nodes: ``make_node(count)`` builds the node
+    (an :class:`AnsweringNode`); bad parameters end it with code 2 and one line.
+    """
+    prog = parser.prog
+    opts = parser.parse_args(remove_ros_args(argv)[1:])
     if opts.count < 0:
-        print(f'{NODE_NAME}: --count must be >= 0, got {opts.count}', file=sys.stderr)
+        print(f'{prog}: --count must be >= 0, got {opts.count}', file=sys.stderr)
         return 2
     # Ctrl-C and SIGTERM only ask the loop to stop. rclpy's own handlers would shut the context
     # down at once, in the middle of a callback that is still publishing (a FATAL log and a
@@ -258,12 +276,12 @@ def main(args: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGINT, request_stop)
     signal.signal(signal.SIGTERM, request_stop)
-    node: PDControllerNode | None = None
+    node: Any = None
     executor: Executor | None = None
     code = 0
     try:
         executor = make_executor(opts.executor)
-        node = PDControllerNode(count=opts.count)
+        node = make_node(opts.count)
         executor.add_node(node)
         # spin_once in a loop: the EventsExecutor's spin() would not return to Python, and the
         # stop flag and --count are checked between callbacks.
@@ -277,15 +295,21 @@ def main(args: list[str] | None = None) -> int:
             InvalidParameterTypeException) as exc:
         hint = ' (write doubles with a decimal point, e.g. 4.0)' if isinstance(
             exc, InvalidParameterTypeException) else ''
-        print(f'{NODE_NAME}: {exc}{hint}', file=sys.stderr)
+        print(f'{prog}: {exc}{hint}', file=sys.stderr)
         code = 2
     finally:
         if node is not None:
-            print(f'{NODE_NAME}: answered {node.answers} states, skipped {node.skipped}',
+            print(f'{prog}: answered {node.answers} states, skipped {node.skipped}',
                   file=sys.stderr, flush=True)
         release(executor, node)
         shut_down(node, code)
     return code
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the controller until Ctrl-C, SIGTERM or ``--count`` answers; return the exit code."""
+    return serve(list(sys.argv if args is None else args), _parser(),
+                 lambda count: PDControllerNode(count=count))
 
 
 def entry() -> NoReturn:

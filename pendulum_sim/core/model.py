@@ -241,6 +241,15 @@ def _eigs(d: float, c: float) -> tuple[complex, complex]:
     return complex(-d / 2.0, s / 2.0), complex(-d / 2.0, -s / 2.0)
 
 
+def wrap_pi(x: Any) -> Any:
+    """Return ``x`` wrapped into ``[−π, π)``: the angle equal to ``x`` modulo 2π (rad).
+
+    Upright is ``φ = π + 2πk``, so ``wrap_pi(φ − π)`` is the angle from upright the short way
+    round (a swing-up's goal box and the balance law read it).
+    """
+    return np.remainder(np.add(x, math.pi), 2.0 * math.pi) - math.pi
+
+
 def energy(params: PendulumParams, phi: Any, dphi: Any) -> Any:
     """Return the mechanical energy E = ½ I φ'² + m g l (1 − cos φ) in J (eq 23)."""
     return kinetic_energy(params, dphi) + potential_energy(params, phi)

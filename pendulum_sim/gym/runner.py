@@ -35,7 +35,8 @@ MAX_SEED = 2**63 - 1
 
 def check(config: JointConfig) -> None:
     """Refuse a joint configuration the environments cannot step (``batchable_config``'s why)."""
-    why = batchable_config(config)
+    why = batchable_config(config) or (   # a pulse's time would start again at each reset
+        'a disturbance pulse is set' if config.has_disturbance else '')
     if why:
         raise GymError(f'the environment steps the joint of effort commands with an ideal '
                        f'sensor and an explicit method; this scene cannot: {why}')

@@ -14,12 +14,15 @@ transport does:
   every step (a drive's or torque sensor's bias, as a driven fit finds it: the model's
   ``τ_off``), commanded or not; like the disturbance below it is not in the effort published,
   and its work counts as input in the energy balance;
-- the disturbance: a torque pulse ``disturbance.torque`` added to the actuator's torque in the
-  steps ``k`` with ``round(start / h) <= k < round(start / h) + round(duration / h)`` (step
-  ``k`` runs from ``k h`` to ``(k + 1) h`` of simulated time since the start, which goes on
-  through resets). It is an external torque: the effort published is the actuator's torque
-  alone (what a joint's torque sensor reports), while the energy balance counts the pulse's
-  work as input work (the core integrates the sum);
+- the disturbance: torque pulses added to the actuator's torque, each acting in the steps
+  ``k`` with ``round(start / h) <= k < round(start / h) + round(duration / h)`` (step ``k``
+  runs from ``k h`` to ``(k + 1) h`` of simulated time since the start, which goes on through
+  resets); where pulses overlap their torques add. The pulses are ``disturbance.pulses``
+  (``'torque start duration; ...'``, :func:`parse_pulses`) and the single pulse of
+  ``disturbance.torque``, ``disturbance.start`` and ``disturbance.duration``. It is an
+  external torque: the effort published is the actuator's torque alone (what a joint's torque
+  sensor reports), while the energy balance counts the pulses' work as input work (the core
+  integrates the sum);
 - the stamp grid: step ``k`` is stamped ``epoch + k h``; the step count never goes back, not even
   at a reset, so simulated time (and ``/clock``) is monotonic;
 - the values to publish: the measured joint state and the energy terms of the true state.
@@ -31,6 +34,7 @@ Nothing here imports rclpy.
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections import deque
 from collections.abc import Mapping
@@ -76,6 +80,53 @@ def timeout_steps(seconds: float, h: float) -> int:
     return max(1, steps) if seconds > 0.0 else 0
 
 
+MAX_PULSES = 1000
+
+
+class Pulse(NamedTuple):
+    """A disturbance torque pulse: ``torque`` N m in the steps ``start <= k < start + steps``."""
+
+    torque: float
+    start_step: int
+    steps: int
+
+
+def parse_pulses(text: str, h: float) -> tuple[Pulse, ...]:
+    """Return the pulses of ``disturbance.pulses``: ``'torque start duration; ...'``.
+
+    Each pulse is three numbers, the torque (N m, finite) and its start and duration (s of
+    simulated time, finite and >= 0, rounded to whole steps of ``h`` by :func:`steps_of`),
+    separated by spaces or commas; pulses are separated by ``;``. ``''`` is no pulse.
+
+    Raises
+    ------
+    JointError
+        If a pulse is not three such numbers, or there are more than :data:`MAX_PULSES`.
+    """
+    parts = [p for p in text.split(';') if p.strip()]
+    if len(parts) > MAX_PULSES:
+        raise JointError(f'disturbance.pulses holds {len(parts)} pulses; at most {MAX_PULSES}')
+    pulses = []
+    for i, part in enumerate(parts, start=1):
+        fields = part.replace(',', ' ').split()
+        try:
+            torque, start, duration = (float(f) for f in fields)
+        except ValueError:
+            raise JointError(f"disturbance.pulses: pulse {i} must be three numbers 'torque "
+                             f"start duration' (N m, s, s), got {part.strip()!r}") from None
+        if not math.isfinite(torque):
+            raise JointError(f'disturbance.pulses: pulse {i} torque must be a finite number of '
+                             f'N m, got {torque}')
+        pulses.append(Pulse(torque, steps_of(f'disturbance.pulses: pulse {i} start', start, h),
+                            steps_of(f'disturbance.pulses: pulse {i} duration', duration, h)))
+    return tuple(pulses)
+
+
+def pulses_text(pulses: list[tuple[float, float, float]]) -> str:
+    """Return ``disturbance.pulses`` for ``(torque, start, duration)`` triples (N m, s, s)."""
+    return '; '.join(' '.join(repr(float(v)) for v in p) for p in pulses)
+
+
 @dataclass(frozen=True)
 class JointConfig:
     """Everything the joint needs, fixed for its lifetime (live changes make a new one)."""
@@ -105,6 +156,7 @@ class JointConfig:
     disturbance_start_step: int = 0
     disturbance_steps: int = 0
     effort_offset: float = 0.0
+    pulses: tuple[Pulse, ...] = ()
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.effort_offset):
@@ -166,6 +218,8 @@ class JointConfig:
             disturbance_steps=steps_of('disturbance.duration', num('disturbance.duration'), h)
             if 'disturbance.duration' in values else 0,
             effort_offset=num('effort_offset') if 'effort_offset' in values else 0.0,
+            pulses=parse_pulses(str(values['disturbance.pulses']), h)
+            if 'disturbance.pulses' in values else (),
         )
 
     @property
@@ -173,21 +227,29 @@ class JointConfig:
         """Return True when the position command is limited."""
         return math.isfinite(self.position_min) or math.isfinite(self.position_max)
 
+    @functools.cached_property
+    def all_pulses(self) -> tuple[Pulse, ...]:
+        """Return the pulses that act: ``disturbance.torque``'s, then ``disturbance.pulses``."""
+        single = Pulse(self.disturbance_torque, self.disturbance_start_step,
+                       self.disturbance_steps)
+        return tuple(p for p in (single, *self.pulses) if p.torque != 0.0 and p.steps > 0)
+
     @property
     def has_disturbance(self) -> bool:
         """Return True when a disturbance pulse acts in some step (a torque for >= 1 step)."""
-        return self.disturbance_torque != 0.0 and self.disturbance_steps > 0
+        return bool(self.all_pulses)
 
     def disturbance_at(self, step: int) -> float:
         """Return the disturbance torque in step ``step`` (from ``step h`` to ``(step + 1) h``).
 
-        The one rule of the pulse: ``disturbance.torque`` in the steps ``k`` with
-        ``start_step <= k < start_step + steps``, 0 in every other step.
+        The one rule of the pulses: each pulse's torque in the steps ``k`` with
+        ``start_step <= k < start_step + steps``, summed over the pulses (0 where none acts).
         """
-        start = self.disturbance_start_step
-        if start <= step < start + self.disturbance_steps:
-            return self.disturbance_torque
-        return 0.0
+        total = 0.0
+        for pulse in self.all_pulses:
+            if pulse.start_step <= step < pulse.start_step + pulse.steps:
+                total += pulse.torque
+        return total
 
 
 class Sample(NamedTuple):

@@ -6,8 +6,11 @@ Gymnasium vector environments (:mod:`pendulum_sim.gym`): each caller asks its co
 the N commands of a period, :meth:`Lockstep.advance` applies them.
 
 Each joint is a :class:`~pendulum_sim.joint.joint.SimulatedJoint` of the common path
-(:func:`batchable_config`: effort commands, an ideal sensor, no delays, disturbance or effort
-offset, an explicit method the sweep has). A period saturates each command at the joint's
+(:func:`batchable_config`: effort commands, an ideal sensor, no delays or effort offset,
+disturbance pulses on control-period boundaries, an explicit method the sweep has). A
+disturbance acts on the pendulum as the joint applies it: each period's torque
+(``JointConfig.disturbance_at`` at the period's first step, counted from the joint's start)
+is added to the command's, and is not in the effort. A period saturates each command at the joint's
 ``max_effort`` as :meth:`SimulatedJoint.command` does and advances the pendulums together
 through one prepared :class:`pendulum_sim.core.sweep.Sweep` (the Stepper's numerics on
 arrays: the same decisions, the same results to round-off), prepared again only when the set
@@ -45,9 +48,11 @@ def batchable_config(c: JointConfig) -> str:
     """Return why the joint configuration ``c`` cannot be stepped in a lockstep ('' if it can).
 
     The lockstep's one rule: effort commands, an ideal sensor, no command or sensor delay, a
-    command timeout longer than a period, no disturbance pulse, no effort offset, an explicit
-    method the sweep has. The test bench runs the other episodes one by one on the scalar
-    joint; the Gymnasium environments refuse the other scenes with this reason.
+    command timeout longer than a period, disturbance pulses (if any) that start and end on
+    control-period boundaries (so each period's disturbance is one torque), no effort offset,
+    an explicit method the sweep has. The test bench runs the other episodes one by one on the
+    scalar joint; the Gymnasium environments refuse the other scenes with this reason (and
+    scenes with a pulse: an environment's reset starts its time again).
 
     Returns
     -------
@@ -62,7 +67,9 @@ def batchable_config(c: JointConfig) -> str:
          'the sensor is not ideal'),
         (c.timeout_steps == 0 or c.timeout_steps > c.period_steps,
          'command_timeout is shorter than a period'),
-        (not c.has_disturbance, 'a disturbance pulse is set'),
+        (all(p.start_step % c.period_steps == 0 and p.steps % c.period_steps == 0
+             for p in c.all_pulses),
+         'a disturbance pulse starts or ends inside a control period'),
         (c.effort_offset == 0.0, 'effort_offset is not 0'),
         (c.method in SWEEP_METHODS, f'integrator {c.method} is not one of '
          f'{", ".join(SWEEP_METHODS)}'),
@@ -146,6 +153,8 @@ class Lockstep:
         self._sweep: Any = None
         self._swept = np.empty(0, dtype=np.int64)
         self._joints: dict[int, SimulatedJoint] = {}   # joints taken by a SimulatedJoint
+        self._periods = np.zeros(size, dtype=np.int64)   # periods since each joint's start
+        self._pushed: set[int] = set()   # joints with a disturbance pulse
         self.stats = LockstepStats()
 
     @property
@@ -183,6 +192,11 @@ class Lockstep:
         for j in ids.tolist():
             self.configs[j] = config
             self._joints.pop(j, None)
+            if config.has_disturbance:
+                self._pushed.add(j)
+            else:
+                self._pushed.discard(j)
+        self._periods[ids] = 0
         self.phi[ids] = config.phi0 if phi0 is None else phi0
         self.vel[ids] = config.dphi0 if dphi0 is None else dphi0
         self.effort[ids] = 0.0
@@ -202,6 +216,7 @@ class Lockstep:
         for j in ids.tolist():
             self.configs[j] = None
             self._joints.pop(j, None)
+            self._pushed.discard(j)
 
     def advance(self, command: FloatArray, live: IntArray) -> dict[int, str]:
         """Take one control period of the joints ``live`` under ``command`` (N m, one each).
@@ -215,7 +230,7 @@ class Lockstep:
         alone = live[risky]
         swept = live[~risky]
         if swept.size:
-            ain = tau[~risky] * self._inv_i[swept]
+            ain = (tau[~risky] + self._push(swept, k)) * self._inv_i[swept]
             try:
                 if self._sweep is None or not np.array_equal(swept, self._swept):
                     self._sweep = Sweep(self._om2[swept], self._gam[swept], self._n[swept],
@@ -242,6 +257,7 @@ class Lockstep:
                 if not fine.all():   # the joint says what became of them
                     self._sweep = None
                     alone = np.sort(np.concatenate([alone, swept[~fine]]))
+        self._periods[live] += 1
         failed: dict[int, str] = {}
         if alone.size:
             self._sweep = None   # these states change outside the prepared sweep
@@ -252,15 +268,35 @@ class Lockstep:
                     failed[j] = reason
         return failed
 
+    def _push(self, ids: IntArray, k: int) -> FloatArray | float:
+        """Return the disturbance torque of the joints ``ids`` in their current period (N m)."""
+        if not self._pushed:
+            return 0.0
+        push = np.zeros(ids.size)
+        for n, j in enumerate(ids.tolist()):
+            if j in self._pushed:
+                c = self.configs[j]
+                assert c is not None
+                push[n] = c.disturbance_at(int(self._periods[j]) * k)
+        return push
+
     def _by_joint(self, j: int, command: float) -> str | None:
-        """Take joint ``j``'s period in a SimulatedJoint from its state; its failure or None."""
+        """Take joint ``j``'s period in a SimulatedJoint from its state; its failure or None.
+
+        The joint starts at the state reached, its pulses moved back by the steps already
+        taken (the SimulatedJoint counts its steps from its own start).
+        """
         joint = self._joints.get(j)
         if joint is None:
             c = self.configs[j]
             assert c is not None
+            taken = int(self._periods[j] - 1) * c.period_steps   # this period is counted
             try:
-                joint = SimulatedJoint(dataclasses.replace(c, phi0=float(self.phi[j]),
-                                                           dphi0=float(self.vel[j])))
+                joint = SimulatedJoint(dataclasses.replace(
+                    c, phi0=float(self.phi[j]), dphi0=float(self.vel[j]),
+                    disturbance_start_step=c.disturbance_start_step - taken,
+                    pulses=tuple(p._replace(start_step=p.start_step - taken)
+                                 for p in c.pulses)))
             except JointError as exc:
                 return str(exc)
             self._joints[j] = joint

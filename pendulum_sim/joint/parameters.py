@@ -162,6 +162,11 @@ SPECS: tuple[Spec, ...] = (
     Spec('disturbance.duration', 0.0, 'Duration of the disturbance pulse in s, rounded to steps '
          'of h: it acts in the steps k with round(start/h) <= k < round(start/h) + '
          'round(duration/h) (0 = no pulse). Live.', low=0.0, high=1e9, unit='s'),
+    Spec('disturbance.pulses', '', "More torque pulses, 'torque start duration; ...' (N m, s, s "
+         'of simulated time since the node started, rounded to steps of h as the single '
+         "pulse's), e.g. '0.5 1.0 0.2; -0.3 4.0 1.0'; they add to the single pulse and to each "
+         "other where they overlap ('' = none). Live.",
+         constraints="'' or 'torque start duration' triples separated by ';'"),
     # Feature switches.
     Spec('publish_energy', True, 'Publish the energy (J, true state) on energy. ' + SWITCH,
          read_only=True),

@@ -1,13 +1,16 @@
 """``pendulum_report <what> --out DIR [--quick] [--force]``: thin plumbing over ``report.py``.
 
 ``pendulum_report closed-loop RUN.mcap --out DIR [--target RAD]`` reports one closed-loop run
-(``closed_loop.py``).
+(``closed_loop.py``); ``pendulum_report animate RECORDING.mcap --out run.gif [--goal RAD]
+[--fps N] [--size PIXELS]`` draws a recorded run as an animated GIF with the frames the
+Gymnasium environments render (the angle, the torque bar, the goal ray).
 """
 from __future__ import annotations
 
 import argparse
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from pendulum_sim.arguments import positive_int
 
@@ -21,7 +24,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog='pendulum_report',
         description='Work-precision, stability and paper-figure reports for pendulum_sim. '
                     'Writes summary.md, CSV tables and PNG figures into --out. '
-                    '(pendulum_report closed-loop RUN.mcap --out DIR: one closed-loop run.)')
+                    '(pendulum_report closed-loop RUN.mcap --out DIR: one closed-loop run; '
+                    'pendulum_report animate RECORDING.mcap --out run.gif: its animation.)')
     parser.add_argument('what', choices=WHATS,
                         help='which report: work-precision, stability, paper, or all')
     parser.add_argument('--out', required=True, metavar='DIR',
@@ -71,11 +75,60 @@ def closed_loop_main(argv: Sequence[str]) -> int:
     return 0
 
 
+def build_animate_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``pendulum_report animate``."""
+    parser = argparse.ArgumentParser(
+        prog='pendulum_report animate',
+        description='Draw a recorded closed-loop run as an animated GIF, in real time: the '
+                    'pendulum at each measured angle, the torque bar and the goal ray.')
+    parser.add_argument('mcap', metavar='RECORDING.mcap', help='the recorded run')
+    parser.add_argument('--out', required=True, metavar='FILE.gif', help='the GIF to write')
+    parser.add_argument('--goal', type=float, default=None, metavar='RAD',
+                        help="the angle drawn as the goal ray (default: the recording's "
+                        'target, none without one)')
+    parser.add_argument('--fps', type=positive_int, default=25, metavar='N',
+                        help='frames per second of simulated time (default 25)')
+    parser.add_argument('--size', type=positive_int, default=200, metavar='PIXELS',
+                        help='frame width and height (default 200, at least 32)')
+    parser.add_argument('--force', action='store_true', help='replace an existing FILE.gif')
+    return parser
+
+
+def animate_main(argv: Sequence[str]) -> int:
+    """Run ``pendulum_report animate``; return the exit status."""
+    from pendulum_sim.testing.errors import TestingError
+    from pendulum_sim.testing.record import load_run
+    from pendulum_sim.testing.swing_up.animation import write_gif
+
+    args = build_animate_parser().parse_args(argv)
+    out = Path(args.out)
+    try:
+        if out.suffix.lower() != '.gif':
+            raise TestingError(f"--out must name a .gif file, got '{out}'")
+        if out.exists() and not args.force:
+            raise TestingError(f"--out '{out}' exists; --force replaces it")
+        if not out.parent.is_dir():
+            raise TestingError(f"--out: the folder '{out.parent}' does not exist")
+        if args.size < 32:
+            raise TestingError(f'--size must be at least 32 pixels, got {args.size}')
+        run = load_run(args.mcap)
+        if run.t.size == 0:
+            raise TestingError(f'{args.mcap} holds no answered state to draw')
+        write_gif(run, out, goal=args.goal, fps=float(args.fps), size=args.size)
+    except TestingError as exc:
+        print(f'pendulum_report animate: error: {str(exc).splitlines()[0]}', file=sys.stderr)
+        return 2
+    print(f'wrote {out} ({run.t[-1] - run.t[0]:.3f} s of the run)', file=sys.stderr)
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status."""
     args_in = list(sys.argv[1:] if argv is None else argv)
     if args_in[:1] == ['closed-loop']:
         return closed_loop_main(args_in[1:])
+    if args_in[:1] == ['animate']:
+        return animate_main(args_in[1:])
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

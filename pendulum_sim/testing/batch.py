@@ -14,13 +14,13 @@ for that period.
 The episodes of one lockstep share h, the control period, the integrator, the guard and the
 start time; a batch of several such groups runs one lockstep for each. An episode off the
 lockstep's common path (``batchable_config``: effort commands, an ideal sensor, no command or
-sensor delay, a command timeout longer than a period, no disturbance or effort offset, an
-explicit method the sweep has), and one the batch cannot follow exactly (a law that raises,
-where the batch cannot tell whose state it was; a joint that stops, whose reason names its
-time), is run by the scalar joint alone, which decides for it. :class:`BatchStats` says which
-episodes ran which way, and why. The scalar path stays the one implementation of every rule;
-the batch is a faster driver of the same one, and ``test/testing/test_testing_batch.py`` holds
-them to each other.
+sensor delay, a command timeout longer than a period, disturbance pulses on control-period
+boundaries only, no effort offset, an explicit method the sweep has), and one the batch cannot
+follow exactly (a law that raises, where the batch cannot tell whose state it was; a joint that
+stops, whose reason names its time), is run by the scalar joint alone, which decides for it.
+:class:`BatchStats` says which episodes ran which way, and why. The scalar path stays the one
+implementation of every rule; the batch is a faster driver of the same one, and
+``test/testing/test_testing_batch.py`` holds them to each other.
 """
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ def batchable(values: Mapping[str, Value]) -> str:
     return batchable_config(joint_config(values, epoch_ns(values)))
 
 
-def _scalar(law: BatchLaw, target: float | None) -> Callable[[float, float, float], float]:
+def scalar_law(law: BatchLaw, target: float | None) -> Callable[[float, float, float], float]:
     """Return the batched law as a scalar one (one-element arrays in, the element out)."""
     extra = {} if target is None else {'target': np.array([target])}
 
@@ -124,7 +124,7 @@ def run_batch(law: BatchLaw, episodes: Sequence[Mapping[str, Value]], periods: i
     for i in sorted(alone):
         try:
             results[i] = run_in_process(
-                _scalar(law, None if given is None else float(given[i])), episodes[i], periods)
+                scalar_law(law, None if given is None else float(given[i])), episodes[i], periods)
         except TestingError as exc:
             results[i] = exc
     return [r if r is not None else TestingError('not run') for r in results]
@@ -224,4 +224,4 @@ def _lockstep(law: BatchLaw, configs: list[JointConfig], values: list[Mapping[st
 
 
 __all__ = ['BatchLaw', 'BatchStats', 'batchable', 'batchable_config', 'run_batch',
-           'warm_up_batch']
+           'scalar_law', 'warm_up_batch']

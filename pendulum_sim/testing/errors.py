@@ -27,3 +27,10 @@ class CampaignError(TestingError):
     """A campaign file is unusable (unknown parameter, impossible distribution, ...)."""
 
     __test__ = False
+
+
+class BenchmarkError(CampaignError):
+    """A benchmark cannot be run as asked (unknown criterion, a goal box or torque limit of
+    zero, an output folder in use, ...)."""
+
+    __test__ = False

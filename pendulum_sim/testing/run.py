@@ -8,9 +8,10 @@ reads a run imports it from here, below the loop.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,6 +19,7 @@ from numpy.typing import NDArray
 from .errors import TestingError
 from .metrics import StepMetrics, step_metrics, step_metrics_batch
 from .scene import Value, finite_limit
+from .swing_up.metrics import BOX, GOAL, SwingUpMetrics, swing_up_metrics, swing_up_metrics_batch
 
 FloatArray = NDArray[np.float64]
 
@@ -89,6 +91,16 @@ class ClosedLoopRun:
         self._given[:] = [chosen]   # measured: a target the run can be drawn towards
         return measured
 
+    def swing_up_metrics(self, goal: float = GOAL,
+                         box: Sequence[float] = BOX) -> SwingUpMetrics:
+        """Return the swing-up metrics of the run towards ``goal`` (rad; π is upright).
+
+        ``box`` is the goal box's angle (rad) and rate (rad/s) half-widths;
+        ``saturation_fraction`` counts the samples at the run's torque limit.
+        """
+        return swing_up_metrics(self.t, self.position, self.velocity, self.effort, goal=goal,
+                                box=box, effort_limit=finite_limit(self.parameters))
+
     def plot(self, path: str | Path, *, target: float | None = None) -> Path:
         """Draw the run's figure (angle, velocity, effort; settling band and time) to ``path``.
 
@@ -108,15 +120,16 @@ class ClosedLoopRun:
                              dict(self.parameters), self.failed, float(target))
 
 
-def runs_metrics(runs: Sequence[ClosedLoopRun],
-                 targets: Sequence[float]) -> list[StepMetrics | TestingError]:
-    """Return ``run.metrics(target)`` of each run, or the TestingError it raises.
+M = TypeVar('M')
 
-    The same numbers, computed together
-    (:func:`~pendulum_sim.testing.metrics.step_metrics_batch`) for the runs that share their
-    sample times, as a batch's runs do, :data:`BLOCK` at a time; any other run alone.
-    """
-    out: list[StepMetrics | TestingError | None] = [None] * len(runs)
+
+def _measure_runs(runs: Sequence[ClosedLoopRun], alone: Callable[[int], M],
+                  together: Callable[[FloatArray, list[int]], list[M | TestingError]]
+                  ) -> list[M | TestingError]:
+    """Return ``alone(i)`` (or the TestingError it raises) of each run, computed by
+    ``together(t, block)`` for blocks of up to :data:`BLOCK` runs that share their sample
+    times, as a batch's runs do; any other run alone."""
+    out: list[M | TestingError | None] = [None] * len(runs)
     groups: dict[int, list[int]] = {}
     times: dict[int, FloatArray] = {}
     for i, run in enumerate(runs):
@@ -128,21 +141,53 @@ def runs_metrics(runs: Sequence[ClosedLoopRun],
             groups.setdefault(size, []).append(i)
             continue
         try:
-            out[i] = run.metrics(targets[i])
+            out[i] = alone(i)
         except TestingError as exc:
             out[i] = exc
     for size, members in groups.items():
         for a in range(0, len(members), BLOCK):
             block = members[a:a + BLOCK]
-            position = np.stack([runs[i].position for i in block])
-            got = step_metrics_batch(
-                times[size], position, [float(targets[i]) for i in block],
-                initial=position[:, 0], effort=np.stack([runs[i].effort for i in block]),
-                effort_limit=[finite_limit(runs[i].parameters) for i in block])
-            for i, m in zip(block, got, strict=True):
+            for i, m in zip(block, together(times[size], block), strict=True):
                 out[i] = m
-    measured: list[StepMetrics | TestingError] = []
+    measured: list[M | TestingError] = []
     for each in out:
         assert each is not None  # every run is measured above, alone or in its block
         measured.append(each)
     return measured
+
+
+def runs_metrics(runs: Sequence[ClosedLoopRun],
+                 targets: Sequence[float]) -> list[StepMetrics | TestingError]:
+    """Return ``run.metrics(target)`` of each run, or the TestingError it raises.
+
+    The same numbers, computed together
+    (:func:`~pendulum_sim.testing.metrics.step_metrics_batch`) for the runs that share their
+    sample times, as a batch's runs do, :data:`BLOCK` at a time; any other run alone.
+    """
+    def together(t: FloatArray, block: list[int]) -> list[StepMetrics | TestingError]:
+        position = np.stack([runs[i].position for i in block])
+        return step_metrics_batch(
+            t, position, [float(targets[i]) for i in block],
+            initial=position[:, 0], effort=np.stack([runs[i].effort for i in block]),
+            effort_limit=[finite_limit(runs[i].parameters) for i in block])
+
+    return _measure_runs(runs, lambda i: runs[i].metrics(targets[i]), together)
+
+
+def runs_swing_up_metrics(runs: Sequence[ClosedLoopRun], goals: Sequence[float],
+                          box: Sequence[float] = BOX) -> list[SwingUpMetrics | TestingError]:
+    """Return ``run.swing_up_metrics(goal, box)`` of each run, or the TestingError it raises.
+
+    The same numbers, computed together
+    (:func:`~pendulum_sim.testing.swing_up.metrics.swing_up_metrics_batch`) for the runs that
+    share their sample times, :data:`BLOCK` at a time; any other run alone.
+    """
+    def together(t: FloatArray, block: list[int]) -> list[SwingUpMetrics | TestingError]:
+        return swing_up_metrics_batch(
+            t, np.stack([runs[i].position for i in block]),
+            np.stack([runs[i].velocity for i in block]),
+            np.stack([runs[i].effort for i in block]),
+            goal=[float(goals[i]) for i in block], box=box,
+            effort_limit=[finite_limit(runs[i].parameters) for i in block])
+
+    return _measure_runs(runs, lambda i: runs[i].swing_up_metrics(goals[i], box), together)

@@ -17,10 +17,17 @@ import pytest
 
 from pendulum_sim.core import PendulumParams
 from pendulum_sim.joint.errors import JointError
-from pendulum_sim.joint.joint import JointConfig, SimulatedJoint
+from pendulum_sim.joint.joint import (
+    MAX_PULSES,
+    JointConfig,
+    Pulse,
+    SimulatedJoint,
+    parse_pulses,
+    pulses_text,
+)
 from pendulum_sim.joint.parameters import SPEC_BY_NAME, SPECS, check, joint_config
 from pendulum_sim.testing import TestingError, closed_loop
-from pendulum_sim.testing.batch import batchable, run_batch
+from pendulum_sim.testing.batch import BatchStats, batchable, run_batch
 from pendulum_sim.testing.campaign.episode import RUN_COLUMNS, run_episode
 from pendulum_sim.testing.campaign.spec import parse_spec
 from pendulum_sim.testing.examples import pd, pd_batch
@@ -128,6 +135,43 @@ def test_bad_values_are_refused_with_the_value_and_the_rule() -> None:
         scene_values('controller_test', {'disturbance.duration': math.nan})
 
 
+def test_several_pulses_add_their_torque_times_duration_to_the_momentum() -> None:
+    """The free rotor's momentum after the pulses is the sum of T D, overlapping or not."""
+    pulses = parse_pulses('0.3 0.1 0.25; -0.5, 0.2, 0.05;  0.2 0.6 0.1', H)
+    assert pulses == (Pulse(0.3, 100, 250), Pulse(-0.5, 200, 50), Pulse(0.2, 600, 100))
+    j = rotor(0.1, 0, 20, pulses=pulses)   # the single pulse's key still acts beside them
+    assert [j.config.disturbance_at(k) for k in (0, 19, 20, 100, 199, 200, 249, 250, 349,
+                                                 350, 600, 699, 700)] == [
+        0.1, 0.1, 0.0, 0.3, 0.3, 0.3 - 0.5, 0.3 - 0.5, 0.3, 0.3, 0.0, 0.2, 0.2, 0.0]
+    free = rotor()
+    j.advance(800)
+    free.advance(800)
+    jump = ROTOR.inertia * (j.stepper.dphi - free.stepper.dphi)
+    assert jump == pytest.approx(0.1 * 0.02 + 0.3 * 0.25 - 0.5 * 0.05 + 0.2 * 0.1, abs=1e-13)
+
+
+def test_the_pulses_parameter_is_read_from_a_scene_and_refused_with_the_reason() -> None:
+    values = {s.name: s.default for s in SPECS}
+    values['disturbance.pulses'] = '1.0 0.5 0.1; 2.0 1.0 0.0'   # the second has no step
+    c = joint_config(values)
+    assert c.all_pulses == (Pulse(1.0, 500, 100),) and c.has_disturbance
+    assert pulses_text([(1.0, 0.5, 0.1), (-2.0, 1.0, 0.25)]) == '1.0 0.5 0.1; -2.0 1.0 0.25'
+    for text, reason in [
+            ('1.0 0.5', "disturbance.pulses: pulse 1 must be three numbers 'torque start "
+             "duration' (N m, s, s), got '1.0 0.5'"),
+            ('1 0 1; x 0 1', "disturbance.pulses: pulse 2 must be three numbers 'torque start "
+             "duration' (N m, s, s), got 'x 0 1'"),
+            ('inf 0 1', 'disturbance.pulses: pulse 1 torque must be a finite number of N m, '
+             'got inf'),
+            ('1 -0.5 1', 'disturbance.pulses: pulse 1 start must be a finite number of '
+             'seconds >= 0, got -0.5')]:
+        values['disturbance.pulses'] = text
+        assert check(values) == reason
+    values['disturbance.pulses'] = '; '.join(['1 0 1'] * (MAX_PULSES + 1))
+    assert check(values) == f'disturbance.pulses holds {MAX_PULSES + 1} pulses; at most ' \
+        f'{MAX_PULSES}'
+
+
 def test_a_live_change_moves_the_window_from_the_next_step() -> None:
     j = rotor()
     j.advance(50)
@@ -169,13 +213,29 @@ def test_a_closed_loop_run_shows_the_pulse_in_its_trajectory_and_metrics() -> No
     assert hit.effort[~before].min() < calm.effort[~before].min() - 0.1
 
 
-def test_a_batch_leaves_the_pulse_to_the_scalar_joint_and_agrees_with_it() -> None:
-    values = scene_values('controller_test', PULSE)
-    assert batchable(values) == 'a disturbance pulse is set'
+def test_a_batch_leaves_a_pulse_inside_a_period_to_the_scalar_joint_and_agrees_with_it(
+        ) -> None:
+    inside = {**PULSE, 'disturbance.start': 3.005}   # half a 10 ms period in
+    values = scene_values('controller_test', inside)
+    assert batchable(values) == 'a disturbance pulse starts or ends inside a control period'
     [batched] = run_batch(pd_batch, [values], 400)
-    scalar = closed_loop(pd_batch_scalar, periods=400, overrides=PULSE)
+    scalar = closed_loop(pd_batch_scalar, periods=400, overrides=inside)
     assert not isinstance(batched, TestingError)
     assert np.array_equal(batched.position, scalar.position)
+
+
+def test_a_batch_steps_pulses_on_period_boundaries_as_the_joint_does() -> None:
+    """Pulses that start and end on control periods are the period's extra torque."""
+    several = {**PULSE, 'disturbance.pulses': '-1.0 0.5 0.3; 0.7 0.6 1.0'}   # overlapping
+    values = scene_values('controller_test', several)
+    assert batchable(values) == ''
+    calm = scene_values('controller_test')
+    batched, unpushed = run_batch(pd_batch, [values, calm], 400)
+    scalar = closed_loop(pd_batch_scalar, periods=400, overrides=several)
+    assert not isinstance(batched, TestingError) and not isinstance(unpushed, TestingError)
+    for name in ('position', 'velocity', 'effort', 'command'):
+        assert np.array_equal(getattr(batched, name), getattr(scalar, name)), name
+    assert not np.array_equal(batched.position, unpushed.position)
 
 
 def pd_batch_scalar(t: float, position: float, velocity: float) -> float:
@@ -228,3 +288,30 @@ def test_the_node_takes_the_pulse_and_records_the_same_trajectory_as_the_joint(
     after = remote.t > 3.0 + 1e-9
     assert np.abs(remote.position[after] - calm.position[after]).max() > 0.01
     assert (tmp_path / 'pulse.mcap').stat().st_size > 0
+
+
+def test_the_gym_environments_still_refuse_a_pulse() -> None:
+    """The batch steps pulses on period boundaries; the environments do not step pulses."""
+    from pendulum_sim.gym.errors import GymError
+    from pendulum_sim.gym.runner import check as gym_check
+
+    values = scene_values('controller_test', PULSE)
+    assert batchable(values) == ''
+    with pytest.raises(GymError, match=r'this scene cannot: a disturbance pulse is set$'):
+        gym_check(joint_config(values))
+
+
+def test_a_pushed_joint_near_its_speed_bound_keeps_the_pulses_time() -> None:
+    """Near its speed bound the lockstep hands a joint to a SimulatedJoint started from its
+    state: its pulses move back by the steps taken, so they act when the joint's do."""
+    # The PD settles by 3 s; a push from 4 s drives the joint to its speed bound, where the
+    # joint takes its periods, the push still acting.
+    several = {'disturbance.pulses': '-0.5 0.5 0.3; 3.0 4.0 0.5', 'max_velocity': 1.0}
+    values = scene_values('controller_test', several)
+    stats = BatchStats()
+    [batched] = run_batch(pd_batch, [values], 500, stats=stats)
+    scalar = closed_loop(pd_batch_scalar, periods=500, overrides=several)
+    assert not isinstance(batched, TestingError)
+    assert stats.lockstep == 1 and stats.periods.by_joint > 0 and stats.periods.swept > 0
+    for name in ('position', 'velocity', 'effort', 'command'):
+        assert np.array_equal(getattr(batched, name), getattr(scalar, name)), name

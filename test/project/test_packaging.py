@@ -22,9 +22,10 @@ def test_wheel_installs_the_ament_marker_package_xml_scenes_and_executables(
     assert {p.name for p in (ROOT / 'config').glob('*.yaml')} | {'fastdds_localhost.xml'} == scenes
     assert 'pendulum_sim/py.typed' in names
     assert 'pendulum_sim/foxglove_layout.json' in names   # the Foxglove layout
+    assert 'pendulum_sim/testing/swing_up/references.yaml' in names   # benchmark.png's bars
     entry = zipfile.ZipFile(wheel).read('pendulum_sim-0.1.0.dist-info/entry_points.txt').decode()
     for exe in ('pendulum_node', 'pendulum_replay', 'pendulum_report', 'pendulum_demo',
-                'pendulum_pd_controller'):
+                'pendulum_pd_controller', 'pendulum_swing_up_controller', 'pendulum_benchmark'):
         assert f'{exe} = pendulum_sim.' in entry
     # The ROS-free core ships without ROS in its requirements; the Jazzy wheels are an extra.
     meta = zipfile.ZipFile(wheel).read('pendulum_sim-0.1.0.dist-info/METADATA').decode()

@@ -18,17 +18,19 @@ def check_values(spec: CampaignSpec) -> None:
     """Refuse, before any episode runs, a scene or parameter values no episode could run with.
 
     The scene is read, and the node's checks run on episode 0's values and on episode 0 with
-    each entry of a list in its place: what would fail every episode fails here instead,
-    with the reason an episode would give.
+    the lists' entries ``i`` in their places, all lists together as episode ``i`` takes them
+    (lists of one value per episode may belong together, as a body's m, l and inertia do),
+    for the first 100 entries: what would fail every episode fails here instead, with the
+    reason an episode would give.
     """
     try:
         base = scene_base(spec.scene)
         first = episode_scenario(spec, 0).values
         with_overrides(base, first)
-        for name, space in spec.parameters:
-            if isinstance(space, tuple):
-                for value in space[:100]:
-                    with_overrides(base, {**first, name: value})
+        lists = [(name, space) for name, space in spec.parameters if isinstance(space, tuple)]
+        for i in range(1, min(100, max((len(space) for _, space in lists), default=0))):
+            with_overrides(base, {**first, **{name: space[i % len(space)]
+                                              for name, space in lists}})
     except TestingError as exc:
         raise CampaignError(str(exc).splitlines()[0]) from None
 

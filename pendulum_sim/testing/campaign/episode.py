@@ -22,8 +22,10 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ControllerFailed, TestingError
 from ..loop import ClosedLoopRun, closed_loop, run_in_process
-from ..metrics import METRIC_NAMES, StepMetrics
+from ..metrics import StepMetrics
+from ..run import runs_metrics, runs_swing_up_metrics
 from ..scene import Value, read_scene, with_overrides
+from ..swing_up.metrics import SwingUpMetrics
 from ..target import bind_target
 from ..vector import is_vectorised
 from .scenarios import episode_scenario
@@ -69,28 +71,50 @@ def failure_path(out: Path, episode: int) -> Path:
     return out / 'failures' / f'episode-{episode:06d}.mcap'
 
 
-def verdict(spec: CampaignSpec, metrics: StepMetrics | dict[str, float]) -> str:
+Measured = StepMetrics | SwingUpMetrics
+
+
+def verdict(spec: CampaignSpec, metrics: Measured | dict[str, Any]) -> str:
     """Return why the metrics fail the requirements ('' when they meet them all)."""
-    values = metrics.as_dict() if isinstance(metrics, StepMetrics) else metrics
+    values = metrics if isinstance(metrics, dict) else metrics.as_dict()
     reasons = [r.check(values[r.metric]) for r in spec.requirements]
     return '; '.join(r for r in reasons if r)
 
 
+def measure(spec: CampaignSpec, run: ClosedLoopRun, target: float) -> Measured:
+    """Return the metrics of the campaign's task of ``run`` towards ``target``.
+
+    ``step``: ``run.metrics(target)``; ``swing_up``: ``run.swing_up_metrics(target,
+    spec.goal_box)``. Raises the TestingError they raise.
+    """
+    if spec.task == 'swing_up':
+        return run.swing_up_metrics(target, spec.goal_box)
+    return run.metrics(target)
+
+
+def measure_runs(spec: CampaignSpec, runs: list[ClosedLoopRun],
+                 targets: list[float]) -> list[Measured | TestingError]:
+    """Return :func:`measure` of each run, computed together (a batch's runs)."""
+    if spec.task == 'swing_up':
+        return list(runs_swing_up_metrics(runs, targets, spec.goal_box))
+    return list(runs_metrics(runs, targets))
+
+
 def row_of(spec: CampaignSpec, episode: int, values: dict[str, Any], target: float,
            run: ClosedLoopRun | None, reason: str, started: float,
-           measured: StepMetrics | TestingError | None = None) -> dict[str, Any]:
+           measured: Measured | TestingError | None = None) -> dict[str, Any]:
     """Return the table row of an episode (a run of None failed before it had samples).
 
-    The metrics are measured towards the episode's ``target``, over the run up to its fault
-    when ``reason`` says why it stopped early; ``measured`` is ``run.metrics(target)`` (or
-    the TestingError it raises) when the caller has it already (a batch's runs, measured
-    together by :func:`~pendulum_sim.testing.run.runs_metrics`).
+    The metrics of the campaign's task are measured towards the episode's ``target``, over
+    the run up to its fault when ``reason`` says why it stopped early; ``measured`` is
+    :func:`measure` (or the TestingError it raises) when the caller has it already (a batch's
+    runs, measured together by :func:`measure_runs`). A metric not measured is NaN.
     """
-    metrics: dict[str, float] = {name: math.nan for name in METRIC_NAMES}
+    metrics: dict[str, Any] = {name: math.nan for name in spec.metric_names}
     if run is not None:
         if measured is None:
             try:
-                measured = run.metrics(target)
+                measured = measure(spec, run, target)
             except TestingError as exc:
                 measured = exc
         if isinstance(measured, TestingError):
@@ -166,7 +190,7 @@ def run_episode(text: str, episode: int, out: str | None,
         run = failed_run(exc)
         run = None if run is None else run.with_target(drawn.target)
     row = row_of(spec, episode, drawn.values, drawn.target, run, reason, started)
-    _keep_failure(out, row, run)
+    _keep_failure(out if spec.keep_failures else None, row, run)
     return row
 
 
@@ -178,46 +202,79 @@ def run_episodes(text: str, episodes: list[int], out: str | None,
     given, is filled with how the batch ran them (``testing.batch.BatchStats``: in lockstep,
     or one by one on the scalar joint and why).
     """
+    return run_episodes_parts([(text, episodes, out)], stats)[0]
+
+
+Part = tuple[str, list[int], str | None]   # a campaign's text, episodes, output folder
+
+
+def same_batch(spec: CampaignSpec) -> tuple[Any, ...]:
+    """Return what campaigns must share for their episodes to run in one batch: the law, the
+    episode length, the compiled sweep or not."""
+    return (spec.controller, spec.periods, spec.jit)
+
+
+def run_episodes_parts(parts: list[Part], stats: BatchStats | None = None
+                       ) -> list[list[dict[str, Any]]]:
+    """Run the episodes of several campaigns of one vectorised law in one batch; return each
+    campaign's rows.
+
+    The campaigns must agree on :func:`same_batch` (the benchmark's criteria do); each
+    episode is drawn, run and measured by its own campaign's rules, as :func:`run_episodes`
+    runs them alone. ``wall_time_s`` of each row is the batch's time divided by its size;
+    ``stats`` as :func:`run_episodes` says.
+    """
     from ..batch import run_batch, warm_up_batch
-    from ..run import runs_metrics
 
     started = time.perf_counter()
-    spec = cached_spec(text)
-    law = watched(load_controller(str(spec.controller)))
-    drawn = [episode_scenario(spec, i) for i in episodes]
-    params: list[Any] = []
-    for v in (d.values for d in drawn):
-        try:
-            params.append(episode_values(spec, v))
-        except TestingError as exc:
-            params.append(exc)
-    ok = [i for i, p in enumerate(params) if not isinstance(p, TestingError)]
-    results: list[Any] = list(params)
-    if spec.jit and ok:   # compiled (or loaded from the disk cache) before the clock starts
-        warm_up_batch([params[i] for i in ok])
+    specs = [cached_spec(text) for text, _, _ in parts]
+    if len({same_batch(spec) for spec in specs}) != 1:
+        raise TestingError('campaigns of one batch must share their law, periods and jit')
+    first = specs[0]
+    law = watched(load_controller(str(first.controller)))
+    drawn = [[episode_scenario(spec, i) for i in episodes]
+             for spec, (_, episodes, _) in zip(specs, parts, strict=True)]
+    params: list[list[Any]] = []
+    for spec, mine in zip(specs, drawn, strict=True):
+        params.append([])
+        for d in mine:
+            try:
+                params[-1].append(episode_values(spec, d.values))
+            except TestingError as exc:
+                params[-1].append(exc)
+    ok = [(j, i) for j, mine in enumerate(params) for i, p in enumerate(mine)
+          if not isinstance(p, TestingError)]
+    results: list[list[Any]] = [list(mine) for mine in params]
+    if first.jit and ok:   # compiled (or loaded from the disk cache) before the clock starts
+        warm_up_batch([params[j][i] for j, i in ok])
         started = time.perf_counter()
     try:
-        batch = run_batch(law, [params[i] for i in ok], spec.periods,
-                          targets=[drawn[i].target for i in ok], jit=spec.jit, stats=stats)
+        batch = run_batch(law, [params[j][i] for j, i in ok], first.periods,
+                          targets=[drawn[j][i].target for j, i in ok], jit=first.jit,
+                          stats=stats)
     finally:
         loop_done()
-    for i, res in zip(ok, batch, strict=True):
-        results[i] = res
-    runs = [res if isinstance(res, ClosedLoopRun) else failed_run(res) for res in results]
-    runs = [None if run is None else run.with_target(d.target)
-            for run, d in zip(runs, drawn, strict=True)]
-    measured = iter(runs_metrics([run for run in runs if run is not None],
-                                 [d.target for run, d in zip(runs, drawn, strict=True)
-                                  if run is not None]))
-    rows = []
-    for i, d, res, run in zip(episodes, drawn, results, runs, strict=True):
-        reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
-        row = row_of(spec, i, d.values, d.target, run, reason, started,
-                     None if run is None else next(measured))
-        row['wall_time_s'] = (time.perf_counter() - started) / len(episodes)
-        _keep_failure(out, row, run)
-        rows.append(row)
-    return rows
+    for (j, i), res in zip(ok, batch, strict=True):
+        results[j][i] = res
+    total = sum(len(episodes) for _, episodes, _ in parts)
+    out_rows = []
+    for spec, (_, episodes, out), mine, got in zip(specs, parts, drawn, results, strict=True):
+        runs = [res if isinstance(res, ClosedLoopRun) else failed_run(res) for res in got]
+        runs = [None if run is None else run.with_target(d.target)
+                for run, d in zip(runs, mine, strict=True)]
+        measured = iter(measure_runs(spec, [run for run in runs if run is not None],
+                                     [d.target for run, d in zip(runs, mine, strict=True)
+                                      if run is not None]))
+        rows = []
+        for i, d, res, run in zip(episodes, mine, got, runs, strict=True):
+            reason = str(res).splitlines()[0] if isinstance(res, TestingError) else ''
+            row = row_of(spec, i, d.values, d.target, run, reason, started,
+                         None if run is None else next(measured))
+            row['wall_time_s'] = (time.perf_counter() - started) / total
+            _keep_failure(out if spec.keep_failures else None, row, run)
+            rows.append(row)
+        out_rows.append(rows)
+    return out_rows
 
 
 def run_chunk(text: str, episodes: list[int], out: str | None,

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .spec import CampaignSpec, Distribution, Requirement
+from .spec import CampaignSpec, Distribution, Grid, Requirement
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -37,8 +37,11 @@ if TYPE_CHECKING:
 SIGNIFICANT = 4        # digits of a number in summary.md and in the figures' notes
 POINT_LIKE = 0.01      # a varying dimension spanning less than this fraction of its size
 REACH = 4.0            # a requirement is drawn on the axis if the axis stays <= REACH x the data
-SHOWN_METRICS = ('rise_time', 'settling_time', 'overshoot', 'steady_state_error', 'iae',
-                 'max_effort', 'effort_energy', 'saturation_fraction')
+SHOWN_METRICS = {'step': ('rise_time', 'settling_time', 'overshoot', 'steady_state_error',
+                          'iae', 'max_effort', 'effort_energy', 'saturation_fraction'),
+                 'swing_up': ('swing_up_time', 'settle_time', 'energy', 'effort_energy',
+                              'smoothness', 'max_effort', 'saturation_fraction', 'swings')}
+"""Per task, the eight metrics whose distributions are drawn."""
 REQUIREMENT_COLOUR = 'C3'
 # The episodes over the pass-rate map: seen on every colour of the map and on white.
 EPISODE_MARKERS = {'passed': {'marker': 'o', 'color': 'k', 'ms': 3},
@@ -82,13 +85,14 @@ def numeric_column(rows: Sequence[dict[str, Any]], name: str) -> NDArray[np.floa
 def point_like(spec: CampaignSpec, rows: Sequence[dict[str, Any]]) -> list[Spread]:
     """Return the dimensions declared to vary whose values span < POINT_LIKE of their size.
 
-    A dimension varies by declaration when it is a distribution or a list (a fixed value is a
-    constant by choice); its span is measured on the values the episodes drew.
+    A dimension varies by declaration when it is a distribution, a list or a grid (a fixed
+    value is a constant by choice); its span is measured on the values the episodes drew (the
+    drawn ``disturbance.pulses``, a text, is not measured).
     """
     spaces: dict[str, Any] = {**dict(spec.parameters), 'target': spec.target}
     out = []
     for name in spec.scenario_names:
-        if not isinstance(spaces[name], (Distribution, tuple)) or not rows:
+        if not isinstance(spaces.get(name), (Distribution, tuple, Grid)) or not rows:
             continue
         x = numeric_column(rows, name)
         if x is None or not np.all(np.isfinite(x)):
@@ -210,7 +214,7 @@ def metric_figure(spec: CampaignSpec, rows: Sequence[dict[str, Any]]) -> Figure:
     plt = pyplot()
     fig: Figure
     fig, axes = plt.subplots(2, 4, figsize=(13, 6))
-    for ax, name in zip(axes.flat, SHOWN_METRICS, strict=True):
+    for ax, name in zip(axes.flat, SHOWN_METRICS[spec.task], strict=True):
         column = np.array([r[name] for r in rows], dtype=float)
         _metric_panel(ax, name, column, [r for r in spec.requirements if r.metric == name])
     fig.suptitle(f'Metric distributions over {len(rows)} episodes')

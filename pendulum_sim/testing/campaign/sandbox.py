@@ -181,6 +181,25 @@ class Sandbox:
             else:
                 rows.extend(message)
 
+    def run_parts(self, parts: list[tuple[str, list[int], str | None]],
+                  timeout: float) -> list[list[dict[str, Any]]] | None:
+        """Run several campaigns' episodes as one batch in the child; return each one's rows,
+        or None when the child ended without them (it is gone then)."""
+        assert self.proc.stdin is not None
+        try:
+            send(self.proc.stdin, (parts, None, None, 0))
+        except OSError:
+            pass   # it is gone: the next message says so
+        found: list[list[dict[str, Any]]] | None = None
+        while True:
+            kind, message = self.next(timeout)
+            if kind == 'ended':
+                return None
+            if message is None:
+                return found
+            if message != 'batch':
+                found = message
+
     @property
     def alive(self) -> bool:
         """Return True while the episode process runs."""
@@ -263,6 +282,26 @@ def run_chunk(text: str, episodes: list[int], out: str | None, timeout: float,
     return results
 
 
+def run_parts(parts: list[tuple[str, list[int], str | None]], timeout: float,
+              memory_limit: int | None = None) -> list[list[dict[str, Any] | Fault]]:
+    """Run several campaigns' episodes (one vectorised law) as one batch in this thread's
+    episode process; return each campaign's rows (or Faults).
+
+    A batch that faults is run again campaign by campaign (:func:`run_chunk`, which runs a
+    faulting batch again one episode at a time), so only the faulty episodes fail.
+    """
+    limit = memory_limit if memory_limit is not None else worker_memory_limit()
+    found = sandbox(limit).run_parts(parts, timeout)
+    if found is not None:
+        return [list(rows) for rows in found]
+    return [run_chunk(text, episodes, out, timeout, limit) for text, episodes, out in parts]
+
+
+def run_parts_pickled(parts: list[tuple[str, list[int], str | None]], timeout: float) -> bytes:
+    """Return what :func:`run_parts` returns as one pickle: a Dask task of several campaigns."""
+    return pickle.dumps(run_parts(parts, timeout), protocol=pickle.HIGHEST_PROTOCOL)
+
+
 def run_chunk_pickled(text: str, episodes: list[int], out: str | None, timeout: float,
                       foxglove_port: int = 0) -> bytes:
     """Return what :func:`run_chunk` returns as one pickle: the Dask task of a campaign.
@@ -301,12 +340,20 @@ def main() -> None:
 
 def serve(stdin: int, stdout: IO[bytes]) -> None:
     """Read (text, episodes, out, foxglove_port), send each finished episode's rows, then
-    None; repeat.
+    None; repeat. A list of (text, episodes, out) in place of the text is several campaigns'
+    batch: their rows go out together, one list per campaign.
 
     Each episode's end is marked on the law's clock before its row goes out, also where its
     closed loop did not (``watch.loop_done``), so no limit runs between episodes.
     """
-    from .episode import batched, cached_spec, fault_row, run_episode, run_episodes
+    from .episode import (
+        batched,
+        cached_spec,
+        fault_row,
+        run_episode,
+        run_episodes,
+        run_episodes_parts,
+    )
 
     for module in PRELOAD:   # imported while no episode waits for them
         importlib.import_module(module)
@@ -314,6 +361,14 @@ def serve(stdin: int, stdout: IO[bytes]) -> None:
 
     while True:
         text, episodes, out, foxglove_port = receive(stdin)
+        if isinstance(text, list):   # several campaigns' episodes in one batch
+            send(stdout, 'batch')
+            parts = run_episodes_parts(text)   # a fault ends the process: run part by part
+            if clock is not None:
+                clock.end_episode()
+            send(stdout, parts)
+            send(stdout, None)
+            continue
         spec = cached_spec(text)
         if batched(spec):
             send(stdout, 'batch')

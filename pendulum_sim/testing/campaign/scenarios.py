@@ -1,10 +1,11 @@
 """Each episode's scenario, drawn from a seed of its own.
 
 Episode ``i`` draws from ``numpy.random.default_rng(SeedSequence(seed, spawn_key=(i,)))``, the
-``i``-th child of the campaign's seed: first its parameters in file order, then its target
-(one rule, :func:`draw`, for both). What an episode gets depends on the seed and its id only,
-never on which episodes ran before it, where or when. A fixed value draws nothing, so a fixed
-target leaves the parameters' draws as they are.
+``i``-th child of the campaign's seed: first its parameters in file order, then its target,
+then each disturbance pulse's torque, start and duration (one rule, :func:`draw`, for all).
+What an episode gets depends on the seed and its id only, never on which episodes ran before
+it, where or when. A fixed value (or a grid, or a list) draws nothing, so a fixed target leaves
+the parameters' draws as they are.
 
 :func:`episode_scenarios` draws many episodes at once (a vector environment's autoreset): the
 same values, from the same generators taken over arrays (:mod:`.streams`).
@@ -19,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .spec import CampaignSpec, Distribution, Space, TargetSpace, Value
+from .spec import PULSES, CampaignSpec, Distribution, Grid, Space, TargetSpace, Value
 from .streams import Streams
 
 STREAMS_FROM = 16
@@ -44,7 +45,7 @@ def draw(space: Space, rng: np.random.Generator, episode: int) -> Value:
     """Return episode ``episode``'s value of one scenario dimension.
 
     A distribution draws from ``rng``; a list gives its entry ``episode`` modulo its length; a
-    value is itself.
+    grid its value of ``episode`` (:meth:`~.spec.Grid.value`); a value is itself.
     """
     if isinstance(space, Distribution):
         if space.kind == 'uniform':
@@ -54,6 +55,8 @@ def draw(space: Space, rng: np.random.Generator, episode: int) -> Value:
         return float(math.exp(rng.uniform(math.log(space.a), math.log(space.b))))
     if isinstance(space, tuple):
         return space[episode % len(space)]
+    if isinstance(space, Grid):
+        return space.value(episode)
     return space
 
 
@@ -61,7 +64,15 @@ def episode_scenario(spec: CampaignSpec, episode: int) -> Scenario:
     """Return the parameter values and the target of episode ``episode``."""
     rng = episode_rng(spec.seed, episode)
     values = {name: draw(space, rng, episode) for name, space in spec.parameters}
-    return Scenario(values, float(draw(spec.target, rng, episode)))
+    target = float(draw(spec.target, rng, episode))
+    if spec.disturbances:
+        from pendulum_sim.joint.joint import pulses_text
+
+        values[PULSES] = pulses_text([
+            (float(draw(torque, rng, episode)), float(draw(start, rng, episode)),
+             float(draw(duration, rng, episode)))
+            for torque, start, duration in spec.disturbances])
+    return Scenario(values, target)
 
 
 def scenario(spec: CampaignSpec, episode: int) -> dict[str, Value]:
@@ -99,11 +110,12 @@ def episode_scenarios(spec: CampaignSpec, episodes: Sequence[int],
     seeds = [spec.seed] * len(episodes) if seeds is None else list(seeds)
     spaces = [space for _, space in spec.parameters] + [spec.target]
     draws = [s for s in spaces if isinstance(s, Distribution)]
-    if len(episodes) < STREAMS_FROM or any(s.kind == 'normal' for s in draws):
+    if (len(episodes) < STREAMS_FROM or any(s.kind == 'normal' for s in draws)
+            or spec.disturbances):   # the pulses are drawn episode by episode
         each = [episode_scenario(dataclasses.replace(spec, seed=seed), i)
                 for seed, i in zip(seeds, episodes, strict=True)]
         return ScenarioColumns({name: [e.values[name] for e in each]
-                                for name in spec.parameter_names},
+                                for name in spec.scenario_names if name != 'target'},
                                np.array([e.target for e in each], dtype=np.float64))
     streams = Streams(seeds, list(episodes)) if draws else None
     values = {name: _draw_many(space, streams, episodes) for name, space in spec.parameters}
@@ -123,4 +135,6 @@ def _draw_many(space: Space | TargetSpace, streams: Streams | None, episodes: Se
                          streams.uniform(math.log(space.a), math.log(space.b)).tolist()])
     if isinstance(space, tuple):
         return [space[i % len(space)] for i in episodes]
+    if isinstance(space, Grid):
+        return [space.value(i) for i in episodes]
     return [space] * len(episodes)

@@ -2,9 +2,16 @@
 
 Keys: ``controller`` (``module:function`` or a command line as a list), ``scene``,
 ``episodes``, ``seed``, ``periods``, ``target``, ``parameters`` (node parameter names mapped to
-a value, a list taken in episode order, or a distribution ``{distribution: uniform, low,
-high}``, ``{distribution: normal, mean, std}``, ``{distribution: loguniform, low, high}``) and
-``requirements`` (strings such as ``'settling_time < 3.0'``). ``target`` is a scenario
+a value, a list taken in episode order, a grid ``{grid: [low, high, count], stride: S}`` or a
+distribution ``{distribution: uniform, low, high}``, ``{distribution: normal, mean, std}``,
+``{distribution: loguniform, low, high}``), ``requirements`` (strings such as
+``'settling_time < 3.0'``), ``task`` (``step``, the default: the step metrics towards the
+target; ``swing_up``: the swing-up metrics into ``goal_box``, ``[angle rad, rate rad/s]``
+around the target, π unless given) and ``disturbances`` (torque pulses, each ``{torque,
+start, duration}`` in N m, s, s, each drawn like a parameter, given to the joint as its
+``disturbance.pulses``) and ``keep_failures`` (``true``, the default: each failing episode's
+run is written to ``failures/``; ``false`` for a campaign whose failures are its data, as a
+region of attraction's). ``target`` is a scenario
 dimension read by the same rules as a parameter (a number, a list of numbers or a
 distribution); when it varies, the controller must be able to receive it (a law with a keyword
 ``target``, or a command line with the placeholder ``{target}``). Every problem is a
@@ -27,14 +34,22 @@ import yaml
 from pendulum_sim.joint.errors import SceneError
 from pendulum_sim.joint.scenes import find_scene, unknown_parameter
 
-from ..errors import CampaignError
+from ..errors import CampaignError, TestingError
 from ..metrics import METRIC_NAMES
 from ..scene import FORCED
+from ..swing_up.metrics import BOX, GOAL, SWING_UP_NAMES, check_box
 from ..target import PLACEHOLDER, has_placeholder, takes_target
 
 KEYS = ('controller', 'scene', 'episodes', 'seed', 'periods', 'target', 'parameters',
-        'requirements', 'episode_timeout', 'jit')
-REQUIRED = ('controller', 'episodes', 'periods', 'target')
+        'requirements', 'episode_timeout', 'jit', 'task', 'goal_box', 'disturbances',
+        'keep_failures')
+REQUIRED = ('controller', 'episodes', 'periods')
+# What an episode is measured by: a step towards the target (StepMetrics), or a swing-up
+# into the goal box around the target (SwingUpMetrics; the target is π, upright, unless
+# given).
+TASKS: dict[str, tuple[str, ...]] = {'step': METRIC_NAMES, 'swing_up': SWING_UP_NAMES}
+PULSE_KEYS = ('torque', 'start', 'duration')
+PULSES = 'disturbance.pulses'   # the node parameter the drawn pulses are given as
 DISTRIBUTIONS: dict[str, tuple[str, ...]] = {'uniform': ('low', 'high'),
                                              'normal': ('mean', 'std'),
                                              'loguniform': ('low', 'high')}
@@ -86,8 +101,28 @@ class Distribution:
     b: float
 
 
-Space = Value | tuple[Value, ...] | Distribution
-TargetSpace = float | tuple[float, ...] | Distribution
+@dataclass(frozen=True)
+class Grid:
+    """``count`` evenly spaced values from ``low`` to ``high``, each held for ``stride``
+    episodes: episode ``i`` takes value ``(i // stride) % count`` (a grid of start states is
+    two grids, the second with the first's count as its stride)."""
+
+    low: float
+    high: float
+    count: int
+    stride: int = 1
+
+    def value(self, episode: int) -> float:
+        """Return episode ``episode``'s value."""
+        j = (episode // self.stride) % self.count
+        if self.count == 1:
+            return self.low
+        return self.low + (self.high - self.low) * j / (self.count - 1)
+
+
+Space = Value | tuple[Value, ...] | Distribution | Grid
+TargetSpace = float | tuple[float, ...] | Distribution | Grid
+Pulse = tuple[Space, Space, Space]   # torque (N m), start (s), duration (s)
 
 
 @dataclass(frozen=True)
@@ -105,6 +140,15 @@ class CampaignSpec:
     text: str
     episode_timeout: float = EPISODE_TIMEOUT
     jit: bool = False   # a vectorised law's batches on the compiled sweep (numba)
+    task: str = 'step'
+    goal_box: tuple[float, float] = BOX
+    disturbances: tuple[Pulse, ...] = ()
+    keep_failures: bool = True   # write each failing episode's run to failures/
+
+    @property
+    def metric_names(self) -> tuple[str, ...]:
+        """Return the names of the task's metrics (the table's metric columns)."""
+        return TASKS[self.task]
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -113,8 +157,9 @@ class CampaignSpec:
 
     @property
     def scenario_names(self) -> tuple[str, ...]:
-        """Return the table's scenario columns: the parameters in file order, then ``target``."""
-        return (*self.parameter_names, 'target')
+        """Return the table's scenario columns: the parameters in file order, the drawn
+        ``disturbance.pulses`` when the campaign has ``disturbances``, then ``target``."""
+        return (*self.parameter_names, *((PULSES,) if self.disturbances else ()), 'target')
 
     @property
     def is_command_line(self) -> bool:
@@ -169,11 +214,15 @@ def _controller(value: Any) -> str | tuple[str, ...]:
 
 def varies(space: Space) -> bool:
     """Return True when ``space`` can give episodes different values."""
-    return isinstance(space, Distribution) or (isinstance(space, tuple) and len(set(space)) > 1)
+    return (isinstance(space, Distribution) or (isinstance(space, Grid) and space.count > 1)
+            or (isinstance(space, tuple) and len(set(space)) > 1))
 
 
 def describe(space: Space) -> str:
     """Return ``space`` as a short text (for summaries)."""
+    if isinstance(space, Grid):
+        return (f'grid({space.low:g} to {space.high:g}, {space.count} values, stride '
+                f'{space.stride})')
     if isinstance(space, Distribution):
         a, b = DISTRIBUTIONS[space.kind]
         return f'{space.kind}({a} = {space.a:g}, {b} = {space.b:g})'
@@ -182,8 +231,26 @@ def describe(space: Space) -> str:
     return f'{space:g}' if isinstance(space, float) else str(space)
 
 
+def _grid(where: str, value: dict[str, Any]) -> Grid:
+    """Return the grid ``{grid: [low, high, count], stride: S}`` (stride 1 unless given)."""
+    extra = sorted(set(value) - {'grid', 'stride'})
+    grid = value['grid']
+    if extra or not isinstance(grid, list) or len(grid) != 3:
+        raise CampaignError(f'{where}: a grid reads {{grid: [low, high, count], stride: S}}, '
+                            f'got {shown(value)}')
+    low, high = _number(f'{where}.grid low', grid[0]), _number(f'{where}.grid high', grid[1])
+    count = _integer(f'{where}.grid count', grid[2], 1, MAX_EPISODES)
+    stride = _integer(f'{where}.stride', value.get('stride', 1), 1, MAX_EPISODES)
+    if count > 1 and not low < high:
+        raise CampaignError(f'{where}: a grid needs low < high, got low = {low:g}, '
+                            f'high = {high:g}')
+    return Grid(low, high, count, stride)
+
+
 def _space(where: str, value: Any) -> Space:
-    """Return the space of a scenario dimension: a value, a list or a distribution."""
+    """Return the space of a scenario dimension: a value, a list, a grid or a distribution."""
+    if isinstance(value, dict) and 'grid' in value:
+        return _grid(where, value)
     if isinstance(value, dict):
         kind = value.get('distribution')
         if kind not in DISTRIBUTIONS:
@@ -227,7 +294,7 @@ def _target(value: Any) -> TargetSpace:
     space = _space('target', value)
     if isinstance(space, tuple):
         return tuple(_number('target', v) for v in space)
-    if isinstance(space, Distribution):
+    if isinstance(space, (Distribution, Grid)):
         return space
     return _number('target', space)
 
@@ -246,7 +313,46 @@ def _receives_target(controller: str | tuple[str, ...], target: TargetSpace) -> 
                             'no keyword argument target to receive it')
 
 
-def _requirement(text: Any) -> Requirement:
+def _task(value: Any) -> str:
+    if value not in TASKS:
+        raise CampaignError(f'task must be one of {", ".join(TASKS)}, got {shown(value)}')
+    return str(value)
+
+
+def _goal_box(value: Any) -> tuple[float, float]:
+    """Return the ``goal_box`` key: ``[angle rad, rate rad/s]``, both > 0."""
+    if not isinstance(value, list):
+        raise CampaignError(f'goal_box must be [angle rad, rate rad/s], two numbers > 0, got '
+                            f'{shown(value)}')
+    try:
+        _, width, rate = check_box(GOAL, value)
+    except TestingError as exc:
+        raise CampaignError(f'goal_box: {exc}') from None
+    return width, rate
+
+
+def _disturbances(value: Any) -> tuple[Pulse, ...]:
+    """Return the ``disturbances`` key: a list of pulses ``{torque, start, duration}``, each
+    a value, a list, a grid or a distribution (N m, s, s)."""
+    if not isinstance(value, list):
+        raise CampaignError(f'disturbances must be a list of pulses {{torque, start, '
+                            f'duration}}, got {shown(value)}')
+    pulses = []
+    for i, pulse in enumerate(value):
+        where = f'disturbances[{i}]'
+        if not isinstance(pulse, dict) or sorted(pulse) != sorted(PULSE_KEYS):
+            raise CampaignError(f'{where} must be a pulse {{torque, start, duration}} (N m, s, '
+                                f's), got {shown(pulse)}')
+        torque, start, duration = (_space(f'{where}.{k}', pulse[k]) for k in PULSE_KEYS)
+        for key, space in zip(PULSE_KEYS, (torque, start, duration), strict=True):
+            for v in space if isinstance(space, tuple) else (space,):
+                if not isinstance(v, (Distribution, Grid)):
+                    _number(f'{where}.{key}', v)
+        pulses.append((torque, start, duration))
+    return tuple(pulses)
+
+
+def _requirement(text: Any, names: tuple[str, ...] = METRIC_NAMES) -> Requirement:
     if not isinstance(text, str):
         raise CampaignError(f"a requirement must be a string like 'settling_time < 3.0', got "
                             f'{shown(text)}')
@@ -255,9 +361,9 @@ def _requirement(text: Any) -> Requirement:
         raise CampaignError(f"requirement {shown(text)} must read 'metric op number' with op one "
                             f'of <, <=, >, >=, ==, !=')
     metric, op, bound = found.groups()
-    if metric not in METRIC_NAMES:
+    if metric not in names:
         raise CampaignError(f'requirement {shown(text)} names an unknown metric {shown(metric)}; '
-                            f'metrics: {", ".join(METRIC_NAMES)}')
+                            f'metrics: {", ".join(names)}')
     try:
         value = float(bound)
     except ValueError:
@@ -343,7 +449,8 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
     unknown = sorted(set(data) - set(KEYS))
     if unknown:
         raise CampaignError(f'{label}: unknown key {shown(unknown[0])}; keys: {", ".join(KEYS)}')
-    missing = [k for k in REQUIRED if k not in data]
+    task = _task(data.get('task', 'step'))
+    missing = [k for k in (*REQUIRED, *(('target',) if task == 'step' else ())) if k not in data]
     if missing:
         raise CampaignError(f'{label}: missing key {shown(missing[0])}')
 
@@ -365,25 +472,35 @@ def parse_spec(text: str, label: str = 'campaign file') -> CampaignSpec:
             raise CampaignError(reason)
         if name in FORCED:
             raise CampaignError(f'parameters.{name} is fixed for a closed loop')
+        if name == PULSES and data.get('disturbances'):
+            raise CampaignError(f'parameters.{PULSES} and disturbances both set the pulses; '
+                                'give them in one')
         spaces.append((str(name), _space(f'parameters.{name}', value)))
     reqs = data.get('requirements') or []
     if not isinstance(reqs, list):
         raise CampaignError(f'requirements must be a list of strings, got {shown(reqs)}')
     controller = _controller(data['controller'])
-    target = _target(data['target'])
+    target = _target(data.get('target', GOAL))
+    if 'goal_box' in data and task != 'swing_up':
+        raise CampaignError('goal_box is a key of task: swing_up')
     _receives_target(controller, target)
     timeout = _number('episode_timeout', data.get('episode_timeout', EPISODE_TIMEOUT))
     if timeout <= 0.0:
         raise CampaignError(f'episode_timeout must be > 0 s, got {timeout:g}')
     jit = _jit(data.get('jit', False))
+    keep = data.get('keep_failures', True)
+    if not isinstance(keep, bool):
+        raise CampaignError(f'keep_failures must be true or false, got {shown(keep)}')
     spec = CampaignSpec(
         controller=controller, scene=scene,
         episodes=_integer('episodes', data['episodes'], 1, MAX_EPISODES),
         seed=_integer('seed', data.get('seed', 0), 0, 2**63 - 1),
         periods=_integer('periods', data['periods'], 1, 10_000_000),
         target=target, parameters=tuple(spaces),
-        requirements=tuple(_requirement(r) for r in reqs), text=text, episode_timeout=timeout,
-        jit=jit)
+        requirements=tuple(_requirement(r, TASKS[task]) for r in reqs), text=text,
+        episode_timeout=timeout, jit=jit, task=task,
+        goal_box=_goal_box(data['goal_box']) if 'goal_box' in data else BOX,
+        disturbances=_disturbances(data.get('disturbances') or []), keep_failures=keep)
     return spec
 
 
@@ -416,4 +533,5 @@ def as_mapping(spec: CampaignSpec) -> Mapping[str, Any]:
     """Return the campaign as plain values (for summaries)."""
     return {'controller': spec.controller, 'scene': spec.scene, 'episodes': spec.episodes,
             'seed': spec.seed, 'periods': spec.periods, 'target': describe(spec.target),
+            'task': spec.task,
             'requirements': [str(r) for r in spec.requirements]}

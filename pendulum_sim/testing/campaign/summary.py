@@ -3,7 +3,9 @@
 
 Table columns: ``episode``, one per scenario parameter (named as the parameter), ``target`` (the
 episode's reference, always there, fixed or drawn), one per metric
-(named as the :class:`~pendulum_sim.testing.StepMetrics` field), ``passed``, ``reason``, and
+(named as the :class:`~pendulum_sim.testing.StepMetrics` field, or the
+:class:`~pendulum_sim.testing.SwingUpMetrics` field for ``task: swing_up``), ``passed``,
+``reason``, and
 the columns that say where and when the episode ran (``worker_host``, ``worker_pid``,
 ``wall_time_s``).
 """
@@ -17,18 +19,21 @@ from typing import Any
 
 import numpy as np
 
-from ..metrics import METRIC_NAMES
 from .episode import RUN_COLUMNS, failure_path
 from .figures import point_like, point_like_note, shown, write_figures
 from .spec import CampaignSpec, describe
 
 QUANTILES = (0.05, 0.5, 0.95)
 WORST = 10
+# Per task: the metric the worst episodes are sorted by (largest first) and one shown beside.
+WORST_BY = {'step': ('settling_time', 'overshoot'), 'swing_up': ('swing_up_time', 'energy')}
+
 
 
 def columns(spec: CampaignSpec) -> list[str]:
     """Return the table's columns in order."""
-    return ['episode', *spec.scenario_names, *METRIC_NAMES, 'passed', 'reason', *RUN_COLUMNS]
+    return ['episode', *spec.scenario_names, *spec.metric_names, 'passed', 'reason',
+            *RUN_COLUMNS]
 
 
 def _cell(value: Any) -> str:
@@ -54,10 +59,19 @@ def write_table(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path) -> li
         import pyarrow.parquet as pq
     except ImportError:
         return written
-    table = pa.table({c: [row[c] for row in rows] for c in cols})
+    table = pa.table({c: _arrow_column(pa, [row[c] for row in rows]) for c in cols})
     pq.write_table(table, out / 'episodes.parquet')
     written.append(out / 'episodes.parquet')
     return written
+
+
+def _arrow_column(pa: Any, values: list[Any]) -> Any:
+    """Return the values as an Arrow array; a NaN among booleans (a swing-up's ``success``
+    of an episode that was not measured) is a null there."""
+    try:
+        return pa.array(values)
+    except (pa.ArrowInvalid, pa.ArrowTypeError):
+        return pa.array(values, from_pandas=True)
 
 
 def _fmt(value: Any) -> str:
@@ -82,25 +96,26 @@ def write_summary(spec: CampaignSpec, rows: list[dict[str, Any]], out: Path,
     lines += ['', '## Metric quantiles', '',
               '| metric | ' + ' | '.join(f'{100 * q:g} %' for q in QUANTILES) + ' | nan |',
               '|---|' + '---|' * (len(QUANTILES) + 1)]
-    for name in METRIC_NAMES:
+    for name in spec.metric_names:
         x = np.array([r[name] for r in rows], dtype=float)
         finite = x[np.isfinite(x)]
         qs = [float(np.quantile(finite, q)) if finite.size else math.nan for q in QUANTILES]
         lines.append(f'| {name} | ' + ' | '.join(_fmt(v) for v in qs)
                      + f' | {int(np.sum(~np.isfinite(x)))} |')
-    worst = sorted(rows, key=lambda r: (r['passed'], -(r['settling_time'] if math.isfinite(
-        r['settling_time']) else math.inf), r['episode']))[:WORST]
-    lines += ['', f'## The worst episodes (failed first, then the slowest to settle; '
+    slow, other = WORST_BY[spec.task]
+    worst = sorted(rows, key=lambda r: (r['passed'], -(r[slow] if math.isfinite(
+        r[slow]) else math.inf), r['episode']))[:WORST]
+    lines += ['', f'## The worst episodes (failed first, then the slowest by {slow}; '
               f'at most {WORST})', '',
               '| episode | ' + ' | '.join(spec.scenario_names)
-              + ' | settling_time | overshoot | passed | reason | recording |',
+              + f' | {slow} | {other} | passed | reason | recording |',
               '|---|' + '---|' * (len(spec.scenario_names) + 5)]
     for r in worst:
         mcap = failure_path(out, r['episode'])
         rec = f'failures/{mcap.name}' if mcap.is_file() else ''
         lines.append(f'| {r["episode"]} | ' + ' | '.join(_fmt(r[p]) for p in
                                                           spec.scenario_names)
-                     + f' | {_fmt(r["settling_time"])} | {_fmt(r["overshoot"])} | '
+                     + f' | {_fmt(r[slow])} | {_fmt(r[other])} | '
                      f'{"yes" if r["passed"] else "no"} | {r["reason"]} | {rec} |')
     lines += ['', '## Figures', '']
     lines += [f'![{name}](figures/{name})' for name in figures] or ['No figures drawn.']
