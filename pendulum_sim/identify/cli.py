@@ -34,8 +34,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--joint', default=None,
                         help='joint name in the messages (default: the only one)')
     parser.add_argument('--columns', default='t,position',
-                        help='CSV columns in order: t,position[,velocity,effort], _ to skip one '
-                             '(default t,position); the header row must name them')
+                        help='CSV columns: their roles in order, t,position[,velocity,effort] '
+                             'with _ to skip one (default t,position; a header row, whatever '
+                             'it says, is skipped), or header names mapped to roles, e.g. '
+                             'time=t,angle=position')
     parser.add_argument('--units', choices=('deg', 'rad'), default='rad',
                         help='unit of the CSV angle and velocity (default rad)')
     parser.add_argument('--models', default=','.join(COMPARED),
