@@ -166,10 +166,12 @@ def identify(csv: Path, out: Path, cache: Path) -> subprocess.CompletedProcess[s
 
 @pytest.mark.slow
 def test_pendulum_identify_says_when_it_compiles_and_only_then(tmp_path: Path) -> None:
+    # A first run on a fresh cache compiles (one cold compile of the n = 2 law) and says so on
+    # its progress line; a second run on that cache loads it all and says nothing of it.
     import numpy as np
 
     from pendulum_sim.core import PendulumParams, simulate
-    from pendulum_sim.identify.cli import COMPILING, COMPILING_IN_MEMORY
+    from pendulum_sim.identify.cli import COMPILING
 
     run = simulate(PendulumParams.from_omega0_sq(9.8, 0.2, 2.0), 0.9, 0.0, 6.0, 1e-3)
     csv = tmp_path / 'swing.csv'
@@ -182,8 +184,3 @@ def test_pendulum_identify_says_when_it_compiles_and_only_then(tmp_path: Path) -
     warm = identify(csv, tmp_path / 'warm', cache)
     assert warm.returncode == 0, warm.stderr
     assert 'fitting quadratic (1/1)' in warm.stderr and 'compiling' not in warm.stderr
-    blocker = tmp_path / 'a_file'
-    blocker.write_text('')
-    memory = identify(csv, tmp_path / 'memory', blocker / 'jit')
-    assert memory.returncode == 0, memory.stderr
-    assert f'fitting quadratic (1/1): {COMPILING_IN_MEMORY}' in memory.stderr

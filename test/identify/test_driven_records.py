@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from driven_records import DFKI, RUNS, published, read
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PAGE = ROOT / 'docs' / 'reference' / 'measured-driven-records.md'
 ROW = re.compile(r'^\| (?P<name>[a-z +]+) \| `(?P<file>[a-z_]+\.csv)` \| (?P<samples>\d+) \| '
                  r'(?P<dt>[\d.]+) ms \| (?P<span>[\d.]+) s \| (?P<plo>−?[\d.]+) to '

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from pendulum_sim.identify.inputs import Samples, read_record
 
-DFKI = Path(__file__).resolve().parent / 'data' / 'dfki_torque_limited_pendulum'
+DFKI = Path(__file__).resolve().parents[1] / 'data' / 'dfki_torque_limited_pendulum'
 COLUMNS = 'time=t,position=position,velocity=velocity,torque=effort'
 """``--columns`` for the lab's files: their header is ``time,position,velocity,torque``."""
 RUNS = {
