@@ -33,6 +33,7 @@ compiled in memory, as without this module, after one warning (:class:`JitCacheW
 from __future__ import annotations
 
 import collections
+import contextlib
 import functools
 import hashlib
 import os
@@ -41,6 +42,7 @@ import tempfile
 import types
 import uuid
 import warnings
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -252,5 +254,36 @@ def kernel_module(fn: Any) -> dict[str, Any] | None:
     return env
 
 
+@contextlib.contextmanager
+def compiling(callback: Callable[[bool], None]) -> Iterator[None]:
+    """Call ``callback(cached)`` once when numba starts compiling inside the ``with`` block.
+
+    numba compiles only what its cache does not hold (``numba:compile`` events fire on a cache
+    miss, not on a load), so the call says that this run compiles: the first on a machine,
+    or every run where the cache directory cannot be written. ``cached`` is True where the
+    compiled code is being kept on disk for later processes (:func:`cache_dir`), False where
+    it is compiled in memory only. Nothing is called where numba is not installed or nothing
+    compiles.
+    """
+    try:
+        from numba.core import event
+    except ImportError:
+        yield
+        return
+    told = [False]
+
+    class Listener(event.Listener):  # type: ignore[misc, unused-ignore]
+        def on_start(self, ev: Any) -> None:
+            if not told[0]:
+                told[0] = True
+                callback(cache_dir() is not None)
+
+        def on_end(self, ev: Any) -> None:
+            pass
+
+    with event.install_listener('numba:compile', Listener()):
+        yield
+
+
 __all__ = ['ENV_VAR', 'EVENTS', 'FUNCTION_ARGS', 'JitCacheWarning', 'attach', 'cache_dir',
-           'cache_root', 'kernel_module', 'module_file', 'write_atomic']
+           'cache_root', 'compiling', 'kernel_module', 'module_file', 'write_atomic']

@@ -8,7 +8,7 @@ import argparse
 import shutil
 import sys
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 from .errors import IdentifyError
@@ -34,8 +34,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--joint', default=None,
                         help='joint name in the messages (default: the only one)')
     parser.add_argument('--columns', default='t,position',
-                        help='CSV columns in order: t,position[,velocity,effort], _ to skip one '
-                             '(default t,position); the header row must name them')
+                        help='CSV columns: their roles in order, t,position[,velocity,effort] '
+                             'with _ to skip one (default t,position; a header row, whatever '
+                             'it says, is skipped), or header names mapped to roles, e.g. '
+                             'time=t,angle=position')
     parser.add_argument('--units', choices=('deg', 'rad'), default='rad',
                         help='unit of the CSV angle and velocity (default rad)')
     parser.add_argument('--models', default=','.join(COMPARED),
@@ -58,20 +60,47 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _progress(enabled: bool, total: int) -> Callable[[str], None]:
-    done = [0]
+COMPILING = ('compiling the simulation for this machine (numba, once: later runs load it '
+             'from the disk cache)')
+"""What the progress line says while numba compiles, the compiled code kept on disk."""
+COMPILING_IN_MEMORY = ('compiling the simulation (numba; the jit cache directory cannot be '
+                       'written, so every run compiles)')
+"""What it says where the cache directory cannot be written."""
 
-    def show(model: str) -> None:
-        done[0] += 1
-        if enabled:
-            bar = '#' * (20 * (done[0] - 1) // total)
-            print(f'\r{PROG}: [{bar:<20}] fitting {model} ({done[0]}/{total})', end='',
-                  file=sys.stderr, flush=True)
-    return show
+
+class Progress:
+    """The progress line on stderr: the law being fitted, and a word while numba compiles."""
+
+    def __init__(self, enabled: bool, total: int) -> None:
+        self.enabled = enabled
+        self.total = total
+        self.done = 0
+        self.model = ''
+        self.width = 0
+
+    def __call__(self, model: str) -> None:
+        """Show that ``model`` is being fitted."""
+        self.done += 1
+        self.model = model
+        self._draw('')
+
+    def compiling(self, cached: bool) -> None:
+        """Say that numba compiles (``jit_cache.compiling``): once per machine where cached."""
+        self._draw(': ' + (COMPILING if cached else COMPILING_IN_MEMORY))
+
+    def _draw(self, note: str) -> None:
+        if not self.enabled:
+            return
+        bar = '#' * (20 * max(self.done - 1, 0) // max(self.total, 1))
+        line = f'{PROG}: [{bar:<20}] fitting {self.model} ({self.done}/{self.total}){note}'
+        print(f'\r{line.ljust(self.width)}', end='', file=sys.stderr, flush=True)
+        self.width = len(line)
 
 
 def run(args: argparse.Namespace) -> str:
     """Read, fit and write; return the summary table."""
+    from pendulum_sim.core.jit_cache import compiling
+
     from .fit import compare_records, prepare
     from .inputs import read_record
     from .outputs import (
@@ -100,9 +129,10 @@ def run(args: argparse.Namespace) -> str:
                           columns=args.columns, units=args.units)
     record = prepare(samples.t, samples.position, samples.velocity, samples.effort)
     known = {} if args.inertia is None else {'inertia': args.inertia}
-    show = _progress(not args.no_progress, len(models))
-    fits = compare_records([record], models=models, known=known,
-                           jit=False if args.no_jit else None, progress=show)[0]
+    show = Progress(not args.no_progress, len(models))
+    with compiling(show.compiling):
+        fits = compare_records([record], models=models, known=known,
+                               jit=False if args.no_jit else None, progress=show)[0]
     if not args.no_progress:
         print(file=sys.stderr)
     best = usable(fits)

@@ -23,7 +23,8 @@ from pendulum_sim.core.jit import available as jit_available
 from .errors import IdentifyError
 from .guess import Guess, best_exponent, envelope_gamma, first_look
 from .laws import COMPARED, MODELS, Law, get_law
-from .solver import BOUNDS, Problem, solve
+from .solver import BOUNDS, Problem, simulate_columns, solve
+from .starts import EXPONENTS, FRICTION_EXPONENTS, NESTED, reached, search, seed
 
 FloatArray = npt.NDArray[np.float64]
 Value = float | None
@@ -75,6 +76,9 @@ class Fit:
         The record's times (s), its angle (rad, unwrapped) and the fitted angle there.
     iterations, starts : int
         Iterations of the best start, and how many starts were run.
+    at_optimum : int
+        How many starts ended at the law's optimum, the best of them (within
+        ``starts.REACHED`` on the BIC scale); 0 where nothing was fitted.
     """
 
     params: dict[str, Value]
@@ -93,6 +97,7 @@ class Fit:
     fitted: FloatArray
     iterations: int
     starts: int
+    at_optimum: int = 0
 
     @property
     def residual(self) -> FloatArray:
@@ -178,7 +183,7 @@ def _check_known(known: Mapping[str, float] | None) -> dict[str, float]:
     return out
 
 
-def _starts(law: Law, rec: Record, known: dict[str, float]) -> list[dict[str, float]]:
+def _starts(law: Law, rec: Record, known: dict[str, float]) -> list[Mapping[str, float]]:
     """Return the starting points of ``law`` for ``rec``: the guess and its variants."""
     g = rec.guess
     om = known.get('omega0', g.omega0)
@@ -190,8 +195,9 @@ def _starts(law: Law, rec: Record, known: dict[str, float]) -> list[dict[str, fl
     elif 'n' in known:
         ns = [known['n']]
     else:
-        ns = list(dict.fromkeys([best_exponent(om, g.peaks_t, g.peaks_a), 1.0, 2.0]))
-    out = []
+        ns = list(dict.fromkeys([best_exponent(om, g.peaks_t, g.peaks_a),
+                                 *(FRICTION_EXPONENTS if law.friction else EXPONENTS)]))
+    out: list[Mapping[str, float]] = []
     for n in ns:
         gam = envelope_gamma(n, om, g.peaks_t, g.peaks_a)[0]
         gam = known.get('gamma', max(gam, 1e-4))
@@ -220,7 +226,7 @@ def friction_starts(base: dict[str, float], n: float, gam: float, om: float, g: 
              'friction_accel': c * b} for a, b in shares]
 
 
-def _problem(law: Law, rec: Record, start: dict[str, float], known: dict[str, float]
+def _problem(law: Law, rec: Record, start: Mapping[str, float], known: dict[str, float]
              ) -> Problem:
     om = start['omega0']
     # A power of two at or below a 64th of the period, and the end rounded up to 64 steps:
@@ -234,12 +240,33 @@ def _problem(law: Law, rec: Record, start: dict[str, float], known: dict[str, fl
                  and not (k == 'friction_accel' and not law.friction))
     fixed = {k: v for k, v in start.items() if k not in free}
     amp = float(np.max(np.abs(rec.y - start['phi_offset'])))
-    typical = {'omega0': om, 'gamma': max(start['gamma'], 1e-3), 'n': 1.0, 'phi_offset': amp,
-               'phi0': amp, 'dphi0': amp * om,
+    # The record's own typical speed (one value for all its starts): θ holds the damping
+    # there where n is free (``Problem.encode``).
+    speed = float(np.max(np.abs(rec.y - rec.guess.offset))) * (rec.guess.omega0 or om)
+    problem = Problem(t=rec.t, y=rec.y, h=h, t_end=t_end, free=free, fixed=fixed,
+                      theta=np.zeros(len(free)), scale=np.ones(len(free)), speed=speed)
+    problem.theta = problem.encode(start)
+    slot = dict(zip(free, problem.theta, strict=True))
+    typical = {'omega0': om, 'gamma': max(slot.get('gamma', start['gamma']), 1e-3), 'n': 1.0,
+               'phi_offset': amp, 'phi0': amp, 'dphi0': amp * om,
                'friction_accel': max(start['friction_accel'], 1e-3)}
-    return Problem(t=rec.t, y=rec.y, h=h, t_end=t_end, free=free, fixed=fixed,
-                   theta=np.array([start[k] for k in free]),
-                   scale=np.array([typical[k] for k in free]))
+    problem.scale = np.array([typical[k] for k in free])
+    return problem
+
+
+def model_angle(rec: Record, model: str, params: Mapping[str, float], *,
+                jit: bool | None = None) -> FloatArray:
+    """Return the angle ``model`` gives at the record's samples with ``params``, as fitted.
+
+    ``params`` holds ``omega0``, ``gamma``, ``n``, ``phi_offset``, ``phi0``, ``dphi0`` and
+    ``friction_accel`` (as a ``Fit``'s); the simulation is the fit's own (its grid, the core's
+    sweep, the cubic Hermite output): a fit's ``rms_residual`` is that of the data minus this
+    at its parameters. NaN everywhere where the core cannot simulate them.
+    """
+    law = get_law(model)
+    problem = _problem(law, rec, params, {})
+    out = simulate_columns([problem], [problem.theta[None, :]], jit=_use_jit(jit))[0]
+    return np.full_like(rec.y, np.nan) if out is None else np.asarray(out[0])
 
 
 def _unfitted(law: Law, rec: Record, known: dict[str, float], why: str) -> Fit:
@@ -258,8 +285,8 @@ def _unfitted(law: Law, rec: Record, known: dict[str, float], why: str) -> Fit:
                fitted=fitted, iterations=0, starts=0)
 
 
-def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, float]
-            ) -> Fit:
+def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, float],
+            at_optimum: int) -> Fit:
     assert best.jac is not None and best.residual is not None
     m, p = rec.y.size, len(best.free)
     rss = 2.0 * best.cost
@@ -267,7 +294,8 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
     s2 = rss / max(m - p, 1)
     reasons: dict[str, str] = {}
     try:
-        cov = s2 * np.linalg.inv(best.jac.T @ best.jac)
+        jac = best.physical_jacobian()
+        cov = s2 * np.linalg.inv(jac.T @ jac)
         var = np.diag(cov)
         # A variance <= 0 (round-off of a near-singular J^T J) is no standard error: the
         # parameter is reported as not determined, never with an interval of zero width.
@@ -324,7 +352,8 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
                rms_residual=float(math.sqrt(rss / m)), aic=loglik + 2 * p,
                bic=loglik + p * math.log(m), model=law.name, samples=int(m), fixed=fixed,
                reasons=reasons, correlation=corr, t=rec.t + rec.t0, position=rec.y,
-               fitted=fitted, iterations=best.iterations, starts=starts)
+               fitted=fitted, iterations=best.iterations, starts=starts,
+               at_optimum=at_optimum)
 
 
 def _friction(law: Law, known: dict[str, float], params: dict[str, Value],
@@ -400,14 +429,19 @@ Progress = Callable[[int, int], None]
 
 def fit_records(records: Sequence[Record], *, model: str = 'power',
                 known: Mapping[str, float] | None = None, jit: bool | None = None,
-                progress: Progress | None = None) -> list[Fit]:
-    """Fit ``model`` to each prepared record, all starts of all records in one lockstep."""
+                progress: Progress | None = None,
+                seeds: Sequence[Sequence[Mapping[str, float]]] | None = None) -> list[Fit]:
+    """Fit ``model`` to each prepared record, all starts of all records in one lockstep.
+
+    Each start is fitted over growing windows of its record (``starts.search``); ``seeds[i]``
+    are more starts of ``records[i]`` (``compare`` passes the fits of the laws ``model``
+    nests).
+    """
     law = get_law(model)
     fixed = _check_known(known)
     use_jit = _use_jit(jit)
     out: list[Fit | None] = [None] * len(records)
-    problems: list[Problem] = []
-    owner: list[int] = []
+    starts: list[list[Mapping[str, float]]] = [[] for _ in records]
     for i, rec in enumerate(records):
         g = rec.guess
         if g.omega0 is None and 'omega0' not in fixed:
@@ -416,22 +450,22 @@ def fit_records(records: Sequence[Record], *, model: str = 'power',
                         f'crossing{"s" if g.crossings != 1 else ""}, a period needs 3)')
             out[i] = _unfitted(law, rec, fixed, why)
             continue
-        for start in _starts(law, rec, fixed):
-            problems.append(_problem(law, rec, start, fixed))
-            owner.append(i)
+        starts[i] = _starts(law, rec, fixed)
     for i, start in _moving_starts(law, records, out, fixed, use_jit):
-        problems.append(_problem(law, records[i], start, fixed))
-        owner.append(i)
-    solve(problems, jit=use_jit, progress=progress)
+        starts[i].append(start)
+    runs = search(records, starts, lambda rec, start: _problem(law, rec, start, fixed),
+                  jit=use_jit, progress=progress,
+                  seeds=[[] if out[i] is not None else list(seeds[i])
+                         for i in range(len(records))] if seeds is not None else None)
     for i, rec in enumerate(records):
         if out[i] is not None:
             continue
-        mine = [p for p, o in zip(problems, owner, strict=True) if o == i]
-        best = min(mine, key=lambda p: p.cost)
+        best = min((r.problem for r in runs[i]), key=lambda p: p.cost)
         if best.jac is None:
             out[i] = _unfitted(law, rec, fixed, 'the core cannot simulate the first guess')
         else:
-            out[i] = _result(law, rec, best, len(mine), fixed)
+            out[i] = _result(law, rec, best, sum(r.starts for r in runs[i]), fixed,
+                             reached(runs[i]))
     return [f for f in out if f is not None]
 
 
@@ -501,17 +535,25 @@ def fit(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
 def compare_records(records: Sequence[Record], *, models: Sequence[str] | None = None,
                     known: Mapping[str, float] | None = None, jit: bool | None = None,
                     progress: Callable[[str], None] | None = None) -> list[list[Fit]]:
-    """Fit each model to each prepared record; return each record's fits ranked by BIC."""
+    """Fit each model to each prepared record; return each record's fits ranked by BIC.
+
+    The laws are fitted nested first (``laws.COMPARED``'s order), each one also started from
+    the fits of the laws it nests (``starts.NESTED``).
+    """
     names = list(COMPARED) if models is None else list(models)
     for name in names:
         get_law(name)
-    per: list[list[Fit]] = [[] for _ in records]
+    names.sort(key=COMPARED.index)
+    done: dict[str, list[Fit]] = {}
     for name in names:
         if progress is not None:
             progress(name)
-        for i, f in enumerate(fit_records(records, model=name, known=known, jit=jit)):
-            per[i].append(f)
-    return [sorted(fits, key=lambda f: f.bic) for fits in per]
+        seeds = [[s for k in NESTED[name] if k in done
+                  for s in (seed(done[k][i].params),) if s is not None]
+                 for i in range(len(records))]
+        done[name] = fit_records(records, model=name, known=known, jit=jit, seeds=seeds)
+    return [sorted((done[name][i] for name in names), key=lambda f: f.bic)
+            for i in range(len(records))]
 
 
 def compare(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
@@ -528,4 +570,4 @@ def compare(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
 
 
 __all__ = ['MODELS', 'Fit', 'Record', 'compare', 'compare_records', 'fit', 'fit_records',
-           'prepare']
+           'model_angle', 'prepare']

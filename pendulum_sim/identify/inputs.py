@@ -3,7 +3,9 @@
 MCAP files of any writer are read with :mod:`pendulum_sim.recording` (its reader and the
 per-message decoder); a JointState stream is chosen by ``topic`` and ``joint`` and its samples
 stamped by their header stamps (the log times where a writer left the stamp at zero). A CSV file
-has a header row naming its columns, checked against ``columns``.
+is read by ``--columns``: the roles of its columns in order (a header row, whatever it says,
+is recognised by a cell that is not a number and skipped), or its header names mapped to roles
+(``time=t,angle=position``).
 """
 from __future__ import annotations
 
@@ -35,49 +37,139 @@ class Samples:
     source: str
 
 
-def parse_columns(text: str) -> tuple[str, ...]:
-    """Return the roles of ``--columns`` (t and position required, ``_`` skips a column)."""
-    cols = tuple(c.strip() for c in text.split(','))
-    for c in cols:
-        if c not in (*ROLES, SKIP):
-            raise IdentifyError(f'--columns names t, position, velocity, effort or _ (a column '
-                                f'to skip), got {c!r}')
-    named = [c for c in cols if c != SKIP]
+@dataclass(frozen=True)
+class Columns:
+    """What ``--columns`` says of a CSV's columns.
+
+    Either ``roles``, the role of each column in order (``_`` skips one), whatever a header
+    row says; or ``names``, each role's column by its header name (the header row required).
+    """
+
+    roles: tuple[str, ...] | None = None
+    names: tuple[tuple[str, str], ...] | None = None   # (role, header name)
+
+    def text(self) -> str:
+        """Return the columns as ``--columns`` spells them."""
+        if self.names is not None:
+            return ','.join(f'{name}={role}' for role, name in self.names)
+        assert self.roles is not None
+        return ','.join(self.roles)
+
+
+def _check_roles(named: list[str], text: str) -> None:
     if len(set(named)) != len(named) or 't' not in named or 'position' not in named:
         raise IdentifyError(f'--columns must name t and position once each (and velocity, '
                             f'effort at most once), got {text!r}')
-    return cols
 
 
-def read_csv(path: Path, columns: tuple[str, ...], units: str) -> Samples:
-    """Read a CSV whose header row names ``columns`` in order."""
+def parse_columns(text: str) -> Columns:
+    """Return what ``--columns`` says: roles in order (``t,_,position``) or by header name.
+
+    ``time=t,angle=position`` maps the header names ``time`` and ``angle`` to the roles t and
+    position; columns it does not name are skipped.
+    """
+    items = tuple(c.strip() for c in text.split(','))
+    mapped = ['=' in c for c in items]
+    if any(mapped) and not all(mapped):
+        raise IdentifyError(f'--columns either names the roles of the columns in order '
+                            f'(t,_,position) or maps header names to roles (time=t,'
+                            f'angle=position), not both; got {text!r}')
+    if not any(mapped):
+        for c in items:
+            if c not in (*ROLES, SKIP):
+                raise IdentifyError(f'--columns names t, position, velocity, effort or _ (a '
+                                    f'column to skip), or maps header names to them '
+                                    f'(time=t,angle=position); got {c!r}')
+        _check_roles([c for c in items if c != SKIP], text)
+        return Columns(roles=items)
+    pairs = []
+    for item in items:
+        name, _, role = (part.strip() for part in item.partition('='))
+        if not name or role not in ROLES:
+            raise IdentifyError(f'--columns maps a header name to a role as NAME=ROLE, the '
+                                f'role one of t, position, velocity, effort; got {item!r}')
+        pairs.append((role, name))
+    _check_roles([role for role, _ in pairs], text)
+    names = [name for _, name in pairs]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise IdentifyError(f'--columns maps the header name {twice[0]!r} to two roles; map '
+                            f'each column once, got {text!r}')
+    return Columns(names=tuple(pairs))
+
+
+def _number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
+
+
+def read_csv(path: Path, columns: Columns, units: str) -> Samples:
+    """Read a CSV: its columns by role in order, or by their header names.
+
+    A first row with a cell that is not a number (in a column read) is a header row: skipped
+    where ``columns`` gives the roles in order, read for the names where it maps header names
+    to roles.
+    """
     with path.open(newline='') as fh:
         rows = [r for r in csv.reader(fh) if r and any(cell.strip() for cell in r)]
     if not rows:
-        raise IdentifyError(f'{path} is empty; pass a CSV with a header row and samples')
-    header = tuple(c.strip() for c in rows[0])
-    if len(header) != len(columns) or any(c != SKIP and h != c for h, c in zip(header, columns,
-                                                                                strict=True)):
-        raise IdentifyError(f"{path}: header {','.join(header)!r} does not match --columns "
-                            f"{','.join(columns)!r}; pass --columns with the file's columns in "
-                            f"order (_ for one to skip)")
-    data = np.full((len(rows) - 1, len(columns)), np.nan)
-    for i, row in enumerate(rows[1:]):
-        if len(row) != len(columns):
-            raise IdentifyError(f'{path}: line {i + 2} has {len(row)} fields, the header '
-                                f'{len(columns)}')
+        raise IdentifyError(f'{path} is empty; pass a CSV with a sample on each line')
+    first = [c.strip() for c in rows[0]]
+    read = first   # the cells that tell a header: those of the columns read
+    if columns.roles is not None and len(first) == len(columns.roles):
+        read = [c for c, role in zip(first, columns.roles, strict=True) if role != SKIP]
+    header = None if all(_number(c) for c in read) else tuple(
+        c.lstrip('#').strip() if i == 0 else c for i, c in enumerate(first))
+    if columns.names is not None:
+        if header is None:
+            raise IdentifyError(f'{path} has no header row (its first line is numbers) to '
+                                f'find the columns {columns.text()!r} by name; pass --columns '
+                                f'with the roles of the columns in order (_ for one to skip)')
+        roles = [SKIP] * len(header)
+        for role, name in columns.names:
+            if name not in header:
+                raise IdentifyError(f"{path}: --columns names a column {name!r} that the "
+                                    f"header {','.join(header)!r} does not have; pass "
+                                    f"--columns with the file's header names")
+            if header.count(name) > 1:
+                raise IdentifyError(f"{path}: the header {','.join(header)!r} has "
+                                    f"{header.count(name)} columns named {name!r}; pass "
+                                    f"--columns with the roles of the columns in order")
+            roles[header.index(name)] = role
+        order = tuple(roles)
+    else:
+        assert columns.roles is not None
+        order = columns.roles
+        if header is not None and len(header) != len(order):
+            raise IdentifyError(f"{path}: the header {','.join(header)!r} has {len(header)} "
+                                f"columns but --columns {columns.text()!r} names "
+                                f"{len(order)}; pass --columns with a role for each column "
+                                f"(_ for one to skip)")
+    body = rows[1:] if header is not None else rows
+    offset = 2 if header is not None else 1
+    if not body:
+        raise IdentifyError(f'{path} has a header row and no samples; pass a CSV with samples')
+    data = np.full((len(body), len(order)), np.nan)
+    for i, row in enumerate(body):
+        if len(row) != len(order):
+            raise IdentifyError(f'{path}: line {i + offset} has {len(row)} fields, '
+                                + (f'the header {len(order)}' if header is not None else
+                                   f'--columns names {len(order)}'))
         for j, cell in enumerate(row):
-            if columns[j] == SKIP:
+            if order[j] == SKIP:
                 continue
             try:
                 data[i, j] = float(cell)
             except ValueError:
-                raise IdentifyError(f'{path}: line {i + 2}, column {columns[j]}: {cell!r} is '
-                                    f'not a number') from None
+                raise IdentifyError(f'{path}: line {i + offset}, column {order[j]}: {cell!r} '
+                                    f'is not a number') from None
     scale = math.pi / 180.0 if units == 'deg' else 1.0
 
     def col(role: str, factor: float = 1.0) -> FloatArray | None:
-        return data[:, columns.index(role)] * factor if role in columns else None
+        return data[:, order.index(role)] * factor if role in order else None
 
     t, pos = col('t'), col('position', scale)
     assert t is not None and pos is not None

@@ -161,13 +161,18 @@ def write_campaign(path: Path, f: Fit, body: Body) -> None:
 
 
 def write_models(path: Path, fits: Sequence[Fit]) -> None:
-    """Write ``models.csv``: one row per law, ranked by BIC."""
+    """Write ``models.csv``: one row per law, ranked by BIC.
+
+    ``starts`` is how many starts the law's fit ran, ``starts_at_optimum`` how many of them
+    ended at its optimum (``starts.REACHED``): one start that alone found the best says the
+    law's landscape is rugged there.
+    """
     with path.open('w', newline='') as fh:
         w = csv.writer(fh)
         head = ['rank', 'model', 'bic', 'aic', 'rms_residual', 'samples']
         for k in COLUMNS:
             head += [k, f'{k}_stderr', f'{k}_ci95_low', f'{k}_ci95_high']
-        w.writerow([*head, 'not_determined'])
+        w.writerow([*head, 'starts', 'starts_at_optimum', 'not_determined'])
         for rank, f in enumerate(fits, 1):
             row: list[object] = [rank, f.model, f'{f.bic:.6f}', f'{f.aic:.6f}',
                                  f'{f.rms_residual:.6g}', f.samples]
@@ -175,6 +180,7 @@ def write_models(path: Path, fits: Sequence[Fit]) -> None:
                 v, e, c = f.params.get(k), f.stderr.get(k), f.ci95.get(k)
                 row += ['' if v is None else repr(v), '' if e is None else repr(e),
                         '' if c is None else repr(c[0]), '' if c is None else repr(c[1])]
+            row += [f.starts, f.at_optimum]
             row.append('; '.join(f'{k}: {why}' for k, why in f.reasons.items()))
             w.writerow(row)
 
@@ -213,11 +219,12 @@ def _pm(f: Fit, k: str) -> str:
 def summary(fits: Sequence[Fit]) -> str:
     """Return the comparison as a text table (estimate ± standard error; — not determined)."""
     head = ('rank', 'model', 'omega0 (rad/s)', 'gamma', 'n', 'friction (N m)', 'rms (rad)',
-            'BIC')
+            'BIC', 'starts at optimum')
     rows = [head]
     for i, f in enumerate(fits, 1):
         rows.append((str(i), f.model, _pm(f, 'omega0'), _pm(f, 'gamma'), _pm(f, 'n'),
-                     _pm(f, 'friction'), f'{f.rms_residual:.3g}', f'{f.bic:.1f}'))
+                     _pm(f, 'friction'), f'{f.rms_residual:.3g}', f'{f.bic:.1f}',
+                     f'{f.at_optimum} of {f.starts}'))
     width = [max(len(r[j]) for r in rows) for j in range(len(head))]
     lines = ('  '.join(c.ljust(w) for c, w in zip(r, width, strict=True)).rstrip() for r in rows)
     return '\n'.join(lines)

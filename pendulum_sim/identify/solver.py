@@ -14,7 +14,7 @@ squares is taken (and its Jacobian with it), otherwise the damping λ grows.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,6 +35,8 @@ BOUNDS = {'omega0': (1e-3, 1e3), 'gamma': (0.0, 1e3), 'n': (0.0, 6.0),
 RELATIVE_STEP = 1e-6
 """Forward-difference step of the Jacobian, relative to the parameter's size."""
 MAX_ITERATIONS = 80
+LAMBDA_MAX = 1e12
+"""The damping λ past which a problem that finds no lower sum of squares stops."""
 TOLERANCE = 1e-8
 """Stop when an accepted step lowers the sum of squares by less than this fraction, or the next
 step is predicted to (far below what moves an estimate within its standard error)."""
@@ -52,6 +54,7 @@ class Problem:
     fixed: dict[str, float]
     theta: FloatArray
     scale: FloatArray        # typical size of each free parameter (Jacobian steps)
+    speed: float = 0.0       # the reference speed of γ's slot of θ (0: θ holds γ itself)
     cost: float = math.inf
     jac: FloatArray | None = None
     residual: FloatArray | None = None
@@ -60,11 +63,43 @@ class Problem:
     done: bool = False
     weights: tuple[npt.NDArray[np.int64], FloatArray] | None = field(default=None, repr=False)
 
+    def _scaled(self) -> bool:
+        """Say whether θ holds the damping at ``speed`` in γ's slot (γ and n both free)."""
+        return self.speed > 0.0 and 'gamma' in self.free and 'n' in self.free
+
     def full(self, theta: FloatArray) -> dict[str, float]:
         """Return every parameter for the free values ``theta``."""
         values = dict(self.fixed)
         values.update(zip(self.free, (float(v) for v in theta), strict=True))
+        if self._scaled():
+            values['gamma'] = values['gamma'] / self.speed ** values['n']
         return values
+
+    def encode(self, values: Mapping[str, float]) -> FloatArray:
+        """Return θ for the parameters ``values`` (the inverse of :meth:`full`).
+
+        Where γ and n are both free, γ's slot holds the damping deceleration at the reference
+        speed, γ speed^n (rad/s²), instead of γ (in s^(n−2)): a change of n then changes the
+        law's shape about that speed, not its size by orders of magnitude, and the valley of
+        the sum of squares along which γ and n trade off is nearly straight, where in (γ, n)
+        it is curved and Levenberg–Marquardt crawls along it.
+        """
+        theta = np.array([float(values[k]) for k in self.free])
+        if self._scaled():
+            theta[self.free.index('gamma')] = float(values['gamma']) * self.speed ** float(
+                values['n'])
+        return theta
+
+    def physical_jacobian(self) -> FloatArray:
+        """Return the Jacobian of the residual in the parameters of :meth:`full` (γ, not θ)."""
+        assert self.jac is not None
+        jac = np.array(self.jac, copy=True)
+        if self._scaled():
+            g, n = self.free.index('gamma'), self.free.index('n')
+            slot = float(self.theta[g])   # γ speed^n
+            jac[:, n] += self.jac[:, g] * slot * math.log(self.speed)
+            jac[:, g] *= self.speed ** float(self.theta[n])
+        return jac
 
     def clip(self, theta: FloatArray) -> FloatArray:
         """Return ``theta`` inside the search bounds."""
@@ -156,30 +191,52 @@ def _with_steps(p: Problem, theta: FloatArray) -> tuple[FloatArray, FloatArray]:
 def _lm_step(p: Problem) -> tuple[FloatArray, float]:
     """Return the Levenberg–Marquardt candidate from the current θ, J and residual.
 
-    And the decrease of the sum of squares the linearised model predicts for it.
+    And the decrease of the sum of squares the linearised model predicts for it. The step
+    stays within the bounds as a projected step does: a parameter the step would carry past
+    its bound moves to the bound and is held there while the others are solved for again
+    (each pass holds at least one more), so that a step clipped at a bound (γ or a friction
+    at 0, n at its limit) is still a descent step of the rest. Where even that step is
+    predicted to raise the sum of squares, λ grows until it is not.
     """
     assert p.jac is not None and p.residual is not None
     d = np.linalg.norm(p.jac, axis=0)
     d = np.where(d > 0, d, 1.0)
     js = p.jac / d
-    a = js.T @ js + p.lam * np.eye(js.shape[1])
-    g = js.T @ p.residual
-    try:
-        delta = -np.linalg.solve(a, g) / d
-    except np.linalg.LinAlgError:
-        delta = -np.linalg.lstsq(a, g, rcond=None)[0] / d
-    candidate = p.clip(p.theta + delta)
-    step = candidate - p.theta
-    jd = p.jac @ step
-    predicted = -float(p.residual @ jd) - 0.5 * float(jd @ jd)
-    return candidate, predicted
+    lo = np.array([BOUNDS[k][0] for k in p.free])
+    hi = np.array([BOUNDS[k][1] for k in p.free])
+    while True:
+        step = np.zeros_like(p.theta)
+        held = np.zeros(p.theta.size, dtype=bool)
+        for _ in range(p.theta.size):
+            move = ~held
+            r = p.residual + p.jac[:, held] @ step[held]
+            a = js[:, move].T @ js[:, move] + p.lam * np.eye(int(move.sum()))
+            g = js[:, move].T @ r
+            try:
+                delta = -np.linalg.solve(a, g) / d[move]
+            except np.linalg.LinAlgError:
+                delta = -np.linalg.lstsq(a, g, rcond=None)[0] / d[move]
+            step[move] = delta
+            out = move & ((p.theta + step < lo) | (p.theta + step > hi))
+            if not out.any():
+                break
+            step[out] = np.clip(p.theta + step, lo, hi)[out] - p.theta[out]
+            held |= out
+        candidate = p.clip(p.theta + step)
+        step = candidate - p.theta
+        jd = p.jac @ step
+        predicted = -float(p.residual @ jd) - 0.5 * float(jd @ jd)
+        if predicted > 0.0 or p.lam > LAMBDA_MAX:
+            return candidate, predicted
+        p.lam *= 4.0
 
 
 def solve(problems: Sequence[Problem], *, jit: bool,
-          progress: Callable[[int, int], None] | None = None) -> None:
+          progress: Callable[[int, int], None] | None = None,
+          max_iterations: int = MAX_ITERATIONS) -> None:
     """Fit every problem in lockstep (each problem's state is updated in place)."""
     candidates = [p.clip(p.theta) for p in problems]
-    for it in range(MAX_ITERATIONS + 1):
+    for it in range(max_iterations + 1):
         active = [i for i, p in enumerate(problems) if not p.done]
         if not active:
             break
@@ -204,7 +261,7 @@ def solve(problems: Sequence[Problem], *, jit: bool,
                 p.done = True          # the start itself cannot be simulated
             else:
                 p.lam *= 4.0
-                if p.lam > 1e12:
+                if p.lam > LAMBDA_MAX:
                     p.done = True
             if not p.done:
                 candidates[i], predicted = _lm_step(p)

@@ -25,6 +25,7 @@ from pendulum_sim.core.jit_cache import (
     ENV_VAR,
     JitCacheWarning,
     cache_dir,
+    compiling,
     kernel_module,
     module_file,
     write_atomic,
@@ -137,3 +138,49 @@ def test_a_cache_directory_removed_under_a_process_leaves_the_run_in_memory(
     fn = compile_kernel(TABLEAUS['rk4'], 2.0, careful_step)
     with pytest.warns(JitCacheWarning, match=f'the jit cache {directory} is not writable'):
         assert kernel_module(fn) is None
+
+
+def test_compiling_calls_back_once_where_numba_compiles_and_not_where_it_loads() -> None:
+    # numba raises its compile event on a cache miss only: a new function compiles (one call,
+    # however many functions compile in the block), one compiled already does not.
+    import numba
+
+    calls: list[bool] = []
+    first_fn = numba.njit(lambda x: x + 1.0)
+    with compiling(calls.append):
+        assert first_fn(1.0) == 2.0 and first_fn(2.0) == 3.0
+        assert numba.njit(lambda x: 2.0 * x)(1.5) == 3.0
+    assert calls == [cache_dir() is not None]
+    with compiling(calls.append):
+        assert first_fn(3.0) == 4.0
+    assert len(calls) == 1
+
+
+def identify(csv: Path, out: Path, cache: Path) -> subprocess.CompletedProcess[str]:
+    """Run ``pendulum_identify`` on ``csv`` (quadratic drag only) with the jit cache ``cache``."""
+    env = dict(os.environ, **{ENV_VAR: str(cache)})
+    script = Path(sys.executable).parent / 'pendulum_identify'
+    return subprocess.run([str(script), str(csv), '--out', str(out), '--models', 'quadratic'],
+                          capture_output=True, text=True, env=env, check=False, timeout=900)
+
+
+@pytest.mark.slow
+def test_pendulum_identify_says_when_it_compiles_and_only_then(tmp_path: Path) -> None:
+    # A first run on a fresh cache compiles (one cold compile of the n = 2 law) and says so on
+    # its progress line; a second run on that cache loads it all and says nothing of it.
+    import numpy as np
+
+    from pendulum_sim.core import PendulumParams, simulate
+    from pendulum_sim.identify.cli import COMPILING
+
+    run = simulate(PendulumParams.from_omega0_sq(9.8, 0.2, 2.0), 0.9, 0.0, 6.0, 1e-3)
+    csv = tmp_path / 'swing.csv'
+    np.savetxt(csv, np.c_[run.t[::20], run.phi[::20]], delimiter=',', header='t,position',
+               comments='')
+    cache = tmp_path / 'jit'
+    cold = identify(csv, tmp_path / 'cold', cache)
+    assert cold.returncode == 0, cold.stderr
+    assert f'fitting quadratic (1/1): {COMPILING}' in cold.stderr
+    warm = identify(csv, tmp_path / 'warm', cache)
+    assert warm.returncode == 0, warm.stderr
+    assert 'fitting quadratic (1/1)' in warm.stderr and 'compiling' not in warm.stderr

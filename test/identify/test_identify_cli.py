@@ -112,6 +112,21 @@ def test_a_csv_in_degrees_gives_a_scene_a_table_a_figure_and_a_campaign_block(tm
     assert (out / 'fit.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
+def test_a_lab_csv_headed_time_angle_is_identified_without_editing(tmp_path: Path) -> None:
+    """Its header names no role: the roles in order, or its names mapped, both give the fit."""
+    t, y, _ = swing_samples()
+    rows = [[f'{a:.6f}', f'{b:.6f}'] for a, b in zip(t, y, strict=True)]
+    src = write_csv(tmp_path / 'lab.csv', ['time', ' angle'], rows)
+    fitted = []
+    for i, columns in enumerate(('t,position', 'time=t,angle=position')):
+        out = tmp_path / f'fit{i}'
+        res = run(src, '--columns', columns, '--out', out, *FAST)
+        assert res.returncode == 0, res.stderr
+        fitted.append(read_params_file(out / 'fit.yaml'))
+    assert fitted[0] == fitted[1]
+    assert fitted[0]['n'] == 2.0 and abs(fitted[0]['gamma'] - 0.2) < 0.01
+
+
 def test_another_writers_bag_with_two_joints_and_a_wrapping_encoder(tmp_path: Path) -> None:
     bag = write_other_bag(tmp_path / 'arm.mcap')
     out = tmp_path / 'fit'
@@ -177,8 +192,12 @@ def bad_cases(tmp: Path) -> list[tuple[list[str | Path], str]]:
                  f'{float(t[8])!r} s; sort the samples and drop repeated stamps'),
         ([rest], 'the joint is at rest: its position spans 0 rad over the record, within its '
                  'noise; record a free swing from a release angle'),
-        ([other], f"{other}: header 'time,angle' does not match --columns 't,position'; pass "
-                  "--columns with the file's columns in order (_ for one to skip)"),
+        ([other, '--columns', 'time=t,theta=position'],
+         f"{other}: --columns names a column 'theta' that the header 'time,angle' does not "
+         "have; pass --columns with the file's header names"),
+        ([other, '--columns', 't=time,position=angle'],
+         "--columns maps a header name to a role as NAME=ROLE, the role one of t, position, "
+         "velocity, effort; got 't=time'"),
         ([rest, '--models', 'power,cubic'],
          "--models takes viscous, quadratic, coulomb, power, power+coulomb, got 'cubic'"),
     ]
