@@ -99,7 +99,7 @@ def _step(x: float, v: float, h: float, w2: float, gam: float, n: float, f: floa
         return x1, v1, False
     hs = h / REFINE
     for _ in range(REFINE):
-        xs, vs = x, v
+        vs = v
         x, v = _rk4(x, v, hs, w2, gam, n, f)
         if vs != 0.0 and (v == 0.0 or (v > 0.0) != (vs > 0.0)) and abs(
                 w2 * math.sin(x)) <= stick:
