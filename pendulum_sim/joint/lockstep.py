@@ -273,11 +273,11 @@ class Lockstep:
         if not self._pushed:
             return 0.0
         push = np.zeros(ids.size)
-        for n, j in enumerate(ids.tolist()):
-            if j in self._pushed:
-                c = self.configs[j]
-                assert c is not None
-                push[n] = c.disturbance_at(int(self._periods[j]) * k)
+        where = np.flatnonzero(np.isin(ids, np.fromiter(self._pushed, dtype=np.int64)))
+        for n, j in zip(where.tolist(), ids[where].tolist(), strict=True):
+            c = self.configs[j]
+            assert c is not None
+            push[n] = c.disturbance_at(int(self._periods[j]) * k)
         return push
 
     def _by_joint(self, j: int, command: float) -> str | None:
