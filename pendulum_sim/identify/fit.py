@@ -23,6 +23,7 @@ from pendulum_sim.core.jit import available as jit_available
 from .errors import IdentifyError
 from .guess import Guess, best_exponent, envelope_gamma, first_look
 from .laws import COMPARED, MODELS, Law, get_law
+from .record import Record
 from .solver import BOUNDS, Problem, simulate_columns, solve
 from .starts import EXPONENTS, FRICTION_EXPONENTS, NESTED, reached, search, seed
 
@@ -103,16 +104,6 @@ class Fit:
     def residual(self) -> FloatArray:
         """Return measured minus fitted angle at each sample, rad."""
         return self.position - self.fitted
-
-
-@dataclass(frozen=True)
-class Record:
-    """A record ready to fit: times from its first sample, the unwrapped angle, the guess."""
-
-    t0: float
-    t: FloatArray
-    y: FloatArray
-    guess: Guess
 
 
 def _array(name: str, value: Any, size: int | None) -> FloatArray:

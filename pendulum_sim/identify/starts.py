@@ -24,14 +24,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .record import Record
 from .solver import MAX_ITERATIONS, Problem, solve
-
-if TYPE_CHECKING:
-    from .fit import Record
 
 FIRST_TURNS = 4
 """Turning points the first window holds (two periods, counted from the first whole half
@@ -63,7 +60,7 @@ NESTED: dict[str, tuple[str, ...]] = {
 """The laws each law nests: their optima are points of its parameter space (``power`` at
 n = 1, 2 or 0; ``power+coulomb`` with its friction 0)."""
 
-Starter = Callable[['Record', Mapping[str, float]], Problem]
+Starter = Callable[[Record, Mapping[str, float]], Problem]
 """Make the problem of one start on one record (``fit._problem`` of a law)."""
 
 
