@@ -1,6 +1,7 @@
 """The node's ROS-free parts under hostile inputs: joint, commands, parameters, drivers, stats."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -11,7 +12,7 @@ from pendulum_sim.joint import commands
 from pendulum_sim.joint.commands import Drops
 from pendulum_sim.joint.drivers import RealTimeDriver, SyncDriver, make_driver, wake_period
 from pendulum_sim.joint.exchange import Gate, SyncExchange
-from pendulum_sim.joint.joint import JointConfig, SimulatedJoint
+from pendulum_sim.joint.joint import SimulatedJoint
 from pendulum_sim.joint.parameters import SPECS, check, start_epoch_ns
 from pendulum_sim.joint.realtime import WakeStats
 from pendulum_sim.joint.telemetry import Telemetry
@@ -31,7 +32,7 @@ def test_a_sensor_delay_changed_live_back_and_forth_never_crashes() -> None:
     assert j.sample() is not None
     config = j.config
     for delay in (0, 10):
-        j.reconfigure(JointConfig(**{**config.__dict__, 'sensor_delay_steps': delay}))
+        j.reconfigure(dataclasses.replace(config, sensor_delay_steps=delay))
         j.advance(5)
         sample = j.sample()
         if delay:
