@@ -88,7 +88,13 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
     if not one:
         for grp, a, b in zip(grps, offs[:-1], offs[1:], strict=True):
             grp.p, grp.v, grp.e = P[a:b], V[a:b], E[a:b]
-    cols = [joint(name) for name in ('ain_col', 'w2_col', 'gamma_col', 'cf')]
+    # The input: one row (1, N), or the stretch's schedule (steps, N), C-ordered either way.
+    if grps[0].sched is None:
+        ain = np.ascontiguousarray(joint('ain_col')).reshape(1, -1)
+    else:
+        ain = np.ascontiguousarray(grps[0].sched if one else
+                                   np.concatenate([grp.sched for grp in grps], axis=1))
+    cols = [ain, *(joint(name) for name in ('w2_col', 'gamma_col', 'cf'))]
     nn = np.concatenate([np.broadcast_to(grp.nn, (size,))
                          for grp, size in zip(grps, sizes, strict=True)])
     decide = [joint(name) for name in

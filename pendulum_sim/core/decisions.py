@@ -281,7 +281,9 @@ def kernel_source(tableau: Tableau, n: float, friction: bool = False) -> str:
     NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, COUNTS, CAREFUL, GUARD)``
     advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
     ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
-    step ``count`` of size h. Each step is the plain step of ``explicit.step_source`` where the
+    step ``count`` of size h, under the input ``AIN[0, i]`` (shape (1, N)) or, where ``AIN``
+    is a schedule of shape (steps, N), ``AIN[base + k, i]`` in the step after ``base + k``.
+    Each step is the plain step of ``explicit.step_source`` where the
     fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
     result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
     stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``;
@@ -355,10 +357,13 @@ def kernel_source(tableau: Tableau, n: float, friction: bool = False) -> str:
              *step_source_with_n(STIFF_PAIR, n, True, 'pair_branch', True).splitlines(),
              f'def kernel({", ".join(KERNEL_ARGS)}):',
              '    rows = RP.shape[0]',
+             # AIN is (1, N), one input per pendulum, or a schedule (steps, N): row base + k
+             # is the input of step base + k + 1 of the stretch.
+             '    rs = 1 if AIN.shape[0] > 1 else 0',
              '    for j in prange(IDX.shape[0]):',
              '        i = IDX[j]',
-             '        a_in = AIN[i]', '        w2 = W2[i]', '        gamma = GAMMA[i]',
-             '        cf = CF[i]' if friction else '        ain = a_in',
+             '        w2 = W2[i]', '        gamma = GAMMA[i]',
+             *(['        cf = CF[i]'] if friction else []),
              '        lo = LO[i]', '        hi = HI[i]', '        reach = REACH[i]',
              '        v_acc = V_ACC[i]', '        check = CHECK[i]',
              '        nonsmooth = NONSMOOTH[i]', '        coulomb = COULOMB[i]',
@@ -367,8 +372,9 @@ def kernel_source(tableau: Tableau, n: float, friction: bool = False) -> str:
              '        stale = False',
              '        nxt = next_record(base + k, every, total)',
              '        while k < count:',
-             *([pad + '    ain = a_in if cf == 0.0 else a_in - copysign(cf, v0)']
-               if friction else []),
+             '            a_in = AIN[rs * (base + k), i]',
+             pad + ('    ain = a_in if cf == 0.0 else a_in - copysign(cf, v0)' if friction
+                    else '    ain = a_in'),
              # Outside the guard's range the run refuses the step before taking it: the
              # careful step then takes its plain step itself where it needs one.
              '            av = abs(v0)', '            known = lo <= av <= hi',

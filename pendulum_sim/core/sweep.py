@@ -212,6 +212,15 @@ def _validate(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, torque:
     return tuple(out.values())
 
 
+def _as_vector_rows(value: Any) -> FloatArray:
+    """Return a schedule (a 2-D array of real numbers) as float64, or refuse it."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in 'iuf':
+        raise ModelError(f'a torque schedule must be a 2-D array of real numbers, got '
+                         f'{arr.dtype}')
+    return arr.astype(np.float64)
+
+
 def _params(out: dict[str, FloatArray], i: int) -> PendulumParams:
     w2 = float(out['omega0_sq'][i])
     fr = float(out['friction'][i]) if 'friction' in out else 0.0
@@ -294,19 +303,34 @@ class _Group:
         self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
         self.use_careful = False  # the compiled run takes the careful step (compiled_careful)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
+        self.sched: FloatArray | None = None  # the stretch's input per step (steps, size)
         self.p = self.v = self.e = np.empty(0)
         self.w2: Any = 0.0
         self.gamma: Any = 0.0
         self.ain: Any = 0.0
 
-    def use_torque(self, tau: FloatArray, energy_check: bool) -> None:
-        """Take the input τ/I of the n-sorted array ``tau`` for the next steps."""
+    def use_torque(self, tau: FloatArray, energy_check: bool,
+                   schedule: FloatArray | None = None) -> None:
+        """Take the input τ/I of the n-sorted array ``tau`` for the next steps.
+
+        With a ``schedule`` (n-sorted columns, a row per step) the input of each step is its
+        row (:meth:`take_row`), and the energy check holds only for the pendulums whose every
+        row is zero (an input's work makes the energy rise).
+        """
         sl = self.sl
         self.ain = _uniform(tau[sl])
         self.ain_col = tau[sl]
-        self.check = self.damped & (tau[sl] == 0.0) & energy_check & (self.cf == 0.0)
+        self.sched = None if schedule is None else schedule[:, sl]
+        free = tau[sl] == 0.0 if schedule is None else ~np.any(self.sched != 0.0, axis=0)
+        self.check = self.damped & free & energy_check & (self.cf == 0.0)
         self.any_check = bool(self.check.any())
         self.all_check = bool(self.check.all())
+
+    def take_row(self, row: int) -> None:
+        """Take the schedule's input of the step after ``row`` steps (numpy sweep)."""
+        assert self.sched is not None
+        self.ain_col = self.sched[row]
+        self.ain = _uniform(self.ain_col)
 
     def use_step(self, guard: Any, hh: float, om2: FloatArray, gam: FloatArray,
                  bounds: FloatArray) -> None:
@@ -605,6 +629,26 @@ def _torque(torque: Any, size: int, params: Any) -> FloatArray:
     return tau
 
 
+def _schedule(torque: FloatArray, steps: int, size: int, params: Any) -> FloatArray:
+    """Validate a schedule of inputs, one row of N = ``size`` per step of the stretch.
+
+    ``params(i)`` returns the ``PendulumParams`` of pendulum ``i`` (for the model's message).
+    """
+    if torque.shape != (steps, size):
+        raise ModelError(f'a torque schedule must have one row per step and one column per '
+                         f'pendulum, shape (steps, N) = ({steps}, {size}), got shape '
+                         f'{torque.shape}')
+    tau = np.ascontiguousarray(torque, dtype=np.float64)
+    bad = ~(np.abs(tau) <= MAX_INPUT_ACCEL)
+    if bad.any():
+        k, i = (int(x) for x in np.argwhere(bad)[0])
+        try:
+            check_torque(float(tau[k, i]), params(i))
+        except ModelError as exc:
+            raise ModelError(f'{exc} at index {i}, step {k + 1}') from None
+    return tau
+
+
 def _sort_order(nn: FloatArray) -> IntArray:
     """Return the pendulums' order: by n, the exponents of one text (general_law) last.
 
@@ -709,8 +753,15 @@ class Sweep:
         t_end : float
             Length of the stretch in s (> 0); its times run from 0 to ``t_end`` (the step count
             by rounding, a last shorter step if it is not a multiple of h, as ``sweep``).
-        torque : float or array_like, shape (N,), optional
+        torque : float or array_like, shape (N,) or (steps, N), optional
             Input acceleration τ/I in rad/s², constant over the stretch; None keeps the last.
+            A schedule of shape (steps, N), a row per step of the stretch (its step count
+            by rounding, the last shorter step included), holds row k over step k + 1 (a
+            zero-order hold on the step grid); the input after it is the last row. Over a
+            schedule the guard's speed ranges are those of each pendulum's largest input (a
+            range holds for every smaller one, ``Engine.fast_range``), and the energy check
+            applies only to pendulums whose inputs are all zero; each step is otherwise taken
+            as a stretch of that one step would take it.
         record_every : int, optional
             Record the states every this many steps (and at ``t_end``).
 
@@ -723,14 +774,22 @@ class Sweep:
         t_end = check_run_length(t_end, h, self.max_steps)
         if record_every is not None:
             record_every = check_count('record_every', record_every)
-        if torque is not None:
+        k_full, last = step_count(t_end, h)
+        steps = [(h, k_full)] + ([(last, 1)] if last > 0.0 else [])
+        total = k_full + (1 if last > 0.0 else 0)
+        schedule = None
+        if torque is not None and np.ndim(torque) == 2:
+            schedule = _schedule(_as_vector_rows(torque), total, self.size,
+                                 self._params)[:, self._order]
+            self._tau = schedule[-1].copy()
+            self._bounds = _input_bounds(np.max(np.abs(schedule), axis=0), self._fr)
+            for grp in self._groups:
+                grp.use_torque(self._tau, self.energy_check, schedule)
+        elif torque is not None:
             self._tau = _torque(torque, self.size, self._params)[self._order]
             self._bounds = _input_bounds(self._tau, self._fr)
             for grp in self._groups:
                 grp.use_torque(self._tau, self.energy_check)
-        k_full, last = step_count(t_end, h)
-        steps = [(h, k_full)] + ([(last, 1)] if last > 0.0 else [])
-        total = k_full + (1 if last > 0.0 else 0)
         om2, gam, phi, v = self._om2, self._gam, self._phi, self._v
         # E/I of the current states: the last result's, or made here (after a refused run).
         energy = self._energy
@@ -777,6 +836,8 @@ class Sweep:
                     done += count
                 for _ in range(0 if self.jit else count):
                     for grp in groups:
+                        if schedule is not None:
+                            grp.take_row(done)
                         self._handed_back += _advance(grp, hh, self._engines, stats, meth,
                                                       self.guard, self.energy_check, done * h)
                         self._check_speed(grp, t_end if done + 1 == total else (done + 1) * h)
@@ -786,6 +847,10 @@ class Sweep:
                 for grp in groups:
                     grp.store(phi, v, energy)
                 loaded = False
+        if schedule is not None:   # the last input holds from here, as a constant one
+            self._bounds = _input_bounds(self._tau, self._fr)
+            for grp in groups:
+                grp.use_torque(self._tau, self.energy_check)
         if self.jit and every:
             rec_t = [0.0, *(t_end if d == total else d * h for d in range(1, total + 1)
                             if d % every == 0 or d == total)]
@@ -813,8 +878,9 @@ class Sweep:
 
         def careful(grp: _Group, j: int, h: float, done: int) -> None:
             w2 = float(grp.w2_col[j])
+            ain = grp.ain_col[j] if grp.sched is None else grp.sched[done, j]
             p1, v1 = _careful_one(grp, j, float(grp.p[j]), float(grp.v[j]), h,
-                                  float(grp.ain_col[j]), w2, float(grp.gamma_col[j]),
+                                  float(ain), w2, float(grp.gamma_col[j]),
                                   self._engines, stats, meth, self.guard, self.energy_check,
                                   done * self.h)
             grp.p[j], grp.v[j] = p1, v1
@@ -896,8 +962,9 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         Step in s (> 0).
     method : str
         ``'rk4'`` (default, the paper's), ``'midpoint'`` or ``'euler'``.
-    torque : float or array_like, shape (N,)
-        Input acceleration τ/I in rad/s², constant over the sweep.
+    torque : float or array_like, shape (N,) or (steps, N)
+        Input acceleration τ/I in rad/s², constant over the sweep, or a schedule with a row
+        per step (a zero-order hold on the step grid, as :meth:`Sweep.advance` takes it).
     guard, energy_check : bool
         As for :class:`~pendulum_sim.core.stepper.Stepper`.
     record_every : int, optional
@@ -925,7 +992,9 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
     SweepResult
         Scalars broadcast to the common length N.
     """
-    prepared = Sweep(omega0_sq, gamma, n, phi0, dphi0, h, method=method, torque=torque,
-                     guard=guard, energy_check=energy_check, max_steps=max_steps, jit=jit,
+    scheduled = np.ndim(torque) == 2
+    prepared = Sweep(omega0_sq, gamma, n, phi0, dphi0, h, method=method,
+                     torque=0.0 if scheduled else torque, guard=guard,
+                     energy_check=energy_check, max_steps=max_steps, jit=jit,
                      friction=friction)
-    return prepared.advance(t_end, record_every=record_every)
+    return prepared.advance(t_end, torque if scheduled else None, record_every=record_every)

@@ -150,8 +150,8 @@ def run_kernel(pre_test: bool, n: float, h: float, steps: int) -> list[bytes]:
     careful[::5] = False  # these stop at a refused step, E/I written back where they stop
     full, zero = np.full(size, math.inf), np.zeros(size)
     guard = np.array(StabilityGuard(tab).constants)
-    kernel(p, v, e, k, np.arange(size), h, steps, zero.copy(), w2, gamma, zero.copy(),
-           np.full(size, n),
+    kernel(p, v, e, k, np.arange(size), h, steps, zero.reshape(1, -1).copy(), w2, gamma,
+           zero.copy(), np.full(size, n),
            zero.copy(), full.copy(), zero.copy(), full.copy(), check, np.zeros(size, np.bool_),
            np.zeros(size, np.bool_), full.copy(), 0, 0, steps, np.empty((0, size)),
            np.empty((0, size)), counts, careful, guard)
