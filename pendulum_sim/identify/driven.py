@@ -1,0 +1,471 @@
+"""Fit the joint driven by a known effort: inertia, m g l, damping, friction, offset, dead time.
+
+With the torque τ known the model (Quiroga and Ospina-Henao 2017, eq 15-16, with input) is::
+
+    I φ'' = −m g l sin φ − γ I φ'|φ'|^(n−1) − f sgn φ' + τ(t − d) + τ_off
+
+the recorded effort held over each sample interval (``effort.py``), a dead time d and a
+constant torque offset τ_off (a drive's or a torque sensor's bias); the sensor reads
+φ + phi_offset. The effort fixes the torque scale: I (kg m²), m g l (N m), γ, n, f (N m), τ_off
+and d are each determined where the record moves the joint enough, where a free swing fixes
+only ω0² = m g l / I and f / I.
+
+Every trajectory is the core's (a :class:`~pendulum_sim.core.sweep.Sweep` driven by the effort
+as a per-step schedule), fitted over windows re-anchored on the measurement (``windows.py``).
+The first guess is the inverse dynamics in integral form: the velocity from a local cubic
+(Savitzky–Golay) and a bounded linear least squares of the torque's impulse over short blocks on
+I Δφ', ∫sin φ, the damping term's integral, ∫sgn φ' and Δt, the law's exponent and the dead
+time picked from a few by its residual
+(the identification of the open torque-limited pendulum kits, e.g. Wiebe et al.,
+"Torque-limited simple pendulum: a toolkit for getting familiar with robot motion control",
+2022, which this fit then refines by output error: noise in φ'' no longer biases it).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import lsq_linear  # type: ignore[import-untyped]
+from scipy.signal import savgol_filter  # type: ignore[import-untyped]
+from scipy.stats import t as student_t  # type: ignore[import-untyped]
+
+from .effort import Effort, from_samples
+from .errors import IdentifyError
+from .guess import noise_level
+from .laws import Law, get_law
+from .windows import Problem, Series, Windows, covariance, cut, schedule, solve
+
+FloatArray = npt.NDArray[np.float64]
+Value = float | None
+
+SHARED = ('inertia', 'mgl', 'gamma', 'n', 'friction', 'effort_offset', 'command_delay',
+          'phi_offset')
+"""The joint's parameters a driven fit shares over every window and record, in θ order."""
+KNOWN_DRIVEN = SHARED
+"""What ``known`` may fix in a driven fit."""
+BOUNDS = {'inertia': (1e-6, 1e4), 'mgl': (0.0, 1e5), 'gamma': (0.0, 1e3), 'n': (0.0, 6.0),
+          'friction': (0.0, 1e4), 'effort_offset': (-1e4, 1e4), 'command_delay': (0.0, 1.0),
+          'phi_offset': (-1e3, 1e3)}
+"""Where the search stays (kg m², N m, s^(n−2), -, N m, N m, s, rad)."""
+EXPONENTS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
+"""The exponents the inverse dynamics tries for the first guess of a free n."""
+DELAYS = (0.0, 0.5, 1.0, 2.0, 4.0)
+"""The dead times (in median sample periods) the inverse dynamics tries for the first guess."""
+SMOOTHING = 0.06
+"""Span of the Savitzky–Golay cubic of the first guess, s (at least 7 samples)."""
+BLOCK = 0.1
+"""Span of the blocks the first guess integrates the model over, s."""
+STEPS_PER_PERIOD = 64
+"""Simulation steps per guessed period, at least (RK4; steps divide the sample period)."""
+WINDOW_PERIODS = 0.5
+"""The default window, in periods 2π/ω0 of the first guess: short against the divergence of a
+loop near the top (e^π ≈ 23 over it at the rate ω0), long against the sample period."""
+MIN_WINDOW_SAMPLES = 10
+N_UNDETERMINED = 1.0
+"""n is reported as not determined when its 95 % interval is wider than ± this."""
+
+
+@dataclass(frozen=True)
+class DrivenRecord:
+    """A driven record ready to fit: times from its first sample, unwrapped angle, effort.
+
+    ``effort`` is on the record's clock (0 at its first sample); ``velocity`` the measured one
+    where the record has it; ``joint`` the joint's name where the file gives one.
+    """
+
+    t0: float
+    t: FloatArray
+    y: FloatArray
+    velocity: FloatArray | None
+    effort: Effort
+    noise: float
+    source: str = ''
+    joint: str | None = None
+
+
+def prepare_driven(t: FloatArray, y: FloatArray, velocity: FloatArray | None,
+                   effort: Any, *, source: str = '', joint: str | None = None
+                   ) -> DrivenRecord:
+    """Return a checked record (``t`` increasing, ``y`` unwrapped) with its effort signal.
+
+    ``effort`` is an array beside the angle (the torque over the period ending at each stamp)
+    or an :class:`~pendulum_sim.identify.effort.Effort` on the same clock as ``t``.
+    """
+    signal = effort if isinstance(effort, Effort) else from_samples(t, effort)
+    t0 = float(t[0])
+    return DrivenRecord(t0=t0, t=t - t0, y=y, velocity=velocity, effort=signal.shifted(t0),
+                        noise=noise_level(y), source=source, joint=joint)
+
+
+def _odd_span(dt: float, size: int) -> int:
+    span = max(7, int(round(SMOOTHING / dt)) | 1)
+    return min(span, size - 1 if size % 2 == 0 else size)
+
+
+@dataclass(frozen=True)
+class Smoothed:
+    """A record's angle and velocity from a local cubic (Savitzky–Golay), on its samples."""
+
+    phi: FloatArray
+    dphi: FloatArray
+    dt: float
+
+
+def smoothed(rec: DrivenRecord) -> Smoothed:
+    """Return the Savitzky–Golay angle and velocity of ``rec`` (its median spacing)."""
+    dt = float(np.median(np.diff(rec.t)))
+    span = _odd_span(dt, rec.t.size)
+    if span < 5:
+        raise IdentifyError(f'a record needs at least 5 samples, got {rec.t.size}')
+    return Smoothed(savgol_filter(rec.y, span, 3), savgol_filter(rec.y, span, 3, deriv=1,
+                                                                 delta=dt), dt)
+
+
+def _cumulative(t: FloatArray, f: FloatArray) -> FloatArray:
+    """Return the trapezoidal integral of ``f`` from the first sample to each sample."""
+    return np.concatenate(([0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(t))))
+
+
+def inverse_dynamics(recs: Sequence[DrivenRecord], smooth: Sequence[Smoothed], n: float | None,
+                     friction: bool, delay: float) -> tuple[dict[str, float], float]:
+    """Return the bounded least-squares inverse dynamics (I, m g l, γ, f, τ_off) and its RSS.
+
+    The model integrated over blocks of BLOCK seconds (the integral form, which differentiates
+    the angle once, not twice): I Δφ' + m g l ∫sin φ + γ I ∫φ'|φ'|^(n−1) + f ∫sgn φ' − τ_off Δt
+    = ∫u(t − d) dt, every block of every record a row. ``n`` is the damping exponent (None: no
+    power-law damping), ``friction`` whether a Coulomb friction is fitted.
+    """
+    rows, rhs = [], []
+    for rec, sm in zip(recs, smooth, strict=True):
+        v = sm.dphi
+        cols = [v, _cumulative(rec.t, np.sin(sm.phi))]
+        if n is not None:
+            cols.append(_cumulative(rec.t, v * np.abs(v) ** (n - 1.0) if n != 1.0 else v))
+        if friction:
+            cols.append(_cumulative(rec.t, np.sign(v)))
+        cols.append(-rec.t)
+        span = max(2, int(round(BLOCK / sm.dt)))
+        a = np.arange(0, rec.t.size - span)
+        full = np.column_stack(cols)
+        rows.append(full[a + span] - full[a])
+        work = rec.effort.integral(rec.t - delay)
+        rhs.append(work[a + span] - work[a])
+    a_mat, b = np.concatenate(rows), np.concatenate(rhs)
+    lo = [1e-9, 0.0] + [0.0] * (int(n is not None) + int(friction)) + [-np.inf]
+    norms = np.linalg.norm(a_mat, axis=0)
+    norms = np.where(norms > 0, norms, 1.0)
+    sol = lsq_linear(a_mat / norms, b, bounds=(np.array(lo) * norms, np.inf))
+    x = sol.x / norms
+    rss = float(np.sum((a_mat @ x - b) ** 2))
+    out = {'inertia': max(float(x[0]), 1e-6), 'mgl': float(x[1])}
+    j = 2
+    if n is not None:
+        out['gamma'] = float(x[j]) / out['inertia']
+        j += 1
+    if friction:
+        out['friction'] = float(x[j])
+        j += 1
+    out['effort_offset'] = float(x[j])
+    return out, rss
+
+
+def first_guesses(law: Law, recs: Sequence[DrivenRecord], known: Mapping[str, float]
+                  ) -> list[dict[str, float]]:
+    """Return the starts of ``law``: the inverse dynamics at the best dead time and exponent."""
+    ders = [smoothed(r) for r in recs]
+    dt = float(np.median(np.concatenate([np.diff(r.t) for r in recs])))
+    if law.n is not None:
+        ns: list[float | None] = [None if law.n == 0.0 else law.n]
+    elif 'n' in known:
+        ns = [known['n']]
+    else:
+        ns = list(EXPONENTS)
+    fric = law.friction or law.n == 0.0
+    delays = [known['command_delay']] if 'command_delay' in known else [
+        k * dt for k in DELAYS]
+    tried = []
+    for d in delays:
+        for n in ns:
+            guess, rss = inverse_dynamics(recs, ders, n, fric, d)
+            guess.update({'n': 0.0 if n is None else n, 'command_delay': d})
+            tried.append((rss, guess))
+    tried.sort(key=lambda x: x[0])
+    best = tried[0][1]
+    starts = [best]
+    if law.n is None and 'n' not in known:   # the best exponent and the viscous one
+        for _, g in tried:
+            if g['command_delay'] == best['command_delay'] and g['n'] == 1.0 and (
+                    best['n'] != 1.0):
+                starts.append(g)
+    out = []
+    for g in starts:
+        s = {'inertia': g['inertia'], 'mgl': g['mgl'], 'gamma': g.get('gamma', 0.0),
+             'n': g['n'], 'friction': g.get('friction', 0.0),
+             'effort_offset': g['effort_offset'], 'command_delay': g['command_delay'],
+             'phi_offset': 0.0}
+        if not law.friction and law.n != 0.0:
+            s['friction'] = 0.0
+        if law.n == 0.0:
+            s['gamma'] = 0.0
+        s.update(known)
+        out.append(s)
+    return out
+
+
+def _free(law: Law, known: Mapping[str, float]) -> tuple[str, ...]:
+    skip = set(known)
+    if law.n is not None:
+        skip.add('n')
+    if law.n == 0.0:
+        skip.add('gamma')          # the Coulomb law's level is the friction f (N m)
+    elif not law.friction:
+        skip.add('friction')
+    return tuple(k for k in SHARED if k not in skip)
+
+
+def inputs_for(law: Law, recs: Sequence[DrivenRecord], win: Windows
+               ) -> Callable[[dict[str, FloatArray], npt.NDArray[np.int64]], Any]:
+    """Return the map from the shared parameters to the sweep's inputs for ``law``."""
+    def inputs(col: dict[str, FloatArray], wins: npt.NDArray[np.int64]) -> Any:
+        inertia = col['inertia']
+        om2 = col['mgl'] / inertia
+        if law.n == 0.0:   # dry friction alone: the core's n = 0 law, its level f/I
+            gam, nn, fr = col['friction'] / inertia, np.zeros_like(om2), np.zeros_like(om2)
+        else:
+            gam, nn = col['gamma'], col['n']
+            fr = col['friction'] / inertia if law.friction else np.zeros_like(om2)
+        sched = np.empty((win.steps, om2.size))
+        owner = win.record[wins]
+        for r, rec in enumerate(recs):
+            sel = owner == r
+            if sel.any():
+                sched[:, sel] = schedule(rec.effort, win.t0[wins[sel]], win.h, win.steps,
+                                         col['command_delay'][sel])
+        sched = (sched + col['effort_offset'][None, :]) / inertia[None, :]
+        return om2, gam, nn, fr, sched, col['phi_offset']
+    return inputs
+
+
+def anchors(rec: DrivenRecord) -> FloatArray:
+    """Return the velocity each window starts from: measured, else the local cubic's slope."""
+    if rec.velocity is not None:
+        return rec.velocity
+    return smoothed(rec).dphi
+
+
+def grid_step(recs: Sequence[DrivenRecord], omega0: float) -> float:
+    """Return the simulation step: the median sample period over a whole number of steps,
+    at most a STEPS_PER_PERIOD-th of the period 2π/ω0."""
+    dt = float(np.median(np.concatenate([np.diff(r.t) for r in recs])))
+    most = 2.0 * math.pi / max(omega0, 1e-3) / STEPS_PER_PERIOD
+    return dt / max(1, math.ceil(dt / most - 1e-9))
+
+
+def window_length(window: float | None, recs: Sequence[DrivenRecord], omega0: float,
+                  dt: float) -> float | None:
+    """Return the window in s: ``window``, or WINDOW_PERIODS of the guessed period."""
+    span = max(float(r.t[-1]) for r in recs)
+    if window is None:
+        window = WINDOW_PERIODS * 2.0 * math.pi / max(omega0, 1e-3)
+    window = max(window, MIN_WINDOW_SAMPLES * dt)
+    return None if window >= span else window
+
+
+def check_window(window: object) -> float | None:
+    """Return ``window`` (s > 0, or None for the default) or refuse it."""
+    if window is None:
+        return None
+    if isinstance(window, bool) or not isinstance(window, (int, float)) or not (
+            math.isfinite(window) and window > 0):
+        raise IdentifyError(f'window must be a time in s > 0 (or None for half a period), got '
+                            f'{window!r}')
+    return float(window)
+
+
+@dataclass(frozen=True)
+class DrivenSolution:
+    """The best start of a law on the windows: its problem, windows and covariance."""
+
+    law: Law
+    problem: Problem
+    windows: Windows
+    starts: int
+    window: float | None
+
+
+def solve_law(law: Law, recs: Sequence[DrivenRecord], known: Mapping[str, float],
+              window: float | None, jit: bool,
+              progress: Callable[[int, int], None] | None = None) -> DrivenSolution | None:
+    """Fit ``law`` to the records from its first guesses; return the best start or None."""
+    starts = first_guesses(law, recs, known)
+    g = starts[0]
+    omega0 = math.sqrt(max(g['mgl'], 1e-9) / g['inertia'])
+    dt = float(np.median(np.concatenate([np.diff(r.t) for r in recs])))
+    h = grid_step(recs, omega0)
+    span = window_length(window, recs, omega0, dt)
+    series = [Series(t=r.t, y=r.y, effort=r.effort, anchor=anchors(r)) for r in recs]
+    win = cut(series, span, h)
+    free = _free(law, known)
+    lo = np.array([BOUNDS[k][0] for k in free])
+    hi = np.array([BOUNDS[k][1] for k in free])
+    peak = max(r.effort.peak for r in recs)
+    amp = max(float(np.max(np.abs(r.y))) for r in recs)
+    states = np.column_stack([
+        np.array([recs[r].y[a] for r, a in zip(win.record, win.start, strict=True)]),
+        np.array([series[r].anchor[a] for r, a in zip(win.record, win.start, strict=True)])])
+    problems = []
+    for s in starts:
+        typical = {'inertia': s['inertia'], 'mgl': max(s['mgl'], 1e-3 * peak, 1e-6),
+                   'gamma': max(s['gamma'], 1e-3), 'n': 1.0,
+                   'friction': max(s['friction'], 1e-3 * peak, 1e-6),
+                   'effort_offset': max(abs(s['effort_offset']), 1e-3 * peak, 1e-6),
+                   'command_delay': dt, 'phi_offset': max(amp, 0.1)}
+        theta = np.clip(np.array([s[k] for k in free]), lo, hi)
+        st = states.copy()
+        st[:, 0] -= s['phi_offset']
+        problems.append(Problem(
+            free=free, fixed={k: v for k, v in s.items() if k not in free}, theta=theta,
+            states=st, scale=np.array([typical[k] for k in free]),
+            state_scale=np.column_stack([np.full(win.count, max(amp, 0.1)),
+                                         np.full(win.count, max(amp, 0.1) * omega0)]),
+            bounds=(lo, hi)))
+    solve(problems, win, inputs_for(law, recs, win), jit=jit, progress=progress)
+    best = min(problems, key=lambda p: p.cost)
+    if best.jac is None:
+        return None
+    return DrivenSolution(law=law, problem=best, windows=win, starts=len(problems),
+                          window=span)
+
+
+def _delta(grad: dict[str, float], free: tuple[str, ...], cov: FloatArray) -> float | None:
+    """Return the standard error of a function of the parameters by its gradient (delta method)."""
+    g = np.array([grad.get(k, 0.0) for k in free])
+    var = float(g @ cov @ g)
+    return math.sqrt(var) if math.isfinite(var) and var >= 0.0 else None
+
+
+@dataclass(frozen=True)
+class Estimates:
+    """A driven law's values, standard errors, intervals and what is not determined."""
+
+    params: dict[str, Value]
+    stderr: dict[str, Value]
+    ci95: dict[str, tuple[float, float] | None]
+    reasons: dict[str, str]
+    correlation: dict[str, float]
+    fixed: tuple[str, ...]
+
+
+def estimates(sol: DrivenSolution, peak: float) -> Estimates:
+    """Return the physical joint of a solved law, each value with its error and interval."""
+    p, law, win = sol.problem, sol.law, sol.windows
+    cov = covariance(p, win)
+    values = p.full(p.theta)
+    q = float(student_t.ppf(0.975, cov.dof))
+    se_free = np.sqrt(np.where(np.diag(cov.shared) > 0, np.diag(cov.shared), np.nan))
+    params: dict[str, Value] = {}
+    stderr: dict[str, Value] = {}
+    ci: dict[str, tuple[float, float] | None] = {}
+    reasons: dict[str, str] = {}
+
+    def put(k: str, v: float, e: float | None, bounds: tuple[float, float]) -> None:
+        params[k] = v
+        if e is None or not math.isfinite(e):
+            params[k], stderr[k], ci[k] = None, None, None
+            reasons[k] = f'{k} is not determined by the record (the fit is singular in it)'
+            return
+        stderr[k] = e
+        ci[k] = (max(v - q * e, bounds[0]), min(v + q * e, bounds[1]))
+
+    for k in SHARED:
+        if k in p.free:
+            put(k, values[k], float(se_free[p.free.index(k)]), BOUNDS[k])
+        else:
+            params[k], stderr[k], ci[k] = values[k], 0.0, (values[k], values[k])
+    inertia, mgl, f = values['inertia'], values['mgl'], values['friction']
+    om = math.sqrt(max(mgl, 0.0) / inertia)
+    grad_om = {'inertia': -0.5 * om / inertia,
+               'mgl': 0.5 / math.sqrt(max(mgl * inertia, 1e-300))}
+    put('omega0', om, _delta(grad_om, p.free, cov.shared), (0.0, math.inf))
+    if law.n == 0.0:   # the Coulomb law's γ is its deceleration f/I
+        put('gamma', f / inertia, _delta({'friction': 1 / inertia,
+                                          'inertia': -f / inertia ** 2}, p.free, cov.shared),
+            (0.0, math.inf))
+        put('friction_accel', f / inertia, stderr['gamma'], (0.0, math.inf))
+    elif law.friction:
+        put('friction_accel', f / inertia, _delta({'friction': 1 / inertia,
+                                                   'inertia': -f / inertia ** 2}, p.free,
+                                                  cov.shared), (0.0, math.inf))
+    else:
+        params['friction_accel'], stderr['friction_accel'] = 0.0, 0.0
+        ci['friction_accel'] = (0.0, 0.0)
+    first = np.sqrt(np.where(np.diag(cov.first_state) > 0, np.diag(cov.first_state), np.nan))
+    for j, k in enumerate(('phi0', 'dphi0')):
+        put(k, float(p.states[0, j]), float(first[j]), (-math.inf, math.inf))
+    if law.n is None and 'n' in p.free and stderr['n'] is not None and (
+            q * stderr['n'] > N_UNDETERMINED):
+        why = (f'n is not determined: its 95 % interval is ±{q * stderr["n"]:.2g} wide; drive '
+               f'the joint over a wider range of speeds, or fit a fixed law')
+        reasons['n'] = why
+        reasons['gamma'] = 'gamma is in s^(n-2) and n is not determined: ' + why
+        for k in ('n', 'gamma'):
+            params[k], stderr[k], ci[k] = None, None, None
+    se_i = stderr.get('inertia')
+    if 'inertia' in p.free and (se_i is None or q * se_i >= inertia):
+        reach = ('its 95 % interval reaches zero' if se_i is not None else
+                 'the fit is singular in it')
+        why = (f'the torque scale is not determined: the effort (up to {peak:.3g} N m) does not '
+               f'move the joint measurably beside gravity and damping (the inertia: {reach}); '
+               f'check the effort and its unit, or drive the joint harder')
+        for k in ('inertia', 'mgl', 'friction', 'effort_offset'):
+            params[k], stderr[k], ci[k] = None, None, None
+            reasons[k] = why
+    fixed = tuple(k for k in SHARED if k not in p.free)
+    corr: dict[str, float] = {}
+    sd = np.sqrt(np.abs(np.diag(cov.shared)))
+    for i in range(len(p.free)):
+        for j in range(i + 1, len(p.free)):
+            if sd[i] > 0 and sd[j] > 0:
+                corr[f'{p.free[i]}/{p.free[j]}'] = float(cov.shared[i, j] / (sd[i] * sd[j]))
+    return Estimates(params=params, stderr=stderr, ci95=ci, reasons=reasons,
+                     correlation=corr, fixed=fixed)
+
+
+def check_known(known: Mapping[str, float] | None) -> dict[str, float]:
+    """Return ``known`` checked for a driven fit (finite numbers of KNOWN_DRIVEN)."""
+    if known is None:
+        return {}
+    if not isinstance(known, Mapping):
+        raise IdentifyError(f'known must be a dict of parameter values, got {known!r}')
+    out = {}
+    for key, value in known.items():
+        if key not in KNOWN_DRIVEN:
+            raise IdentifyError(f'with effort, known may fix {", ".join(KNOWN_DRIVEN)}; got '
+                                f'{key!r}')
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
+                value):
+            raise IdentifyError(f'known[{key!r}] must be a finite number, got {value!r}')
+        lo, hi = BOUNDS[key]
+        if not lo <= value <= hi:
+            raise IdentifyError(f'known[{key!r}] must be in [{lo:g}, {hi:g}], got {value!r}')
+        out[key] = float(value)
+    return out
+
+
+def check_same_joint(recs: Sequence[DrivenRecord]) -> None:
+    """Refuse records whose files name different joints."""
+    named = [(r.joint, r.source) for r in recs if r.joint is not None]
+    for joint, source in named[1:]:
+        if joint != named[0][0]:
+            raise IdentifyError(f'{source} is of joint {joint!r}, {named[0][1]} of '
+                                f'{named[0][0]!r}: records fitted together must be of one '
+                                f'joint; fit them apart, or pass --joint')
+
+
+__all__ = ['BOUNDS', 'KNOWN_DRIVEN', 'SHARED', 'DrivenRecord', 'DrivenSolution', 'Estimates',
+           'check_known', 'check_same_joint', 'check_window', 'estimates', 'first_guesses',
+           'inverse_dynamics', 'prepare_driven', 'solve_law']
