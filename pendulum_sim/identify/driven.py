@@ -36,7 +36,7 @@ from scipy.stats import t as student_t  # type: ignore[import-untyped]
 from .effort import Effort, from_samples
 from .errors import IdentifyError
 from .guess import noise_level
-from .laws import Law, get_law
+from .laws import Law
 from .windows import Problem, Series, Windows, covariance, cut, schedule, solve
 
 FloatArray = npt.NDArray[np.float64]
@@ -65,6 +65,9 @@ WINDOW_PERIODS = 0.5
 """The default window, in periods 2π/ω0 of the first guess: short against the divergence of a
 loop near the top (e^π ≈ 23 over it at the rate ω0), long against the sample period."""
 MIN_WINDOW_SAMPLES = 10
+START_SHARE = 0.02
+"""A damping or friction the first guess puts at zero starts at this share of the effort's
+RMS torque (at the RMS speed)."""
 N_UNDETERMINED = 1.0
 """n is reported as not determined when its 95 % interval is wider than ± this."""
 
@@ -102,7 +105,7 @@ def prepare_driven(t: FloatArray, y: FloatArray, velocity: FloatArray | None,
 
 
 def _odd_span(dt: float, size: int) -> int:
-    span = max(7, int(round(SMOOTHING / dt)) | 1)
+    span = max(7, round(SMOOTHING / dt) | 1)
     return min(span, size - 1 if size % 2 == 0 else size)
 
 
@@ -131,13 +134,15 @@ def _cumulative(t: FloatArray, f: FloatArray) -> FloatArray:
 
 
 def inverse_dynamics(recs: Sequence[DrivenRecord], smooth: Sequence[Smoothed], n: float | None,
-                     friction: bool, delay: float) -> tuple[dict[str, float], float]:
+                     friction: bool, delay: float, offset: float | None = None
+                     ) -> tuple[dict[str, float], float]:
     """Return the bounded least-squares inverse dynamics (I, m g l, γ, f, τ_off) and its RSS.
 
     The model integrated over blocks of BLOCK seconds (the integral form, which differentiates
     the angle once, not twice): I Δφ' + m g l ∫sin φ + γ I ∫φ'|φ'|^(n−1) + f ∫sgn φ' − τ_off Δt
     = ∫u(t − d) dt, every block of every record a row. ``n`` is the damping exponent (None: no
-    power-law damping), ``friction`` whether a Coulomb friction is fitted.
+    power-law damping), ``friction`` whether a Coulomb friction is fitted, ``offset`` the
+    torque offset held (None: fitted).
     """
     rows, rhs = [], []
     for rec, sm in zip(recs, smooth, strict=True):
@@ -147,15 +152,17 @@ def inverse_dynamics(recs: Sequence[DrivenRecord], smooth: Sequence[Smoothed], n
             cols.append(_cumulative(rec.t, v * np.abs(v) ** (n - 1.0) if n != 1.0 else v))
         if friction:
             cols.append(_cumulative(rec.t, np.sign(v)))
-        cols.append(-rec.t)
-        span = max(2, int(round(BLOCK / sm.dt)))
+        if offset is None:
+            cols.append(-rec.t)
+        span = max(2, round(BLOCK / sm.dt))
         a = np.arange(0, rec.t.size - span)
         full = np.column_stack(cols)
         rows.append(full[a + span] - full[a])
-        work = rec.effort.integral(rec.t - delay)
+        work = rec.effort.integral(rec.t - delay) + (0.0 if offset is None else offset * rec.t)
         rhs.append(work[a + span] - work[a])
     a_mat, b = np.concatenate(rows), np.concatenate(rhs)
-    lo = [1e-9, 0.0] + [0.0] * (int(n is not None) + int(friction)) + [-np.inf]
+    lo = [1e-9, 0.0] + [0.0] * (int(n is not None) + int(friction)) + (
+        [-np.inf] if offset is None else [])
     norms = np.linalg.norm(a_mat, axis=0)
     norms = np.where(norms > 0, norms, 1.0)
     sol = lsq_linear(a_mat / norms, b, bounds=(np.array(lo) * norms, np.inf))
@@ -169,13 +176,21 @@ def inverse_dynamics(recs: Sequence[DrivenRecord], smooth: Sequence[Smoothed], n
     if friction:
         out['friction'] = float(x[j])
         j += 1
-    out['effort_offset'] = float(x[j])
+    out['effort_offset'] = float(x[j]) if offset is None else offset
     return out, rss
 
 
 def first_guesses(law: Law, recs: Sequence[DrivenRecord], known: Mapping[str, float]
                   ) -> list[dict[str, float]]:
-    """Return the starts of ``law``: the inverse dynamics at the best dead time and exponent."""
+    """Return the starts of ``law``: the inverse dynamics at its best dead time and exponent.
+
+    Two of them: with the torque offset fitted, and held at zero (or at its known value). At
+    rest under gravity the offset and m g l are one sum (m g l sin φ − τ_off), which only the
+    motion parts, and the noise of a differentiated angle blurs that part; a start that
+    puts the whole rest torque on gravity is the other side of that valley. A damping or a
+    friction the noise hides (0 at its bound) starts at a small share of the effort instead,
+    where its exponent still moves the residual.
+    """
     ders = [smoothed(r) for r in recs]
     dt = float(np.median(np.concatenate([np.diff(r.t) for r in recs])))
     if law.n is not None:
@@ -187,32 +202,34 @@ def first_guesses(law: Law, recs: Sequence[DrivenRecord], known: Mapping[str, fl
     fric = law.friction or law.n == 0.0
     delays = [known['command_delay']] if 'command_delay' in known else [
         k * dt for k in DELAYS]
-    tried = []
-    for d in delays:
-        for n in ns:
-            guess, rss = inverse_dynamics(recs, ders, n, fric, d)
-            guess.update({'n': 0.0 if n is None else n, 'command_delay': d})
-            tried.append((rss, guess))
-    tried.sort(key=lambda x: x[0])
-    best = tried[0][1]
-    starts = [best]
-    if law.n is None and 'n' not in known:   # the best exponent and the viscous one
-        for _, g in tried:
-            if g['command_delay'] == best['command_delay'] and g['n'] == 1.0 and (
-                    best['n'] != 1.0):
-                starts.append(g)
-    out = []
-    for g in starts:
-        s = {'inertia': g['inertia'], 'mgl': g['mgl'], 'gamma': g.get('gamma', 0.0),
-             'n': g['n'], 'friction': g.get('friction', 0.0),
-             'effort_offset': g['effort_offset'], 'command_delay': g['command_delay'],
-             'phi_offset': 0.0}
+    offsets = [known['effort_offset']] if 'effort_offset' in known else [None, 0.0]
+    rms = math.sqrt(float(np.mean(np.concatenate([r.effort.values ** 2 for r in recs]))))
+    speed = math.sqrt(float(np.mean(np.concatenate([d.dphi ** 2 for d in ders]))))
+    out: list[dict[str, float]] = []
+    for held in offsets:
+        tried = []
+        for d in delays:
+            for n in ns:
+                guess, rss = inverse_dynamics(recs, ders, n, fric, d, held)
+                guess.update({'n': 0.0 if n is None else n, 'command_delay': d})
+                tried.append((rss, guess))
+        g = min(tried, key=lambda x: x[0])[1]
+        inertia = g['inertia']
+        s = {'inertia': inertia, 'mgl': g['mgl'], 'gamma': g.get('gamma', 0.0), 'n': g['n'],
+             'friction': g.get('friction', 0.0), 'effort_offset': g['effort_offset'],
+             'command_delay': g['command_delay'], 'phi_offset': 0.0}
+        if law.n != 0.0:
+            floor = START_SHARE * rms / (inertia * max(speed, 1e-3) ** s['n'])
+            s['gamma'] = max(s['gamma'], floor)
+        if fric:
+            s['friction'] = max(s['friction'], START_SHARE * rms)
         if not law.friction and law.n != 0.0:
             s['friction'] = 0.0
         if law.n == 0.0:
             s['gamma'] = 0.0
         s.update(known)
-        out.append(s)
+        if s not in out:
+            out.append(s)
     return out
 
 
@@ -228,9 +245,9 @@ def _free(law: Law, known: Mapping[str, float]) -> tuple[str, ...]:
 
 
 def inputs_for(law: Law, recs: Sequence[DrivenRecord], win: Windows
-               ) -> Callable[[dict[str, FloatArray], npt.NDArray[np.int64]], Any]:
+               ) -> Callable[[dict[str, FloatArray], npt.NDArray[np.int64], int], Any]:
     """Return the map from the shared parameters to the sweep's inputs for ``law``."""
-    def inputs(col: dict[str, FloatArray], wins: npt.NDArray[np.int64]) -> Any:
+    def inputs(col: dict[str, FloatArray], wins: npt.NDArray[np.int64], steps: int) -> Any:
         inertia = col['inertia']
         om2 = col['mgl'] / inertia
         if law.n == 0.0:   # dry friction alone: the core's n = 0 law, its level f/I
@@ -238,12 +255,12 @@ def inputs_for(law: Law, recs: Sequence[DrivenRecord], win: Windows
         else:
             gam, nn = col['gamma'], col['n']
             fr = col['friction'] / inertia if law.friction else np.zeros_like(om2)
-        sched = np.empty((win.steps, om2.size))
+        sched = np.empty((steps, om2.size))
         owner = win.record[wins]
         for r, rec in enumerate(recs):
             sel = owner == r
             if sel.any():
-                sched[:, sel] = schedule(rec.effort, win.t0[wins[sel]], win.h, win.steps,
+                sched[:, sel] = schedule(rec.effort, win.t0[wins[sel]], win.h, steps,
                                          col['command_delay'][sel])
         sched = (sched + col['effort_offset'][None, :]) / inertia[None, :]
         return om2, gam, nn, fr, sched, col['phi_offset']
@@ -297,48 +314,93 @@ class DrivenSolution:
     window: float | None
 
 
+HELD_FIRST = ('phi_offset', 'effort_offset')
+"""Parameters the first stage of a fit holds at their start (the second frees them): with a
+sensor zero and a torque offset free from the start, the search can walk the valley where
+they trade against m g l (at rest the three make one sum) before the motion has fixed
+the rest."""
+
+
+def _problem(free: tuple[str, ...], start: Mapping[str, float], states: FloatArray,
+             win: Windows, recs: Sequence[DrivenRecord], omega0: float, law: Law) -> Problem:
+    """Return a start of the windowed fit with ``free`` parameters."""
+    dt = float(np.median(np.concatenate([np.diff(r.t) for r in recs])))
+    peak = max(r.effort.peak for r in recs)
+    amp = max(float(np.max(np.abs(r.y))) for r in recs)
+    typical = {'inertia': start['inertia'], 'mgl': max(start['mgl'], 1e-3 * peak, 1e-6),
+               'gamma': max(start['gamma'], 1e-3), 'n': 1.0,
+               'friction': max(start['friction'], 1e-3 * peak, 1e-6),
+               'effort_offset': max(abs(start['effort_offset']), 1e-3 * peak, 1e-6),
+               'command_delay': dt, 'phi_offset': max(amp, 0.1)}
+    lo = np.array([BOUNDS[k][0] for k in free])
+    hi = np.array([BOUNDS[k][1] for k in free])
+    return Problem(free=free, fixed={k: v for k, v in start.items() if k not in free},
+                   theta=np.clip(np.array([start[k] for k in free]), lo, hi),
+                   states=states.copy(), scale=np.array([typical[k] for k in free]),
+                   state_scale=np.column_stack([np.full(win.count, max(amp, 0.1)),
+                                                np.full(win.count, max(amp, 0.1) * omega0)]),
+                   bounds=(lo, hi), win=win, inputs=inputs_for(law, recs, win))
+
+
 def solve_law(law: Law, recs: Sequence[DrivenRecord], known: Mapping[str, float],
               window: float | None, jit: bool,
               progress: Callable[[int, int], None] | None = None) -> DrivenSolution | None:
-    """Fit ``law`` to the records from its first guesses; return the best start or None."""
-    starts = first_guesses(law, recs, known)
-    g = starts[0]
-    omega0 = math.sqrt(max(g['mgl'], 1e-9) / g['inertia'])
-    dt = float(np.median(np.concatenate([np.diff(r.t) for r in recs])))
-    h = grid_step(recs, omega0)
-    span = window_length(window, recs, omega0, dt)
-    series = [Series(t=r.t, y=r.y, effort=r.effort, anchor=anchors(r)) for r in recs]
-    win = cut(series, span, h)
+    """Fit ``law`` to the records together; return its best start or None."""
+    return solve_sets(law, [recs], known, window, jit, progress)[0]
+
+
+def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[str, float],
+               window: float | None, jit: bool,
+               progress: Callable[[int, int], None] | None = None
+               ) -> list[DrivenSolution | None]:
+    """Fit ``law`` to each set of records (the records of a set together), all in lockstep.
+
+    Two stages from each start: the sensor zero and the torque offset held (HELD_FIRST),
+    then everything free from where the first stage ended; the start that ends lowest wins.
+    """
     free = _free(law, known)
-    lo = np.array([BOUNDS[k][0] for k in free])
-    hi = np.array([BOUNDS[k][1] for k in free])
-    peak = max(r.effort.peak for r in recs)
-    amp = max(float(np.max(np.abs(r.y))) for r in recs)
-    states = np.column_stack([
-        np.array([recs[r].y[a] for r, a in zip(win.record, win.start, strict=True)]),
-        np.array([series[r].anchor[a] for r, a in zip(win.record, win.start, strict=True)])])
-    problems = []
-    for s in starts:
-        typical = {'inertia': s['inertia'], 'mgl': max(s['mgl'], 1e-3 * peak, 1e-6),
-                   'gamma': max(s['gamma'], 1e-3), 'n': 1.0,
-                   'friction': max(s['friction'], 1e-3 * peak, 1e-6),
-                   'effort_offset': max(abs(s['effort_offset']), 1e-3 * peak, 1e-6),
-                   'command_delay': dt, 'phi_offset': max(amp, 0.1)}
-        theta = np.clip(np.array([s[k] for k in free]), lo, hi)
-        st = states.copy()
-        st[:, 0] -= s['phi_offset']
-        problems.append(Problem(
-            free=free, fixed={k: v for k, v in s.items() if k not in free}, theta=theta,
-            states=st, scale=np.array([typical[k] for k in free]),
-            state_scale=np.column_stack([np.full(win.count, max(amp, 0.1)),
-                                         np.full(win.count, max(amp, 0.1) * omega0)]),
-            bounds=(lo, hi)))
-    solve(problems, win, inputs_for(law, recs, win), jit=jit, progress=progress)
-    best = min(problems, key=lambda p: p.cost)
-    if best.jac is None:
-        return None
-    return DrivenSolution(law=law, problem=best, windows=win, starts=len(problems),
-                          window=span)
+    first = tuple(k for k in free if k not in HELD_FIRST)
+    stage: list[Problem] = []
+    owner: list[int] = []
+    made: list[tuple[Windows, float, float | None]] = []
+    for i, recs in enumerate(sets):
+        starts = first_guesses(law, recs, known)
+        g = starts[0]
+        omega0 = math.sqrt(max(g['mgl'], 1e-9) / g['inertia'])
+        dt = float(np.median(np.concatenate([np.diff(r.t) for r in recs])))
+        span = window_length(window, recs, omega0, dt)
+        series = [Series(t=r.t, y=r.y, effort=r.effort, anchor=anchors(r)) for r in recs]
+        win = cut(series, span, grid_step(recs, omega0))
+        made.append((win, omega0, span))
+        measured = np.column_stack([
+            np.array([recs[r].y[a] for r, a in zip(win.record, win.start, strict=True)]),
+            np.array([series[r].anchor[a]
+                      for r, a in zip(win.record, win.start, strict=True)])])
+        for s in starts:
+            st = measured.copy()
+            st[:, 0] -= s['phi_offset']
+            stage.append(_problem(first if first else free, s, st, win, recs, omega0, law))
+            owner.append(i)
+    solve(stage, jit=jit, progress=progress)
+    problems, owners = stage, owner
+    if first != free:
+        problems, owners = [], []
+        for p, i in zip(stage, owner, strict=True):
+            if p.jac is not None:
+                problems.append(_problem(free, p.full(p.theta), p.states, p.win, sets[i],
+                                         made[i][1], law))
+                owners.append(i)
+        solve(problems, jit=jit, progress=progress)
+    out: list[DrivenSolution | None] = []
+    for i in range(len(sets)):
+        mine = [p for p, o in zip(problems, owners, strict=True) if o == i]
+        best = min(mine, key=lambda p: p.cost, default=None)
+        if best is None or best.jac is None:
+            out.append(None)
+        else:
+            out.append(DrivenSolution(law=law, problem=best, windows=best.win,
+                                      starts=owner.count(i), window=made[i][2]))
+    return out
 
 
 def _delta(grad: dict[str, float], free: tuple[str, ...], cov: FloatArray) -> float | None:
@@ -362,8 +424,8 @@ class Estimates:
 
 def estimates(sol: DrivenSolution, peak: float) -> Estimates:
     """Return the physical joint of a solved law, each value with its error and interval."""
-    p, law, win = sol.problem, sol.law, sol.windows
-    cov = covariance(p, win)
+    p, law = sol.problem, sol.law
+    cov = covariance(p)
     values = p.full(p.theta)
     q = float(student_t.ppf(0.975, cov.dof))
     se_free = np.sqrt(np.where(np.diag(cov.shared) > 0, np.diag(cov.shared), np.nan))

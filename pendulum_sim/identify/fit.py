@@ -74,12 +74,23 @@ class Fit:
     correlation : dict
         Correlation coefficients between pairs of fitted parameters, keyed ``'a/b'``.
     t, position, fitted : ndarray
-        The record's times (s), its angle (rad, unwrapped) and the fitted angle there.
+        The record's times (s), its angle (rad, unwrapped) and the fitted angle there (the
+        records one after another where several were fitted together: ``segments``).
     iterations, starts : int
         Iterations of the best start, and how many starts were run.
     at_optimum : int
         How many starts ended at the law's optimum, the best of them (within
         ``starts.REACHED`` on the BIC scale); 0 where nothing was fitted.
+    window : float or None
+        The windows' length in s of a fit over windows re-anchored on the measurement (a
+        driven fit's method, ``windows.py``); None for one simulation of each whole record.
+    segments : tuple of int
+        Where each record's samples begin in ``t``, ``position`` and ``fitted``.
+    driven : bool
+        Whether the fit used the record's effort; it then also gives ``inertia`` (kg m²),
+        ``mgl`` (N m), ``friction`` (N m), ``effort_offset`` (N m, the torque τ_off added to
+        the effort) and ``command_delay`` (s, the dead time d of the effort), each determined
+        where the record moves the joint enough (``driven.py``).
     """
 
     params: dict[str, Value]
@@ -99,6 +110,9 @@ class Fit:
     iterations: int
     starts: int
     at_optimum: int = 0
+    window: float | None = None
+    segments: tuple[int, ...] = (0,)
+    driven: bool = False
 
     @property
     def residual(self) -> FloatArray:
@@ -135,8 +149,9 @@ def prepare(t: Any, position: Any, velocity: Any = None, effort: Any = None) -> 
         e = _array('effort', effort, tt.size)
         if np.any(e != 0.0):
             raise IdentifyError(
-                f'effort is not zero (up to {np.abs(e).max():.3g} N m): fitting a driven joint '
-                'is not supported yet; fit a stretch of free swing (effort 0)')
+                f'effort is not zero (up to {np.abs(e).max():.3g} N m): a driven record is '
+                'fitted with its effort (fit(..., effort=...), prepare_driven); prepare '
+                'takes a free swing')
     steps = np.diff(tt)
     bad = np.flatnonzero(steps <= 0)
     if bad.size:
@@ -490,26 +505,64 @@ def _moving_starts(law: Law, records: Sequence[Record], out: list[Fit | None],
     return starts
 
 
-def fit(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
+def _driven(t: Any, position: Any, velocity: Any, effort: Any) -> list[Any] | None:
+    """Return the driven records the arguments pass, or None for a free swing.
+
+    A list of records in ``t`` (``position`` None) is fitted together; one record is driven
+    where its effort is not all zero (a NaN in it is the effort's to report).
+    """
+    from .driven_fit import as_records, driven_record
+    from .effort import Effort
+
+    if position is None and isinstance(t, (list, tuple)):
+        return as_records(t)
+    if effort is None:
+        return None
+    if not isinstance(effort, Effort):
+        try:
+            e = np.asarray(effort, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise IdentifyError(f'effort must be a 1-D array of numbers, got '
+                                f'{type(effort).__name__}') from None
+        if not np.any(e != 0.0):   # all zero: a free swing, today's fit
+            return None
+    return [driven_record(t, position, effort, velocity=velocity)]
+
+
+def fit(t: Any, position: Any = None, *, velocity: Any = None, effort: Any = None,
         model: str = 'power', known: Mapping[str, float] | None = None,
-        jit: bool | None = None, progress: Progress | None = None) -> Fit:
-    """Fit a damping law to a record of a free swing.
+        window: float | None = None, jit: bool | None = None,
+        progress: Progress | None = None) -> Fit:
+    """Fit a damping law to a record of a free swing, or the joint to driven records.
 
     Parameters
     ----------
-    t : array_like, shape (m,)
-        Sample times in s, strictly increasing (irregular spacing is fine).
+    t : array_like, shape (m,), or list of records
+        Sample times in s, strictly increasing (irregular spacing is fine). Or a list of
+        driven records of one joint fitted together, sharing its parameters: each a dict
+        ``{'t': ..., 'position': ..., 'effort': ..., 'velocity': ...}`` or a
+        :func:`~pendulum_sim.identify.driven_record` (``position`` then None).
     position : array_like, shape (m,)
         Measured angle in rad (an encoder's wrap at ±π is undone; a zero offset is fitted).
-    velocity, effort : array_like, shape (m,), optional
-        Measured velocity (checked, used for nothing else yet) and effort (N m; must be zero:
-        a free swing).
+    velocity : array_like, shape (m,), optional
+        Measured velocity (a driven fit's windows start from it; checked otherwise).
+    effort : array_like, shape (m,), or Effort, optional
+        The torque in N m over the sample period that ends at each stamp (as
+        ``JointState.effort`` of ``pendulum_node``), or a command stream
+        (:func:`~pendulum_sim.identify.effort.from_commands`). Not all zero: the joint is
+        fitted driven (``driven.py``), with ``inertia``, ``mgl``, ``friction`` in N m,
+        ``effort_offset`` and ``command_delay``; all zero or None: a free swing, as before.
     model : str
         ``'viscous'``, ``'quadratic'``, ``'coulomb'``, ``'power'`` or ``'power+coulomb'``
         (the power law beside the core's Coulomb ``friction``).
     known : dict, optional
-        Values to hold fixed: ``omega0``, ``gamma``, ``n``, ``phi_offset``, and ``inertia``
-        (kg m², which turns the Coulomb deceleration into a friction torque).
+        Values to hold fixed: for a free swing ``omega0``, ``gamma``, ``n``, ``phi_offset``,
+        and ``inertia`` (kg m², which turns the Coulomb deceleration into a friction torque);
+        for a driven fit any of ``inertia``, ``mgl``, ``gamma``, ``n``, ``friction``,
+        ``effort_offset``, ``command_delay``, ``phi_offset``.
+    window : float, optional
+        A driven fit's window in s (``windows.py``; default half a period of the first
+        guess; a window as long as the record is one simulation of it).
     jit : bool or None
         Simulate with the core's compiled sweep (None: where numba is installed).
     progress : callable, optional
@@ -519,8 +572,21 @@ def fit(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
     -------
     Fit
     """
+    driven = _driven(t, position, velocity, effort)
+    if driven is not None:
+        from .driven_fit import fit_driven
+
+        return fit_driven(driven, model=model, known=known, window=window, jit=jit,
+                          progress=progress)
+    _no_window(window)
     rec = prepare(t, position, velocity, effort)
     return fit_records([rec], model=model, known=known, jit=jit, progress=progress)[0]
+
+
+def _no_window(window: object) -> None:
+    if window is not None:
+        raise IdentifyError(f'window (got {window!r}) is the window of a fit with effort; a '
+                            f'free swing is fitted by one simulation of the whole record')
 
 
 def compare_records(records: Sequence[Record], *, models: Sequence[str] | None = None,
@@ -547,15 +613,23 @@ def compare_records(records: Sequence[Record], *, models: Sequence[str] | None =
             for i in range(len(records))]
 
 
-def compare(t: Any, position: Any, *, velocity: Any = None, effort: Any = None,
+def compare(t: Any, position: Any = None, *, velocity: Any = None, effort: Any = None,
             models: Sequence[str] | None = None, known: Mapping[str, float] | None = None,
-            jit: bool | None = None, progress: Callable[[str], None] | None = None
-            ) -> list[Fit]:
+            window: float | None = None, jit: bool | None = None,
+            progress: Callable[[str], None] | None = None) -> list[Fit]:
     """Fit each model (default: all five, ``laws.COMPARED``) and rank them by BIC.
 
     ``models`` names the laws to fit instead, of viscous, quadratic, coulomb, power and
-    power+coulomb.
+    power+coulomb. The arguments are those of :func:`fit`: with effort (or a list of driven
+    records) each law is fitted to the driven joint.
     """
+    driven = _driven(t, position, velocity, effort)
+    if driven is not None:
+        from .driven_fit import compare_driven
+
+        return compare_driven(driven, models=models, known=known, window=window, jit=jit,
+                              progress=progress)
+    _no_window(window)
     rec = prepare(t, position, velocity, effort)
     return compare_records([rec], models=models, known=known, jit=jit, progress=progress)[0]
 

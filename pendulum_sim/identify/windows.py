@@ -23,6 +23,7 @@ the covariance of the shared parameters is s² times the inverse of that complem
 """
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -45,6 +46,8 @@ MAX_ITERATIONS = 60
 TOLERANCE = 1e-8
 """Stop when an accepted step lowers the sum of squares by less than this fraction, or the next
 step is predicted to."""
+LAMBDA_TRIES = 12
+"""Times λ grows within one iteration while the step is predicted to raise the cost."""
 STATE_BOUNDS = ((-1e3, 1e3), (-100.0, 100.0))
 """Where a window's initial angle (rad) and velocity (rad/s) are searched."""
 
@@ -104,7 +107,7 @@ def cut(series: Sequence[Series], window: float | None, h: float) -> Windows:
             edges = sorted({int(np.searchsorted(s.t, j * window)) for j in range(count)} | {m})
             if len(edges) > 2 and edges[-1] - edges[-2] < 3:
                 edges.pop(-2)   # too short a last window joins the one before
-        for a, b in zip(edges[:-1], edges[1:], strict=True):
+        for a, b in itertools.pairwise(edges):
             rec.append(r)
             start.append(a)
             stop.append(b)
@@ -137,8 +140,9 @@ def cut(series: Sequence[Series], window: float | None, h: float) -> Windows:
 Inputs = tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray | None, FloatArray]
 """What a sweep takes per pendulum: ω0², γ, n, f/I, the input schedule (steps, N) or None,
 and the sensor's zero offset added to the angle."""
-Mapping_ = Callable[[dict[str, FloatArray], IntArray], Inputs]
-"""``inputs(columns, window_of_each_pendulum)``: the model's sweep inputs from its parameters."""
+Mapping_ = Callable[[dict[str, FloatArray], IntArray, int], Inputs]
+"""``inputs(columns, window_of_each_pendulum, steps)``: the model's sweep inputs from its
+parameters, its schedule for ``steps`` steps."""
 
 
 @dataclass
@@ -147,7 +151,9 @@ class Problem:
 
     ``theta`` holds the free shared parameters (``free`` order), ``states`` each window's
     (φ, φ') at its first sample; ``scale`` and ``state_scale`` their typical sizes (the
-    Jacobian's steps); ``bounds`` the search range of each free parameter.
+    Jacobian's steps); ``bounds`` the search range of each free parameter; ``win`` the
+    windows of its records and ``inputs`` its model's map to the sweep's inputs. Problems
+    of different records run in one sweep where their grids have one step.
     """
 
     free: tuple[str, ...]
@@ -157,6 +163,8 @@ class Problem:
     scale: FloatArray
     state_scale: FloatArray
     bounds: tuple[FloatArray, FloatArray]
+    win: Windows
+    inputs: Mapping_
     cost: float = math.inf
     residual: FloatArray | None = None
     jac: FloatArray | None = None        # (rows, p): along the shared parameters
@@ -191,79 +199,97 @@ def schedule(effort: Effort, t0: FloatArray, h: float, steps: int, delay: FloatA
     return np.asarray(impulse / h, dtype=np.float64)
 
 
-def simulate(problems: Sequence[Problem], rows: Sequence[tuple[FloatArray, FloatArray]],
-             win: Windows, inputs: Mapping_, jit: bool) -> list[FloatArray | None]:
-    """Return the angle at every row for each problem's parameter sets.
+def simulate(problems: Sequence[Problem], rows: Sequence[tuple[FloatArray, FloatArray]], *,
+             jit: bool) -> list[FloatArray | None]:
+    """Return the angle at every row of each problem for its parameter sets.
 
     ``rows[i]`` = (thetas (c, p), states (c, W, 2)): c candidates of problem i, each a set of
     shared parameters with a state per window. The result of problem i has shape (rows, c), or
-    None where the core cannot simulate its candidates. All problems run as one sweep; a
-    batch the core refuses is retried problem by problem.
+    None where the core cannot simulate its candidates. Problems on one grid step run as one
+    sweep (for the longest window's steps); a batch the core refuses is retried problem by
+    problem.
     """
     out: list[FloatArray | None] = [None] * len(problems)
-    try:
-        results = _run(problems, rows, list(range(len(problems))), win, inputs, jit)
-    except (PendulumError, FloatingPointError, OverflowError):
-        results = {}
-        for i in range(len(problems)):
-            try:
-                results.update(_run(problems, rows, [i], win, inputs, jit))
-            except (PendulumError, FloatingPointError, OverflowError):
-                results[i] = None
-    for i, r in results.items():
-        out[i] = r
+    groups: dict[float, list[int]] = {}
+    for i, p in enumerate(problems):
+        groups.setdefault(p.win.h, []).append(i)
+    for members in groups.values():
+        try:
+            results = _run(problems, rows, members, jit)
+        except (PendulumError, FloatingPointError, OverflowError):
+            results = {}
+            for i in members:
+                try:
+                    results.update(_run(problems, rows, [i], jit))
+                except (PendulumError, FloatingPointError, OverflowError):
+                    results[i] = None
+        for i, r in results.items():
+            out[i] = r
     return out
 
 
-def _run(problems: Sequence[Problem], rows: Sequence[tuple[FloatArray, FloatArray]],
-         members: list[int], win: Windows, inputs: Mapping_, jit: bool
-         ) -> dict[int, FloatArray | None]:
-    names = list(problems[members[0]].full(rows[members[0]][0][0]))
-    cols: dict[str, list[FloatArray]] = {k: [] for k in names}
-    phi0, dphi0, window = [], [], []
-    count = win.count
-    for i in members:
-        thetas, states = rows[i]
-        for theta, st in zip(thetas, states, strict=True):
-            values = problems[i].full(theta)
-            for k in names:
-                cols[k].append(np.full(count, values[k]))
-            phi0.append(st[:, 0])
-            dphi0.append(st[:, 1])
-            window.append(np.arange(count))
-    col = {k: np.concatenate(v) for k, v in cols.items()}
-    wins = np.concatenate(window)
-    om2, gam, nn, fr, sched, offset = inputs(col, wins)
-    ok = np.isfinite(om2) & np.isfinite(gam) & np.isfinite(fr)
+def _columns(p: Problem, thetas: FloatArray, states: FloatArray, steps: int
+             ) -> tuple[Inputs, FloatArray, FloatArray] | None:
+    """Return problem ``p``'s sweep inputs for its candidates (pendulum a W + v: candidate a,
+    window v) over ``steps`` steps, and the initial states; None where the core would refuse
+    an input."""
+    count = p.win.count
+    values = [p.full(theta) for theta in thetas]
+    col = {k: np.repeat(np.array([v[k] for v in values]), count) for k in values[0]}
+    wins = np.tile(np.arange(count), len(values))
+    om2, gam, nn, fr, sched, offset = p.inputs(col, wins, steps)
+    ok = bool(np.all(np.isfinite(om2)) and np.all(np.isfinite(gam)) and np.all(np.isfinite(fr)))
     if sched is not None:
-        ok &= np.all(np.abs(sched) <= MAX_INPUT_ACCEL, axis=0)
-    sizes = [rows[i][0].shape[0] * count for i in members]
-    owner = np.repeat(np.arange(len(members)), sizes)
-    bad = {int(j) for j in np.unique(owner[~ok])}
-    if bad:   # a candidate the core would refuse: its problem gets None, the others run
-        keep = [j for j in range(len(members)) if j not in bad]
-        out: dict[int, FloatArray | None] = {members[j]: None for j in bad}
-        if keep:
-            out.update(_run(problems, rows, [members[j] for j in keep], win, inputs, jit))
+        ok = ok and bool(np.all(np.abs(sched) <= MAX_INPUT_ACCEL))
+    if not ok:
+        return None
+    return (om2, gam, nn, fr, sched, offset), states[:, :, 0].ravel(), states[:, :, 1].ravel()
+
+
+def _run(problems: Sequence[Problem], rows: Sequence[tuple[FloatArray, FloatArray]],
+         members: list[int], jit: bool) -> dict[int, FloatArray | None]:
+    out: dict[int, FloatArray | None] = {}
+    steps = max(problems[i].win.steps for i in members)
+    h = problems[members[0]].win.h
+    parts = []
+    for i in members:
+        made = _columns(problems[i], rows[i][0], rows[i][1], steps)
+        if made is None:   # a candidate the core would refuse: its problem gets None
+            out[i] = None
+        else:
+            parts.append((i, made))
+    if not parts:
         return out
-    prepared = Sweep(om2, gam, nn, np.concatenate(phi0), np.concatenate(dphi0), win.h,
-                     jit=jit, friction=fr,
+    def joined(j: int) -> FloatArray:
+        return np.concatenate([made[0][j] for _, made in parts])
+    om2, gam, nn, fr = (joined(j) for j in range(4))
+    scheds = [made[0][4] for _, made in parts]
+    size = om2.size
+    if all(sc is None for sc in scheds):
+        sched = None
+    else:
+        sched = np.concatenate([np.zeros((steps, made[1].size)) if sc is None else sc
+                                for sc, (_, made) in zip(scheds, parts, strict=True)], axis=1)
+    offset = joined(5)
+    prepared = Sweep(om2, gam, nn, np.concatenate([made[1] for _, made in parts]),
+                     np.concatenate([made[2] for _, made in parts]), h, jit=jit, friction=fr,
                      torque=0.0 if sched is None else sched[0])
-    result = prepared.advance(win.steps * win.h, sched, record_every=1)
+    result = prepared.advance(steps * h, sched, record_every=1)
     assert result.phi_record is not None and result.dphi_record is not None
     phi, dphi = result.phi_record, result.dphi_record
-    out = {}
     at = 0
-    k, w = win.k, win.w
-    for j, i in enumerate(members):
+    for i, made in parts:
+        win = problems[i].win
         c = rows[i][0].shape[0]
-        # Pendulum (candidate a, window v) is column at + a * count + v.
-        idx = at + np.arange(c)[None, :] * count + win.row_window[:, None]
-        pred = (w[0][:, None] * phi[k[:, None], idx] + w[1][:, None] * dphi[k[:, None], idx]
-                + w[2][:, None] * phi[k[:, None] + 1, idx]
-                + w[3][:, None] * dphi[k[:, None] + 1, idx]) + offset[idx]
+        k, w = win.k[:, None], win.w
+        # Pendulum (candidate a, window v) of this problem is column at + a W + v.
+        idx = at + np.arange(c)[None, :] * win.count + win.row_window[:, None]
+        pred = (w[0][:, None] * phi[k, idx] + w[1][:, None] * dphi[k, idx]
+                + w[2][:, None] * phi[k + 1, idx] + w[3][:, None] * dphi[k + 1, idx]
+                ) + offset[idx]
         out[i] = pred if np.all(np.isfinite(pred)) else None
-        at += sizes[j]
+        at += made[1].size
+    assert at == size
     return out
 
 
@@ -314,7 +340,15 @@ def _schur(a: FloatArray, b: FloatArray, cinv: FloatArray) -> FloatArray:
 
 def _lm_step(p: Problem, bounds: IntArray, row_window: IntArray
              ) -> tuple[FloatArray, FloatArray, float]:
-    """Return the Levenberg–Marquardt candidate (θ, states) and its predicted decrease."""
+    """Return the Levenberg–Marquardt candidate (θ, states) and its predicted decrease.
+
+    A projected step: a shared parameter moves at most by its own size (or its typical size)
+    per step and stops at the bounds of its range; one at a bound that the descent pushes out
+    of the range is held there for the step (the active set), so that a parameter whose true
+    value is at a bound (no friction, no dead time) sits on it while the others take their
+    own best step. Where the step so cut is predicted to raise the cost, λ grows and the
+    step is made again.
+    """
     assert p.jac is not None and p.jac_states is not None and p.residual is not None
     dg = np.linalg.norm(p.jac, axis=0)
     dg = np.where(dg > 0, dg, 1.0)
@@ -324,22 +358,36 @@ def _lm_step(p: Problem, bounds: IntArray, row_window: IntArray
     js = p.jac_states / ds[row_window]
     a, b, c, gg, gs = _blocks(jg, js, p.residual, bounds)
     eye2 = np.eye(2)[None, :, :]
-    cinv = _inv2(c + p.lam * eye2)
-    s = _schur(a + p.lam * np.eye(a.shape[0]), b, cinv)
-    rhs = -gg + np.einsum('wpi,wij,wj->p', b, cinv, gs)
-    try:
-        dgs = np.linalg.solve(s, rhs)
-    except np.linalg.LinAlgError:
-        dgs = np.linalg.lstsq(s, rhs, rcond=None)[0]
-    dss = np.einsum('wij,wj->wi', cinv, -gs - np.einsum('wpi,p->wi', b, dgs))
-    theta, states = p.clip(p.theta + dgs / dg, p.states + dss / ds)
-    step_g, step_s = theta - p.theta, states - p.states
-    jd = p.jac @ step_g + np.sum(p.jac_states * step_s[row_window], axis=1)
-    predicted = -float(p.residual @ jd) - 0.5 * float(jd @ jd)
+    lo, hi = p.bounds
+    # A parameter at a bound that the descent pushes out of its range is held for this step
+    # (the active set of a projected step): the others then take their own best step.
+    held = ((p.theta <= lo) & (gg > 0.0)) | ((p.theta >= hi) & (gg < 0.0))
+    if held.any():
+        a, b, gg = a.copy(), b.copy(), gg.copy()
+        a[held, :], a[:, held], b[:, held, :], gg[held] = 0.0, 0.0, 0.0, 0.0
+        a[held, held] = 1.0
+    cap = np.maximum(np.abs(p.theta), p.scale)
+    theta, states, predicted = p.theta, p.states, 0.0
+    for _ in range(LAMBDA_TRIES):
+        cinv = _inv2(c + p.lam * eye2)
+        s = _schur(a + p.lam * np.eye(a.shape[0]), b, cinv)
+        rhs = -gg + np.einsum('wpi,wij,wj->p', b, cinv, gs)
+        try:
+            dgs = np.linalg.solve(s, rhs)
+        except np.linalg.LinAlgError:
+            dgs = np.linalg.lstsq(s, rhs, rcond=None)[0]
+        dss = np.einsum('wij,wj->wi', cinv, -gs - np.einsum('wpi,p->wi', b, dgs))
+        theta, states = p.clip(p.theta + np.clip(dgs / dg, -cap, cap), p.states + dss / ds)
+        step_g, step_s = theta - p.theta, states - p.states
+        jd = p.jac @ step_g + np.sum(p.jac_states * step_s[row_window], axis=1)
+        predicted = -float(p.residual @ jd) - 0.5 * float(jd @ jd)
+        if predicted > 0.0 or p.lam > 1e12:
+            break
+        p.lam *= 4.0
     return theta, states, predicted
 
 
-def solve(problems: Sequence[Problem], win: Windows, inputs: Mapping_, *, jit: bool,
+def solve(problems: Sequence[Problem], *, jit: bool,
           progress: Callable[[int, int], None] | None = None,
           max_iterations: int = MAX_ITERATIONS) -> None:
     """Fit every problem in lockstep (each problem's state is updated in place)."""
@@ -350,10 +398,11 @@ def solve(problems: Sequence[Problem], win: Windows, inputs: Mapping_, *, jit: b
             break
         batch = [problems[i] for i in active]
         shifted = [_with_steps(p, *cands[i]) for i, p in zip(active, batch, strict=True)]
-        preds = simulate(batch, [(th, st) for th, st, _, _ in shifted], win, inputs, jit)
+        preds = simulate(batch, [(th, st) for th, st, _, _ in shifted], jit=jit)
         for i, p, (_, _, steps, sst), pred in zip(active, batch, shifted, preds, strict=True):
             p.iterations = it
             cost = math.inf
+            win = p.win
             if pred is not None:
                 res = pred[:, 0] - win.y
                 cost = 0.5 * float(res @ res)
@@ -395,27 +444,31 @@ class Covariance:
     dof: int
 
 
-def covariance(p: Problem, win: Windows) -> Covariance:
+def covariance(p: Problem) -> Covariance:
     """Return s² times the shared block of (JᵀJ)⁻¹ (Schur complement) and the first state's.
 
-    s² is the residual variance with every fitted value counted: m − p − 2 W degrees of freedom.
+    s² is the residual variance with every fitted value counted: m − p − 2 W degrees of
+    freedom. A parameter the residual does not depend on at all (its Jacobian column zero,
+    e.g. n where γ = 0) gets NaN and is left out of the others' covariance.
     """
     assert p.jac is not None and p.jac_states is not None and p.residual is not None
+    win = p.win
     m = p.residual.size
     dof = max(m - p.theta.size - 2 * win.count, 1)
     s2 = float(p.residual @ p.residual) / dof
     dg = np.linalg.norm(p.jac, axis=0)
-    dg = np.where(dg > 0, dg, 1.0)
+    use = np.flatnonzero(dg > 0)
     ds = np.sqrt(np.add.reduceat(p.jac_states ** 2, win.bounds[:-1], axis=0))
     ds = np.where(ds > 0, ds, 1.0)
-    a, b, c, _, _ = _blocks(p.jac / dg, p.jac_states / ds[win.row_window], p.residual,
-                            win.bounds)
+    a, b, c, _, _ = _blocks(p.jac[:, use] / dg[use], p.jac_states / ds[win.row_window],
+                            p.residual, win.bounds)
     cinv = _inv2(c)
     try:
         sinv = np.linalg.inv(_schur(a, b, cinv))
     except np.linalg.LinAlgError:
         sinv = np.full(a.shape, np.nan)
-    shared = s2 * sinv / np.outer(dg, dg)
+    shared = np.full((dg.size, dg.size), np.nan)
+    shared[np.ix_(use, use)] = s2 * sinv / np.outer(dg[use], dg[use])
     # The first window's state: C⁻¹ + C⁻¹ Bᵀ S⁻¹ B C⁻¹ of its block.
     c0, b0 = cinv[0], b[0]
     first = s2 * (c0 + c0 @ b0.T @ sinv @ b0 @ c0) / np.outer(ds[0], ds[0])

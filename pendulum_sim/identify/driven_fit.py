@@ -1,0 +1,195 @@
+"""``fit`` and ``compare`` of driven records: the physical joint as a :class:`Fit`.
+
+The estimation itself is ``driven.py`` (the model, the first guess, the windowed fit) over
+``windows.py``; here the records a user passes are checked and the solution is reported in
+the :class:`~pendulum_sim.identify.fit.Fit` every law's fit returns (BIC and AIC with every
+fitted value counted: the shared parameters and two states per window).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from .driven import (
+    DrivenRecord,
+    DrivenSolution,
+    check_known,
+    check_same_joint,
+    check_window,
+    estimates,
+    prepare_driven,
+    solve_sets,
+)
+from .effort import Effort
+from .errors import IdentifyError
+from .fit import MIN_SAMPLES, Fit, Progress, _array, _use_jit
+from .guess import noise_level
+from .laws import COMPARED, get_law
+
+RecordLike = DrivenRecord | Mapping[str, Any]
+"""A driven record: :func:`driven_record`'s, or a dict with ``t``, ``position``, ``effort``
+(and ``velocity``)."""
+
+
+def driven_record(t: Any, position: Any, effort: Any, *, velocity: Any = None,
+                  source: str = '', joint: str | None = None) -> DrivenRecord:
+    """Check a driven record and return it ready to fit (angle unwrapped, times from the first).
+
+    Parameters
+    ----------
+    t, position : array_like, shape (m,)
+        Sample times (s, strictly increasing) and the measured angle (rad).
+    effort : array_like, shape (m,), or Effort
+        The torque in N m: beside the angle, the torque applied over the sample period that
+        ends at each stamp (``JointState.effort`` as ``pendulum_node`` publishes it); or an
+        :class:`~pendulum_sim.identify.effort.Effort` (a command stream,
+        :func:`~pendulum_sim.identify.effort.from_commands`) on the same clock as ``t``.
+    velocity : array_like, shape (m,), optional
+        Measured velocity (rad/s): the windows start from it instead of the angle's slope.
+    source, joint : str, optional
+        Where the record was read and the joint it is of (records of different joints are
+        not fitted together).
+    """
+    tt = _array('t', t, None)
+    if tt.size < MIN_SAMPLES:
+        raise IdentifyError(f'a record needs at least {MIN_SAMPLES} samples, got {tt.size}')
+    y = _array('position', position, tt.size)
+    v = None if velocity is None else _array('velocity', velocity, tt.size)
+    steps = np.diff(tt)
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        i = int(bad[0])
+        raise IdentifyError(f't must increase strictly: t[{i + 1}] = {float(tt[i + 1])!r} s '
+                            f'follows t[{i}] = {float(tt[i])!r} s; sort the samples and drop '
+                            'repeated stamps')
+    if not isinstance(effort, Effort):
+        effort = _effort_array(effort, tt)
+    y = np.unwrap(y)
+    span = float(np.ptp(y))
+    if span <= max(10.0 * noise_level(y), 1e-9):
+        raise IdentifyError(f'the joint does not move: its position spans {span:.3g} rad over '
+                            f'the record, within its noise; record a run that moves it')
+    return prepare_driven(tt, y, v, effort, source=source, joint=joint)
+
+
+def _effort_array(effort: Any, t: Any) -> Any:
+    try:
+        e = np.asarray(effort, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise IdentifyError(f'effort must be a 1-D array of numbers, got '
+                            f'{type(effort).__name__}') from None
+    if e.ndim != 1 or e.size != t.size:
+        raise IdentifyError(f'effort has shape {e.shape} but t has {t.size} samples')
+    return e
+
+
+def as_records(records: Any) -> list[DrivenRecord]:
+    """Return the driven records a list passes (DrivenRecord or dict), or refuse it."""
+    if not isinstance(records, (list, tuple)) or not records:
+        raise IdentifyError(f'records must be a non-empty list of driven records, got '
+                            f'{records!r}'[:200])
+    out = []
+    for i, r in enumerate(records):
+        if isinstance(r, DrivenRecord):
+            out.append(r)
+        elif isinstance(r, Mapping):
+            if 'effort' not in r or r['effort'] is None:
+                raise IdentifyError(f'records[{i}] has no effort: records are fitted together '
+                                    f'with their effort (a free swing is fitted alone)')
+            out.append(driven_record(r.get('t'), r.get('position'), r['effort'],
+                                     velocity=r.get('velocity'),
+                                     source=str(r.get('source', f'records[{i}]')),
+                                     joint=r.get('joint')))
+        else:
+            raise IdentifyError(f'records[{i}] must be a dict with t, position and effort, or '
+                                f'a driven_record(...), got {type(r).__name__}')
+    return out
+
+
+def _unfitted(law_name: str, recs: Sequence[DrivenRecord], why: str, window: float | None
+              ) -> Fit:
+    names = ('inertia', 'mgl', 'omega0', 'gamma', 'n', 'friction', 'friction_accel',
+             'effort_offset', 'command_delay', 'phi_offset', 'phi0', 'dphi0')
+    t, y, segments = _joined(recs)
+    return Fit(params=dict.fromkeys(names), stderr=dict.fromkeys(names),
+               ci95=dict.fromkeys(names), rms_residual=float(np.sqrt(np.mean(y ** 2))),
+               aic=math.inf, bic=math.inf, model=law_name, samples=int(y.size), fixed=(),
+               reasons=dict.fromkeys(names, why), correlation={}, t=t, position=y,
+               fitted=np.full_like(y, np.nan), iterations=0, starts=0, window=window,
+               segments=segments, driven=True)
+
+
+def _joined(recs: Sequence[DrivenRecord]) -> tuple[Any, Any, tuple[int, ...]]:
+    t = np.concatenate([r.t + r.t0 for r in recs])
+    y = np.concatenate([r.y for r in recs])
+    segments = tuple(int(x) for x in np.cumsum([0, *(r.t.size for r in recs[:-1])]))
+    return t, y, segments
+
+
+def _result(sol: DrivenSolution, recs: Sequence[DrivenRecord]) -> Fit:
+    p = sol.problem
+    assert p.residual is not None
+    est = estimates(sol, max(r.effort.peak for r in recs))
+    m = p.residual.size
+    count = len(p.free) + 2 * sol.windows.count
+    rss = float(p.residual @ p.residual)
+    loglik = m * math.log(max(rss, 1e-300) / m)
+    t, y, segments = _joined(recs)
+    # The rows are the windows' samples in order: every record's samples, one after another.
+    return Fit(params=est.params, stderr=est.stderr, ci95=est.ci95,
+               rms_residual=math.sqrt(rss / m), aic=loglik + 2 * count,
+               bic=loglik + count * math.log(m), model=sol.law.name, samples=int(m),
+               fixed=est.fixed, reasons=est.reasons, correlation=est.correlation, t=t,
+               position=y, fitted=y + p.residual, iterations=p.iterations, starts=sol.starts,
+               window=sol.window, segments=segments, driven=True)
+
+
+def fit_sets(sets: Sequence[Sequence[DrivenRecord]], *, model: str = 'power',
+             known: Mapping[str, float] | None = None, window: float | None = None,
+             jit: bool | None = None, progress: Progress | None = None) -> list[Fit]:
+    """Fit ``model`` to each set of driven records (a set's records together), in lockstep."""
+    law = get_law(model)
+    fixed = check_known(known)
+    span = check_window(window)
+    for recs in sets:
+        check_same_joint(recs)
+    sols = solve_sets(law, sets, fixed, span, _use_jit(jit), progress)
+    out = []
+    for sol, recs in zip(sols, sets, strict=True):
+        if sol is None:
+            out.append(_unfitted(law.name, recs, f'the core cannot simulate any start of the '
+                                 f'{law.name} law on the record (its first guesses drive the '
+                                 f"joint beyond the core's limits)", span))
+        else:
+            out.append(_result(sol, recs))
+    return out
+
+
+def fit_driven(records: Sequence[DrivenRecord], *, model: str = 'power',
+               known: Mapping[str, float] | None = None, window: float | None = None,
+               jit: bool | None = None, progress: Progress | None = None) -> Fit:
+    """Fit ``model`` to driven records of one joint, its parameters shared by all."""
+    return fit_sets([records], model=model, known=known, window=window, jit=jit,
+                    progress=progress)[0]
+
+
+def compare_driven(records: Sequence[DrivenRecord], *, models: Sequence[str] | None = None,
+                   known: Mapping[str, float] | None = None, window: float | None = None,
+                   jit: bool | None = None, progress: Callable[[str], None] | None = None
+                   ) -> list[Fit]:
+    """Fit each model to the driven records of one joint; return the fits ranked by BIC."""
+    names = list(COMPARED) if models is None else list(models)
+    for name in names:
+        get_law(name)
+    fits = []
+    for name in names:
+        if progress is not None:
+            progress(name)
+        fits.append(fit_driven(records, model=name, known=known, window=window, jit=jit))
+    return sorted(fits, key=lambda f: f.bic)
+
+
+__all__ = ['as_records', 'compare_driven', 'driven_record', 'fit_driven', 'fit_sets']
