@@ -14,8 +14,8 @@ Every trajectory is the core's (a :class:`~pendulum_sim.core.sweep.Sweep` driven
 as a per-step schedule), fitted over windows re-anchored on the measurement (``windows.py``).
 The first guess is the inverse dynamics in integral form: the velocity from a local cubic
 (Savitzky–Golay) and a bounded linear least squares of the torque's impulse over short blocks on
-I Δφ', ∫sin φ, the damping term's integral, ∫sgn φ' and Δt, the law's exponent and the dead
-time picked from a few by its residual
+I Δφ', ∫sin φ, the damping term's integral, ∫sgn φ' and Δt, the law's exponent picked from a
+few by its residual
 (the identification of the open torque-limited pendulum kits, e.g. Wiebe et al.,
 "Torque-limited simple pendulum: a toolkit for getting familiar with robot motion control",
 2022, which this fit then refines by output error: noise in φ'' no longer biases it).
@@ -42,22 +42,36 @@ from .windows import Problem, Series, Windows, covariance, cut, schedule, solve
 FloatArray = npt.NDArray[np.float64]
 Value = float | None
 
-SHARED = ('inertia', 'mgl', 'gamma', 'n', 'friction', 'effort_offset', 'command_delay',
+SHARED = ('inertia', 'mgl', 'damping', 'n', 'friction', 'effort_offset', 'command_delay',
           'phi_offset')
-"""The joint's parameters a driven fit shares over every window and record, in θ order."""
-KNOWN_DRIVEN = SHARED
+"""The joint's parameters a driven fit shares over every window and record, in θ order.
+
+``damping`` is the law's deceleration at the record's RMS speed v_ref, γ v_ref^n (rad/s²):
+the law searched as (damping, n) instead of (γ, n), whose estimates trade along a curved
+valley (γ's unit s^(n−2) moves with n); γ = damping / v_ref^n is reported."""
+KNOWN_DRIVEN = ('inertia', 'mgl', 'n', 'friction', 'effort_offset', 'command_delay',
+                'phi_offset')
 """What ``known`` may fix in a driven fit."""
-BOUNDS = {'inertia': (1e-6, 1e4), 'mgl': (0.0, 1e5), 'gamma': (0.0, 1e3), 'n': (0.0, 6.0),
+BOUNDS = {'inertia': (1e-6, 1e4), 'mgl': (0.0, 1e5), 'damping': (0.0, 1e5), 'n': (0.0, 6.0),
           'friction': (0.0, 1e4), 'effort_offset': (-1e4, 1e4), 'command_delay': (0.0, 1.0),
-          'phi_offset': (-1e3, 1e3)}
-"""Where the search stays (kg m², N m, s^(n−2), -, N m, N m, s, rad)."""
+          'phi_offset': (-1e3, 1e3), 'gamma': (0.0, math.inf)}
+"""Where the search stays (kg m², N m, rad/s², -, N m, N m, s, rad; γ in s^(n−2))."""
+LAW_BOUNDS = {'power+coulomb': {'n': (1.0, 6.0)}}
+"""Narrower ranges of a law: beside a dry friction, the power law's exponent is at least 1 (a
+sub-linear law beside the friction trades with it, and its infinite slope at rest makes the
+model stiff where the joint sticks; ``coulomb`` and ``power`` cover the dry end)."""
+
+
+def bounds_of(law: Law, name: str) -> tuple[float, float]:
+    """Return the search range of parameter ``name`` under ``law``."""
+    return LAW_BOUNDS.get(law.name, {}).get(name, BOUNDS[name])
+
+
 EXPONENTS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
 """The exponents the inverse dynamics tries for the first guess of a free n."""
-DELAYS = (0.0, 0.5, 1.0, 2.0, 4.0)
-"""The dead times (in median sample periods) the inverse dynamics tries for the first guess."""
-SMOOTHING = 0.06
+SMOOTHING = 0.15
 """Span of the Savitzky–Golay cubic of the first guess, s (at least 7 samples)."""
-BLOCK = 0.1
+BLOCK = 0.2
 """Span of the blocks the first guess integrates the model over, s."""
 STEPS_PER_PERIOD = 64
 """Simulation steps per guessed period, at least (RK4; steps divide the sample period)."""
@@ -65,6 +79,10 @@ WINDOW_PERIODS = 0.5
 """The default window, in periods 2π/ω0 of the first guess: short against the divergence of a
 loop near the top (e^π ≈ 23 over it at the rate ω0), long against the sample period."""
 MIN_WINDOW_SAMPLES = 10
+FRICTION_SHARE = 0.1
+"""A law beside a dry friction also starts with the friction at this share of the effort's RMS
+torque: a friction started small can end at zero with the power law taking its share (a local
+minimum on the bound)."""
 START_SHARE = 0.02
 """A damping or friction the first guess puts at zero starts at this share of the effort's
 RMS torque (at the RMS speed)."""
@@ -182,29 +200,30 @@ def inverse_dynamics(recs: Sequence[DrivenRecord], smooth: Sequence[Smoothed], n
 
 def first_guesses(law: Law, recs: Sequence[DrivenRecord], known: Mapping[str, float]
                   ) -> list[dict[str, float]]:
-    """Return the starts of ``law``: the inverse dynamics at its best dead time and exponent.
+    """Return the starts of ``law``: the inverse dynamics at its best exponent.
 
     Two of them: with the torque offset fitted, and held at zero (or at its known value). At
     rest under gravity the offset and m g l are one sum (m g l sin φ − τ_off), which only the
     motion parts, and the noise of a differentiated angle blurs that part; a start that
-    puts the whole rest torque on gravity is the other side of that valley. A damping or a
+    puts the whole rest torque on gravity is the other side of that valley. A law beside a
+    friction adds a third, the friction large (FRICTION_SHARE). A damping or a
     friction the noise hides (0 at its bound) starts at a small share of the effort instead,
     where its exponent still moves the residual.
     """
     ders = [smoothed(r) for r in recs]
-    dt = float(np.median(np.concatenate([np.diff(r.t) for r in recs])))
     if law.n is not None:
         ns: list[float | None] = [None if law.n == 0.0 else law.n]
     elif 'n' in known:
         ns = [known['n']]
     else:
-        ns = list(EXPONENTS)
+        lo_n, hi_n = bounds_of(law, 'n')
+        ns = [n for n in EXPONENTS if lo_n <= n <= hi_n]
     fric = law.friction or law.n == 0.0
-    delays = [known['command_delay']] if 'command_delay' in known else [
-        k * dt for k in DELAYS]
+    # The dead time starts at its known value or at 0: the inverse dynamics' residual, blurred
+    # by the noise of the differentiated angle, ranks delays poorly; the fit moves it.
+    delays = [known.get('command_delay', 0.0)]
     offsets = [known['effort_offset']] if 'effort_offset' in known else [None, 0.0]
     rms = math.sqrt(float(np.mean(np.concatenate([r.effort.values ** 2 for r in recs]))))
-    speed = math.sqrt(float(np.mean(np.concatenate([d.dphi ** 2 for d in ders]))))
     out: list[dict[str, float]] = []
     for held in offsets:
         tried = []
@@ -215,21 +234,24 @@ def first_guesses(law: Law, recs: Sequence[DrivenRecord], known: Mapping[str, fl
                 tried.append((rss, guess))
         g = min(tried, key=lambda x: x[0])[1]
         inertia = g['inertia']
-        s = {'inertia': inertia, 'mgl': g['mgl'], 'gamma': g.get('gamma', 0.0), 'n': g['n'],
+        v_ref = reference_speed(recs)
+        s = {'inertia': inertia, 'mgl': g['mgl'],
+             'damping': g.get('gamma', 0.0) * v_ref ** g['n'], 'n': g['n'],
              'friction': g.get('friction', 0.0), 'effort_offset': g['effort_offset'],
              'command_delay': g['command_delay'], 'phi_offset': 0.0}
         if law.n != 0.0:
-            floor = START_SHARE * rms / (inertia * max(speed, 1e-3) ** s['n'])
-            s['gamma'] = max(s['gamma'], floor)
+            s['damping'] = max(s['damping'], START_SHARE * rms / inertia)
         if fric:
             s['friction'] = max(s['friction'], START_SHARE * rms)
         if not law.friction and law.n != 0.0:
             s['friction'] = 0.0
         if law.n == 0.0:
-            s['gamma'] = 0.0
+            s['damping'] = 0.0
         s.update(known)
         if s not in out:
             out.append(s)
+    if law.friction and 'friction' not in known:   # the dry share large: the friction's side
+        out.append({**out[-1], 'friction': max(out[-1]['friction'], FRICTION_SHARE * rms)})
     return out
 
 
@@ -238,22 +260,29 @@ def _free(law: Law, known: Mapping[str, float]) -> tuple[str, ...]:
     if law.n is not None:
         skip.add('n')
     if law.n == 0.0:
-        skip.add('gamma')          # the Coulomb law's level is the friction f (N m)
+        skip.add('damping')        # the Coulomb law's level is the friction f (N m)
     elif not law.friction:
         skip.add('friction')
     return tuple(k for k in SHARED if k not in skip)
 
 
-def inputs_for(law: Law, recs: Sequence[DrivenRecord], win: Windows
+def inputs_for(law: Law, recs: Sequence[DrivenRecord], win: Windows, v_ref: float | None = None
                ) -> Callable[[dict[str, FloatArray], npt.NDArray[np.int64], int], Any]:
-    """Return the map from the shared parameters to the sweep's inputs for ``law``."""
+    """Return the map from the shared parameters to the sweep's inputs for ``law``.
+
+    ``v_ref`` is the speed ``damping`` is the law's deceleration at (default: the records'
+    RMS speed, :func:`reference_speed`; 1 rad/s makes ``damping`` γ itself).
+    """
+    if v_ref is None:
+        v_ref = reference_speed(recs)
+
     def inputs(col: dict[str, FloatArray], wins: npt.NDArray[np.int64], steps: int) -> Any:
         inertia = col['inertia']
         om2 = col['mgl'] / inertia
         if law.n == 0.0:   # dry friction alone: the core's n = 0 law, its level f/I
             gam, nn, fr = col['friction'] / inertia, np.zeros_like(om2), np.zeros_like(om2)
         else:
-            gam, nn = col['gamma'], col['n']
+            gam, nn = col['damping'] / v_ref ** col['n'], col['n']
             fr = col['friction'] / inertia if law.friction else np.zeros_like(om2)
         sched = np.empty((steps, om2.size))
         owner = win.record[wins]
@@ -265,6 +294,12 @@ def inputs_for(law: Law, recs: Sequence[DrivenRecord], win: Windows
         sched = (sched + col['effort_offset'][None, :]) / inertia[None, :]
         return om2, gam, nn, fr, sched, col['phi_offset']
     return inputs
+
+
+def reference_speed(recs: Sequence[DrivenRecord]) -> float:
+    """Return the RMS speed of the records (the local cubic's slope; at least 0.1 rad/s)."""
+    speeds = np.concatenate([smoothed(r).dphi for r in recs])
+    return max(math.sqrt(float(np.mean(speeds ** 2))), 0.1)
 
 
 def anchors(rec: DrivenRecord) -> FloatArray:
@@ -312,15 +347,11 @@ class DrivenSolution:
     windows: Windows
     starts: int
     window: float | None
+    v_ref: float
 
 
-HELD_FIRST = ('phi_offset', 'effort_offset')
-"""Parameters the first stage of a fit holds at their start (the second frees them): with a
-sensor zero and a torque offset free from the start, the search can walk the valley where
-they trade against m g l (at rest the three make one sum) before the motion has fixed
-the rest."""
-
-
+RATIO = {'inertia': 4.0, 'mgl': 4.0}
+"""The most a step scales the joint's inertia and m g l by (up or down)."""
 def _problem(free: tuple[str, ...], start: Mapping[str, float], states: FloatArray,
              win: Windows, recs: Sequence[DrivenRecord], omega0: float, law: Law) -> Problem:
     """Return a start of the windowed fit with ``free`` parameters."""
@@ -328,18 +359,19 @@ def _problem(free: tuple[str, ...], start: Mapping[str, float], states: FloatArr
     peak = max(r.effort.peak for r in recs)
     amp = max(float(np.max(np.abs(r.y))) for r in recs)
     typical = {'inertia': start['inertia'], 'mgl': max(start['mgl'], 1e-3 * peak, 1e-6),
-               'gamma': max(start['gamma'], 1e-3), 'n': 1.0,
+               'damping': max(start['damping'], 1e-3), 'n': 1.0,
                'friction': max(start['friction'], 1e-3 * peak, 1e-6),
                'effort_offset': max(abs(start['effort_offset']), 1e-3 * peak, 1e-6),
                'command_delay': dt, 'phi_offset': max(amp, 0.1)}
-    lo = np.array([BOUNDS[k][0] for k in free])
-    hi = np.array([BOUNDS[k][1] for k in free])
+    lo = np.array([bounds_of(law, k)[0] for k in free])
+    hi = np.array([bounds_of(law, k)[1] for k in free])
     return Problem(free=free, fixed={k: v for k, v in start.items() if k not in free},
                    theta=np.clip(np.array([start[k] for k in free]), lo, hi),
                    states=states.copy(), scale=np.array([typical[k] for k in free]),
                    state_scale=np.column_stack([np.full(win.count, max(amp, 0.1)),
                                                 np.full(win.count, max(amp, 0.1) * omega0)]),
-                   bounds=(lo, hi), win=win, inputs=inputs_for(law, recs, win))
+                   bounds=(lo, hi), win=win, inputs=inputs_for(law, recs, win),
+                   ratio=np.array([RATIO.get(k, 0.0) for k in free]))
 
 
 def solve_law(law: Law, recs: Sequence[DrivenRecord], known: Mapping[str, float],
@@ -355,12 +387,11 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
                ) -> list[DrivenSolution | None]:
     """Fit ``law`` to each set of records (the records of a set together), all in lockstep.
 
-    Two stages from each start: the sensor zero and the torque offset held (HELD_FIRST),
-    then everything free from where the first stage ended; the start that ends lowest wins.
+    Every start of every set is one problem of one :func:`windows.solve`; the start of a set
+    that ends lowest is its fit.
     """
     free = _free(law, known)
-    first = tuple(k for k in free if k not in HELD_FIRST)
-    stage: list[Problem] = []
+    problems: list[Problem] = []
     owner: list[int] = []
     made: list[tuple[Windows, float, float | None]] = []
     for i, recs in enumerate(sets):
@@ -379,27 +410,19 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
         for s in starts:
             st = measured.copy()
             st[:, 0] -= s['phi_offset']
-            stage.append(_problem(first if first else free, s, st, win, recs, omega0, law))
+            problems.append(_problem(free, s, st, win, recs, omega0, law))
             owner.append(i)
-    solve(stage, jit=jit, progress=progress)
-    problems, owners = stage, owner
-    if first != free:
-        problems, owners = [], []
-        for p, i in zip(stage, owner, strict=True):
-            if p.jac is not None:
-                problems.append(_problem(free, p.full(p.theta), p.states, p.win, sets[i],
-                                         made[i][1], law))
-                owners.append(i)
-        solve(problems, jit=jit, progress=progress)
+    solve(problems, jit=jit, progress=progress)
     out: list[DrivenSolution | None] = []
     for i in range(len(sets)):
-        mine = [p for p, o in zip(problems, owners, strict=True) if o == i]
+        mine = [p for p, o in zip(problems, owner, strict=True) if o == i]
         best = min(mine, key=lambda p: p.cost, default=None)
         if best is None or best.jac is None:
             out.append(None)
         else:
             out.append(DrivenSolution(law=law, problem=best, windows=best.win,
-                                      starts=owner.count(i), window=made[i][2]))
+                                      starts=owner.count(i), window=made[i][2],
+                                      v_ref=reference_speed(sets[i])))
     return out
 
 
@@ -445,7 +468,7 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
 
     for k in SHARED:
         if k in p.free:
-            put(k, values[k], float(se_free[p.free.index(k)]), BOUNDS[k])
+            put(k, values[k], float(se_free[p.free.index(k)]), bounds_of(law, k))
         else:
             params[k], stderr[k], ci[k] = values[k], 0.0, (values[k], values[k])
     inertia, mgl, f = values['inertia'], values['mgl'], values['friction']
@@ -458,6 +481,14 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
                                           'inertia': -f / inertia ** 2}, p.free, cov.shared),
             (0.0, math.inf))
         put('friction_accel', f / inertia, stderr['gamma'], (0.0, math.inf))
+    else:   # γ = damping / v_ref^n
+        v_ref = sol.v_ref
+        gamma = values['damping'] / v_ref ** values['n']
+        put('gamma', gamma, _delta({'damping': v_ref ** -values['n'],
+                                    'n': -gamma * math.log(v_ref)}, p.free, cov.shared),
+            bounds_of(law, 'gamma'))
+    if law.n == 0.0:
+        pass
     elif law.friction:
         put('friction_accel', f / inertia, _delta({'friction': 1 / inertia,
                                                    'inertia': -f / inertia ** 2}, p.free,
@@ -486,7 +517,9 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
         for k in ('inertia', 'mgl', 'friction', 'effort_offset'):
             params[k], stderr[k], ci[k] = None, None, None
             reasons[k] = why
-    fixed = tuple(k for k in SHARED if k not in p.free)
+    for d in (params, stderr, ci):
+        d.pop('damping', None)
+    fixed = tuple('gamma' if k == 'damping' else k for k in SHARED if k not in p.free)
     corr: dict[str, float] = {}
     sd = np.sqrt(np.abs(np.diag(cov.shared)))
     for i in range(len(p.free)):

@@ -131,13 +131,17 @@ def cross_correlation(e: FloatArray, u: FloatArray, lags: int) -> FloatArray:
 
 
 def _values(f: Fit) -> dict[str, float]:
-    """Return the fit's joint as the shared parameters of a driven model, or refuse it."""
-    missing = [k for k in SHARED if f.params.get(k) is None]
+    """Return the fit's joint as the shared parameters of a driven model (its ``damping`` γ
+    itself, at a reference speed of 1 rad/s), or refuse it."""
+    names = [k for k in SHARED if k != 'damping'] + ['gamma']
+    missing = [k for k in names if f.params.get(k) is None]
     if missing:
         why = f.reasons.get(missing[0], 'not determined')
         raise IdentifyError(f'the fit does not determine {", ".join(missing)} ({why}): it '
                             f'cannot predict a driven record')
-    return {k: float(f.params[k]) for k in SHARED}   # type: ignore[arg-type]
+    values = {k: float(f.params[k]) for k in names}   # type: ignore[arg-type]
+    values['damping'] = values.pop('gamma')
+    return values
 
 
 def _free_inputs(f: Fit) -> tuple[dict[str, float], Any]:
@@ -238,7 +242,7 @@ def validate(fit: Fit, record: Any, *, k: int | None = None, jit: bool | None = 
     offset = values['phi_offset']
 
     def inputs_of(win: Windows) -> Any:
-        return inputs_for(law, [rec], win) if driven else free_inputs
+        return inputs_for(law, [rec], win, 1.0) if driven else free_inputs
 
     # The residuals: the fit's windows (one window for a fit by one simulation), states fitted.
     win = cut(series, fit.window, h)

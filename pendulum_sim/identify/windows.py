@@ -165,6 +165,7 @@ class Problem:
     bounds: tuple[FloatArray, FloatArray]
     win: Windows
     inputs: Mapping_
+    ratio: FloatArray | None = None   # a step keeps θ within [θ / r, θ r] where r > 0
     cost: float = math.inf
     residual: FloatArray | None = None
     jac: FloatArray | None = None        # (rows, p): along the shared parameters
@@ -238,9 +239,15 @@ def _columns(p: Problem, thetas: FloatArray, states: FloatArray, steps: int
     col = {k: np.repeat(np.array([v[k] for v in values]), count) for k in values[0]}
     wins = np.tile(np.arange(count), len(values))
     om2, gam, nn, fr, sched, offset = p.inputs(col, wins, steps)
+    h = p.win.h
     ok = bool(np.all(np.isfinite(om2)) and np.all(np.isfinite(gam)) and np.all(np.isfinite(fr)))
+    # A model the grid cannot resolve is no candidate (its simulation would only crawl through
+    # the guard's fallback): ω0 h <= 1, and the input alone turns the joint by less than π
+    # in a step.
+    ok = ok and bool(np.all(om2 * h * h <= 1.0))
     if sched is not None:
-        ok = ok and bool(np.all(np.abs(sched) <= MAX_INPUT_ACCEL))
+        most = np.max(np.abs(sched), axis=0)
+        ok = ok and bool(np.all(most <= MAX_INPUT_ACCEL) and np.all(0.5 * most * h * h <= math.pi))
     if not ok:
         return None
     return (om2, gam, nn, fr, sched, offset), states[:, :, 0].ravel(), states[:, :, 1].ravel()
@@ -343,8 +350,10 @@ def _lm_step(p: Problem, bounds: IntArray, row_window: IntArray
     """Return the Levenberg–Marquardt candidate (θ, states) and its predicted decrease.
 
     A projected step: a shared parameter moves at most by its own size (or its typical size)
-    per step and stops at the bounds of its range; one at a bound that the descent pushes out
-    of the range is held there for the step (the active set), so that a parameter whose true
+    per step, one with a ratio r > 0 stays within [θ / r, θ r] (a scale such as the inertia,
+    whose collapse would make the model stiff), and each stops at the bounds of its range;
+    one at a bound that the descent pushes out of the range is held there for the step (the
+    active set), so that a parameter whose true
     value is at a bound (no friction, no dead time) sits on it while the others take their
     own best step. Where the step so cut is predicted to raise the cost, λ grows and the
     step is made again.
@@ -367,6 +376,11 @@ def _lm_step(p: Problem, bounds: IntArray, row_window: IntArray
         a[held, :], a[:, held], b[:, held, :], gg[held] = 0.0, 0.0, 0.0, 0.0
         a[held, held] = 1.0
     cap = np.maximum(np.abs(p.theta), p.scale)
+    low, high = p.theta - cap, p.theta + cap
+    if p.ratio is not None:
+        r = p.ratio > 0.0
+        low = np.where(r, np.maximum(low, p.theta / np.where(r, p.ratio, 1.0)), low)
+        high = np.where(r, np.minimum(high, p.theta * np.where(r, p.ratio, 1.0)), high)
     theta, states, predicted = p.theta, p.states, 0.0
     for _ in range(LAMBDA_TRIES):
         cinv = _inv2(c + p.lam * eye2)
@@ -377,7 +391,7 @@ def _lm_step(p: Problem, bounds: IntArray, row_window: IntArray
         except np.linalg.LinAlgError:
             dgs = np.linalg.lstsq(s, rhs, rcond=None)[0]
         dss = np.einsum('wij,wj->wi', cinv, -gs - np.einsum('wpi,p->wi', b, dgs))
-        theta, states = p.clip(p.theta + np.clip(dgs / dg, -cap, cap), p.states + dss / ds)
+        theta, states = p.clip(np.clip(p.theta + dgs / dg, low, high), p.states + dss / ds)
         step_g, step_s = theta - p.theta, states - p.states
         jd = p.jac @ step_g + np.sum(p.jac_states * step_s[row_window], axis=1)
         predicted = -float(p.residual @ jd) - 0.5 * float(jd @ jd)
