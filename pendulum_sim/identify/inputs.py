@@ -14,11 +14,15 @@ import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from .errors import IdentifyError
+
+if TYPE_CHECKING:   # the loader needs rclpy: imported where a file is read
+    from pendulum_sim.recording.loader import Recording
 
 FloatArray = npt.NDArray[np.float64]
 JOINT_STATE = 'sensor_msgs/msg/JointState'
@@ -28,13 +32,19 @@ SKIP = '_'
 
 @dataclass(frozen=True)
 class Samples:
-    """A stream read from a file: times (s), angle (rad), velocity and effort where present."""
+    """A stream read from a file: times (s), angle (rad), velocity and effort where present.
+
+    ``commands`` holds a command stream read from its own topic (stamps in s, values in N m;
+    ``--effort-topic``), ``joint`` the joint's name where the file gives one.
+    """
 
     t: FloatArray
     position: FloatArray
     velocity: FloatArray | None
     effort: FloatArray | None
     source: str
+    commands: tuple[FloatArray, FloatArray] | None = None
+    joint: str | None = None
 
 
 @dataclass(frozen=True)
@@ -187,8 +197,50 @@ def _mcap_file(path: Path) -> Path:
     return path
 
 
-def read_mcap(path: Path, topic: str | None, joint: str | None) -> Samples:
-    """Read the JointState stream ``topic`` (or the only one) of ``joint`` (or the only one)."""
+COMMAND_TYPES = ('std_msgs/msg/Float64', JOINT_STATE)
+"""The types of a command stream ``--effort-topic`` reads: ``effort_command``'s and
+``joint_commands``'s."""
+
+
+def read_commands(rec: Recording, file: Path, topic: str, joint: str) -> tuple[FloatArray,
+                                                                           FloatArray]:
+    """Return the stamps (s) and values (N m) of the command stream ``topic`` for ``joint``.
+
+    A ``std_msgs/Float64`` stream has no header: its messages are stamped by their log time
+    (``pendulum_node`` logs each at the stamp of the state it answers); a JointState stream
+    by its header stamps (the log time where a writer left them zero), its value the effort
+    field of ``joint``.
+    """
+    topics = rec.topics
+    streams = sorted(name for name, info in topics.items() if info.type in COMMAND_TYPES)
+    if topic not in topics or topics[topic].type not in COMMAND_TYPES:
+        have = ', '.join(streams) or 'none'
+        raise IdentifyError(f'{file} has no command topic {topic!r} (its Float64 and '
+                            f'JointState topics: {have}); pass --effort-topic with the topic '
+                            f'the joint was commanded on')
+    messages = rec.messages(topic)
+    stamps, values = [], []
+    for log_ns, msg in messages:
+        if topics[topic].type == JOINT_STATE:
+            if joint not in msg.name:
+                continue
+            i = list(msg.name).index(joint)
+            stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+            stamps.append((stamp if stamp else log_ns) * 1e-9)
+            values.append(msg.effort[i] if len(msg.effort) > i else math.nan)
+        else:
+            stamps.append(log_ns * 1e-9)
+            values.append(float(msg.data))
+    return np.asarray(stamps, dtype=np.float64), np.asarray(values, dtype=np.float64)
+
+
+def read_mcap(path: Path, topic: str | None, joint: str | None,
+              effort_topic: str | None = None) -> Samples:
+    """Read the JointState stream ``topic`` (or the only one) of ``joint`` (or the only one).
+
+    With ``effort_topic`` the command stream on that topic is read as well
+    (:func:`read_commands`).
+    """
     from pendulum_sim.recording.errors import RecorderError
     from pendulum_sim.recording.loader import load
 
@@ -245,25 +297,35 @@ def read_mcap(path: Path, topic: str | None, joint: str | None) -> Samples:
         vel.append(msg.velocity[i] if len(msg.velocity) > i else math.nan)
         eff.append(msg.effort[i] if len(msg.effort) > i else math.nan)
     v, e = np.asarray(vel, dtype=np.float64), np.asarray(eff, dtype=np.float64)
+    commands = None if effort_topic is None else read_commands(rec, file, effort_topic, joint)
     return Samples(t=np.asarray(t, dtype=np.float64), position=np.asarray(pos, dtype=np.float64),
                    velocity=None if np.all(np.isnan(v)) else v,
                    effort=None if np.all(np.isnan(e)) else e,
-                   source=f'{file} (topic {topic}, joint {joint})')
+                   source=f'{file} (topic {topic}, joint {joint})', commands=commands,
+                   joint=joint)
 
 
 def read_record(path: str | Path, *, topic: str | None = None, joint: str | None = None,
-                columns: str = 't,position', units: str = 'rad') -> Samples:
-    """Read ``path``: a CSV (by its suffix ``.csv``) or a rosbag2 MCAP file or folder."""
+                columns: str = 't,position', units: str = 'rad',
+                effort_topic: str | None = None) -> Samples:
+    """Read ``path``: a CSV (by its suffix ``.csv``) or a rosbag2 MCAP file or folder.
+
+    ``effort_topic`` names a command stream of an MCAP file to read the effort from
+    (:func:`read_commands`); a CSV has its effort in a column.
+    """
     p = Path(path)
     if not p.exists():
         raise IdentifyError(f'{p} does not exist; pass a .mcap recording or a .csv file')
     if units not in ('deg', 'rad'):
         raise IdentifyError(f'--units must be deg or rad, got {units!r}')
     if p.suffix.lower() == '.csv':
+        if effort_topic is not None:
+            raise IdentifyError(f'{p} is a CSV: its effort is a column (--columns ...,effort), '
+                                f'not a topic; drop --effort-topic')
         return read_csv(p, parse_columns(columns), units)
     from pendulum_sim.recording.errors import RecorderError
 
     try:
-        return read_mcap(p, topic, joint)
+        return read_mcap(p, topic, joint, effort_topic)
     except RecorderError as exc:
         raise IdentifyError(f'{exc}; pass a rosbag2 MCAP file or a CSV') from None

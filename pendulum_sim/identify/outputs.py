@@ -17,12 +17,17 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+import numpy.typing as npt
+
 from .fit import Fit
 
 COLUMNS = ('omega0', 'gamma', 'n', 'friction', 'friction_accel', 'phi_offset', 'phi0',
-           'dphi0')
+           'dphi0', 'inertia', 'mgl', 'effort_offset', 'command_delay')
 """The parameters of ``models.csv``, each with its standard error and 95 % interval:
-``friction`` in N m (where the inertia is known), ``friction_accel`` its deceleration f/I."""
+``friction`` in N m (where the inertia is known), ``friction_accel`` its deceleration f/I;
+``inertia`` (kg m²), ``mgl`` (N m), ``effort_offset`` (N m) and ``command_delay`` (s) of a
+driven fit (empty for a free swing)."""
 CORRELATED = 0.5
 """Correlations beyond ± this are noted in campaign_parameters.yaml."""
 
@@ -101,7 +106,8 @@ def write_scene(path: Path, f: Fit, body: Body, source: str) -> None:
     """Write ``fit.yaml``: the fitted joint as a scene."""
     p = f.params
     assert p['omega0'] is not None and p['gamma'] is not None and p['n'] is not None
-    held = ('# The inertia is the one given' if body.inertia_known else
+    held = ('# The inertia, m g l, friction and torque offset are fitted with the effort (N m)'
+            if f.driven else '# The inertia is the one given' if body.inertia_known else
             '# The inertia is not identified (a free swing fixes only omega0^2 = m g l / I): '
             'the\n# default is kept')
     arm = ("l is the equivalent simple pendulum's, g / omega0^2" if body.length is None else
@@ -125,6 +131,9 @@ def write_scene(path: Path, f: Fit, body: Body, source: str) -> None:
         f'    phi0: {_num(p["phi0"] or 0.0)}',
         f'    dphi0: {_num(p["dphi0"] or 0.0)}',
     ]
+    if f.driven:   # the drive's bias (N m) and the dead time of its commands (s)
+        lines += [f'    effort_offset: {_num(p.get("effort_offset") or 0.0)}',
+                  f'    command_delay: {_num(p.get("command_delay") or 0.0)}']
     path.write_text('\n'.join(lines) + '\n')
 
 
@@ -143,8 +152,14 @@ def write_campaign(path: Path, f: Fit, body: Body) -> None:
         lines += [f'#   {k.replace("/", " and ")}: r = {r:+.2f}' for k, r in strong]
     lines.append('parameters:')
     g, slope = body.gravity(p['omega0'])
-    lines.append(f'  g: {{distribution: normal, mean: {_num(g)}, std: '
-                 f'{_num(slope * se["omega0"])}}}')
+    std_g = slope * se['omega0']
+    if f.driven and se.get('mgl') is not None and se.get('inertia') is not None:
+        # g carries m g l (m and l held): g = m g l / (m l); the inertia is its own.
+        m, length = body.mass(p['omega0']), body.arm(p['omega0'])
+        std_g = se['mgl'] / (m * length)   # type: ignore[operator]
+        lines.append(f'  inertia: {{distribution: normal, mean: {_num(body.inertia)}, std: '
+                     f'{_num(se["inertia"])}}}')   # type: ignore[arg-type]
+    lines.append(f'  g: {{distribution: normal, mean: {_num(g)}, std: {_num(std_g)}}}')
     for k in ('gamma', 'n'):
         v, e = p[k], se[k]
         if v is None or e is None:
@@ -154,7 +169,10 @@ def write_campaign(path: Path, f: Fit, body: Body) -> None:
         else:
             lines.append(f'  {k}: {{distribution: normal, mean: {_num(v)}, std: {_num(e)}}}')
     acc_se = se.get('friction_accel')
-    if f.model == 'power+coulomb' and acc_se is not None:
+    if f.driven and f.model == 'power+coulomb' and se.get('friction') is not None:
+        lines.append(f'  friction: {{distribution: normal, mean: {_num(scene_friction(f, body))}'
+                     f', std: {_num(se["friction"])}}}')   # type: ignore[arg-type]
+    elif f.model == 'power+coulomb' and acc_se is not None:
         lines.append(f'  friction: {{distribution: normal, mean: {_num(scene_friction(f, body))}'
                      f', std: {_num(acc_se * body.inertia)}}}')
     path.write_text('\n'.join(lines) + '\n')
@@ -193,18 +211,33 @@ def write_figure(path: Path, f: Fit) -> None:
 
     fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(9, 6),
                                       gridspec_kw={'height_ratios': [3, 1]})
-    top.plot(f.t, f.position, '.', ms=2, color='0.4', label='measured')
-    top.plot(f.t, f.fitted, '-', lw=1, color='C0', label='fitted')
+    t = _record_time(f)
+    top.plot(t, f.position, '.', ms=2, color='0.4', label='measured')
+    fitted_label = 'fitted' if f.window is None else f'fitted (windows of {f.window:.3g} s)'
+    for k, (a, b) in enumerate(zip(f.segments, (*f.segments[1:], f.t.size), strict=True)):
+        top.plot(t[a:b], f.fitted[a:b], '-', lw=1, color='C0',
+                 label=fitted_label if k == 0 else None)
+        if k:
+            top.axvline(t[a], color='0.7', lw=0.5)
     top.set_ylabel('angle (rad)')
     top.legend(loc='upper right')
     top.set_title(_law(f), fontsize=10)
-    bottom.plot(f.t, f.residual, '.', ms=2, color='C3')
+    bottom.plot(t, f.residual, '.', ms=2, color='C3')
     bottom.axhline(0.0, color='0.5', lw=0.5)
     bottom.set_ylabel('residual (rad)')
     bottom.set_xlabel('t (s)')
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _record_time(f: Fit) -> npt.NDArray[np.float64]:
+    """Return the times of the figure: the records one after another, each from its end."""
+    t = f.t.astype(float).copy()
+    for a in f.segments[1:]:
+        step = t[a - 1] - t[a - 2] if a >= 2 else 0.0
+        t[a:] += t[a - 1] + step - t[a]
+    return np.asarray(t)
 
 
 def _pm(f: Fit, k: str) -> str:
@@ -218,12 +251,15 @@ def _pm(f: Fit, k: str) -> str:
 
 def summary(fits: Sequence[Fit]) -> str:
     """Return the comparison as a text table (estimate ± standard error; — not determined)."""
-    head = ('rank', 'model', 'omega0 (rad/s)', 'gamma', 'n', 'friction (N m)', 'rms (rad)',
-            'BIC', 'starts at optimum')
+    driven = any(f.driven for f in fits)
+    extra = ('inertia (kg m^2)', 'offset (N m)') if driven else ()
+    head = ('rank', 'model', 'omega0 (rad/s)', 'gamma', 'n', 'friction (N m)', *extra,
+            'rms (rad)', 'BIC', 'starts at optimum')
     rows = [head]
     for i, f in enumerate(fits, 1):
+        more = (_pm(f, 'inertia'), _pm(f, 'effort_offset')) if driven else ()
         rows.append((str(i), f.model, _pm(f, 'omega0'), _pm(f, 'gamma'), _pm(f, 'n'),
-                     _pm(f, 'friction'), f'{f.rms_residual:.3g}', f'{f.bic:.1f}',
+                     _pm(f, 'friction'), *more, f'{f.rms_residual:.3g}', f'{f.bic:.1f}',
                      f'{f.at_optimum} of {f.starts}'))
     width = [max(len(r[j]) for r in rows) for j in range(len(head))]
     lines = ('  '.join(c.ljust(w) for c, w in zip(r, width, strict=True)).rstrip() for r in rows)
