@@ -4,11 +4,11 @@ Each record is a closed loop of the shipped PD law (``pendulum_sim.testing.examp
 gravity compensation with the default m g l) run by the package's own joint in a batch
 (``testing.batch.run_batch`` on the compiled sweep: the node's steps of 1 ms, a command every
 10 ms), from a random state, tracking a reference A sin(2π f t) of a random amplitude (a fixed
-target would leave the joint at rest, where its damping shows nothing). The joint's inertia, mass, length, damping
-law (a non-integer n), Coulomb friction are drawn per record; the record then carries what a
-joint with a biased torque sensor and a noisy encoder logs: the position with Gaussian noise,
-and the effort less a constant offset (the applied torque is the logged effort plus
-``effort_offset``, the model's τ_off).
+target would leave the joint at rest, where its damping shows nothing). The joint's inertia,
+mass, length, damping law (a non-integer n), Coulomb friction are drawn per record; the record
+then carries what a joint with a biased torque sensor and a noisy encoder logs: the position
+with Gaussian noise, and the effort less a constant offset (the applied torque is the logged
+effort plus ``effort_offset``, the model's τ_off).
 """
 from __future__ import annotations
 

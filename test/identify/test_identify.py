@@ -259,6 +259,6 @@ def test_known_and_model_are_checked() -> None:
     with pytest.raises(IdentifyError, match=re.escape("known['inertia'] must be > 0, got -1.0")):
         fit(t, y, known={'inertia': -1.0})
     with pytest.raises(IdentifyError, match=re.escape(
-            'effort is not zero (up to 0.5 N m): fitting a driven joint is not supported yet; '
-            'fit a stretch of free swing (effort 0)')):
-        fit(t, y, effort=np.full(t.size, 0.5))
+            'effort is not zero (up to 0.5 N m): a driven record is fitted with its effort '
+            '(fit(..., effort=...), prepare_driven); prepare takes a free swing')):
+        prepare(t, y, effort=np.full(t.size, 0.5))

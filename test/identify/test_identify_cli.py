@@ -14,7 +14,6 @@ from mcap_ros2.writer import Writer
 
 from pendulum_sim.core import PendulumParams, simulate
 from pendulum_sim.joint.scenes import read_params_file
-from pendulum_sim.recording import load
 from pendulum_sim.testing.campaign.spec import parse_spec
 from pendulum_sim.testing.scene import scene_values
 
@@ -167,9 +166,6 @@ def bad_cases(tmp: Path) -> list[tuple[list[str | Path], str]]:
     other = write_csv(tmp / 'other.csv', ['time', 'angle'], [[a, b] for a, b in zip(
         t, y, strict=True)])
     two = write_other_bag(tmp / 'two.mcap')
-    states = load(STATIC).joint_states
-    assert states is not None
-    driven = float(np.abs(states.effort).max())   # the PD controller's torque
     return [
         ([tmp / 'missing.mcap'], f'{tmp}/missing.mcap does not exist; pass a .mcap recording '
                                  'or a .csv file'),
@@ -184,8 +180,6 @@ def bad_cases(tmp: Path) -> list[tuple[list[str | Path], str]]:
          f"{STATIC} has no JointState topic '/arm/joint_states'; pass --topic with one of "
          '/joint_states'),
         ([two], f'{two}: /arm/joint_states carries the joints shoulder, pendulum; pass --joint'),
-        ([STATIC], f'effort is not zero (up to {driven:.3g} N m): fitting a driven joint is not '
-                   'supported yet; fit a stretch of free swing (effort 0)'),
         ([nan], 'position has 1 samples that are NaN or infinite (the first at index 7); drop '
                 'them before fitting'),
         ([back], f't must increase strictly: t[9] = {float(t[4])!r} s follows t[8] = '
