@@ -86,6 +86,12 @@ minimum on the bound)."""
 START_SHARE = 0.02
 """A damping or friction the first guess puts at zero starts at this share of the effort's
 RMS torque (at the RMS speed)."""
+TORQUE_SCALE = 0.5
+"""The torque scale (the inertia, m g l, the friction and the offset in N m) is reported as not
+determined where the inertia's 95 % interval is wider than ± this fraction of it. An effort
+that does not move the joint (a sensor's noise) still lowers the misfit by chance, as any added
+regressor does, with an input gain 1/I one or two standard errors from zero: an interval of
+±50 % and more; an effort that drives the joint fixes the inertia within a few per cent."""
 N_UNDETERMINED = 1.0
 """n is reported as not determined when its 95 % interval is wider than ± this."""
 
@@ -508,12 +514,11 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
         for k in ('n', 'gamma'):
             params[k], stderr[k], ci[k] = None, None, None
     se_i = stderr.get('inertia')
-    if 'inertia' in p.free and (se_i is None or q * se_i >= inertia):
-        reach = ('its 95 % interval reaches zero' if se_i is not None else
-                 'the fit is singular in it')
+    if 'inertia' in p.free and (se_i is None or q * se_i > TORQUE_SCALE * inertia):
         why = (f'the torque scale is not determined: the effort (up to {peak:.3g} N m) does not '
-               f'move the joint measurably beside gravity and damping (the inertia: {reach}); '
-               f'check the effort and its unit, or drive the joint harder')
+               f"move the joint measurably beside gravity and damping (the inertia's 95 % "
+               f'interval is wider than ±{TORQUE_SCALE:.0%} of it); check the effort and its '
+               f'unit, or drive the joint harder')
         for k in ('inertia', 'mgl', 'friction', 'effort_offset'):
             params[k], stderr[k], ci[k] = None, None, None
             reasons[k] = why

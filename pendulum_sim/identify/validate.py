@@ -90,15 +90,21 @@ class Validation:
 
     @property
     def white(self) -> bool:
-        """Return True when every autocorrelation at lags 1..M lies inside the band."""
-        return bool(np.all(np.abs(self.autocorrelation[1:]) <= self.band))
+        """Return True when at most one autocorrelation at lags 1..M lies outside the band.
+
+        Each lag of white residuals leaves the 99 % band with probability 0.01: one of the 25
+        in 22 % of records, two or more in 2.6 % (the test's false alarm).
+        """
+        return bool(np.count_nonzero(np.abs(self.autocorrelation[1:]) > self.band) <= 1)
 
     @property
     def independent(self) -> bool | None:
-        """Return True when every cross-correlation with the effort lies inside the band."""
+        """Return True when at most one cross-correlation with the effort lies outside the band
+        (None for a record without effort); of 2M + 1 = 51 lags, two or more leave it in 9 %
+        of records of independent residuals."""
         if self.cross_correlation is None:
             return None
-        return bool(np.all(np.abs(self.cross_correlation) <= self.band))
+        return bool(np.count_nonzero(np.abs(self.cross_correlation) > self.band) <= 1)
 
 
 def fit_percent(y: FloatArray, yhat: FloatArray) -> float:

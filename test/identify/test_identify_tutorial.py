@@ -22,7 +22,7 @@ def bash_blocks() -> list[str]:
 
 def test_the_tutorial_records_identifies_and_runs_a_campaign(tmp_path: Path) -> None:
     blocks = bash_blocks()
-    assert len(blocks) == 3
+    assert len(blocks) == 4
     env = dict(os.environ)
     env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env["PATH"]}'
     for block in blocks:
@@ -35,3 +35,10 @@ def test_the_tutorial_records_identifies_and_runs_a_campaign(tmp_path: Path) -> 
     assert spec['parameters']['gamma']['distribution'] == 'normal'
     assert (tmp_path / 'results' / 'summary.md').is_file()
     assert len((tmp_path / 'results' / 'episodes.csv').read_text().splitlines()) == 9
+    # Under control: the driven joint, its offset and dead time, validated on another record.
+    driven = yaml.safe_load((tmp_path / 'driven' / 'fit.yaml').read_text())['/**'][
+        'ros__parameters']
+    assert {'inertia', 'effort_offset', 'command_delay'} <= set(driven)
+    assert abs(driven['inertia'] - 0.2002) < 0.02
+    assert (tmp_path / 'driven' / 'validation.csv').is_file()
+    assert (tmp_path / 'driven' / 'validate.png').is_file()
