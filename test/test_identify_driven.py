@@ -202,7 +202,8 @@ def test_compare_ranks_the_driven_laws_and_names_an_undetermined_torque_scale(
     assert f.params['inertia'] is None
     assert f.reasons['inertia'] == (
         f'the torque scale is not determined: the effort (up to {np.abs(u).max():.3g} N m) does '
-        "not move the joint measurably beside gravity and damping (the inertia's 95 % interval "
+        'not move the joint measurably beside gravity and damping (in the fitted model it '
+        "moves the angle by less than 10 times the residual, or the inertia's 95 % interval "
         'is wider than ±50% of it); check the effort and its unit, or drive the joint harder')
 
 
@@ -257,8 +258,8 @@ def test_bad_driven_input_exits_2_with_one_line_and_writes_nothing(
 
     def csv(name: str, tt: np.ndarray, uu: np.ndarray) -> Path:
         path = tmp_path / name
-        rows = '\n'.join(f'{a!r},{b!r},{c!r}' for a, b, c in zip(tt, y[:tt.size], uu,
-                                                                  strict=True))
+        rows = '\n'.join(f'{a!r},{b!r},{c!r}' for a, b, c in zip(
+            tt.tolist(), y[:tt.size].tolist(), uu.tolist(), strict=True))
         path.write_text('t,position,effort\n' + rows + '\n')
         return path
 
@@ -287,9 +288,9 @@ def test_bad_driven_input_exits_2_with_one_line_and_writes_nothing(
          'records fitted together must be of one joint; fit them apart, or pass --joint'),
         ([csv('tiny.csv', t, tiny), *cols, '--models', 'viscous'],
          f'the torque scale is not determined: the effort (up to {np.abs(tiny).max():.3g} N m) '
-         "does not move the joint measurably beside gravity and damping (the inertia's 95 % "
-         'interval is wider than ±50% of it); check the effort and its unit, or drive the joint '
-         'harder'),
+         'does not move the joint measurably beside gravity and damping (in the fitted model it '
+         "moves the angle by less than 10 times the residual, or the inertia's 95 % interval "
+         'is wider than ±50% of it); check the effort and its unit, or drive the joint harder'),
     ]
     for i, (args, message) in enumerate(cases):
         out = tmp_path / f'out{i}'

@@ -22,6 +22,7 @@ few by its residual
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -37,7 +38,7 @@ from .effort import Effort, from_samples
 from .errors import IdentifyError
 from .guess import noise_level
 from .laws import Law
-from .windows import Problem, Series, Windows, covariance, cut, schedule, solve
+from .windows import Problem, Series, Windows, covariance, cut, schedule, simulate, solve
 
 FloatArray = npt.NDArray[np.float64]
 Value = float | None
@@ -86,6 +87,11 @@ minimum on the bound)."""
 START_SHARE = 0.02
 """A damping or friction the first guess puts at zero starts at this share of the effort's
 RMS torque (at the RMS speed)."""
+EFFORT_MOTION = 10.0
+"""The torque scale is reported as not determined where the effort moves the fitted model's
+angle (its simulation with the effort against without it, RMS over the samples) by less than
+this many times the residual's RMS: a fit that uses an effort which cannot move the joint (a
+sensor's noise, scaled up by a tiny inertia) to chase the noise moves it by about the noise."""
 TORQUE_SCALE = 0.5
 """The torque scale (the inertia, m g l, the friction and the offset in N m) is reported as not
 determined where the inertia's 95 % interval is wider than ± this fraction of it. An effort
@@ -354,6 +360,7 @@ class DrivenSolution:
     starts: int
     window: float | None
     v_ref: float
+    effort_motion: float = math.inf   # RMS of the angle the effort moves in the fitted model
 
 
 RATIO = {'inertia': 4.0, 'mgl': 4.0}
@@ -428,8 +435,25 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
         else:
             out.append(DrivenSolution(law=law, problem=best, windows=best.win,
                                       starts=owner.count(i), window=made[i][2],
-                                      v_ref=reference_speed(sets[i])))
+                                      v_ref=reference_speed(sets[i]),
+                                      effort_motion=effort_motion(law, sets[i], best, jit)))
     return out
+
+
+def effort_motion(law: Law, recs: Sequence[DrivenRecord], p: Problem, jit: bool) -> float:
+    """Return the RMS of the angle the effort moves in the fitted model (rad).
+
+    The fitted windows simulated again with the effort zero (its offset kept), against the
+    fit's own simulation. NaN where the core cannot simulate it.
+    """
+    zero = [dataclasses.replace(r, effort=Effort(r.effort.knots, np.zeros_like(r.effort.values),
+                                                 'zero')) for r in recs]
+    still = dataclasses.replace(p, inputs=inputs_for(law, zero, p.win,
+                                                     reference_speed(recs)))
+    free = simulate([still], [(p.theta[None], p.states[None])], jit=jit)[0]
+    if free is None or p.residual is None:
+        return math.nan
+    return math.sqrt(float(np.mean((p.residual + p.win.y - free[:, 0]) ** 2)))
 
 
 def _delta(grad: dict[str, float], free: tuple[str, ...], cov: FloatArray) -> float | None:
@@ -514,11 +538,15 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
         for k in ('n', 'gamma'):
             params[k], stderr[k], ci[k] = None, None, None
     se_i = stderr.get('inertia')
-    if 'inertia' in p.free and (se_i is None or q * se_i > TORQUE_SCALE * inertia):
+    assert p.residual is not None
+    rms = math.sqrt(float(p.residual @ p.residual) / p.residual.size)
+    if 'inertia' in p.free and (se_i is None or q * se_i > TORQUE_SCALE * inertia
+                                or sol.effort_motion < EFFORT_MOTION * rms):
         why = (f'the torque scale is not determined: the effort (up to {peak:.3g} N m) does not '
-               f"move the joint measurably beside gravity and damping (the inertia's 95 % "
-               f'interval is wider than ±{TORQUE_SCALE:.0%} of it); check the effort and its '
-               f'unit, or drive the joint harder')
+               f'move the joint measurably beside gravity and damping (in the fitted model it '
+               f'moves the angle by less than {EFFORT_MOTION:g} times the residual, or the '
+               f"inertia's 95 % interval is wider than ±{TORQUE_SCALE:.0%} of it); check the "
+               f'effort and its unit, or drive the joint harder')
         for k in ('inertia', 'mgl', 'friction', 'effort_offset'):
             params[k], stderr[k], ci[k] = None, None, None
             reasons[k] = why
