@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from driven_records import records
+from synthetic_driven import records
 
 from pendulum_sim.identify import (
     IdentifyError,
