@@ -172,7 +172,7 @@ def run(args: argparse.Namespace) -> str:
         fits = _fit(args, models, read, show)
     if not args.no_progress:
         print(file=sys.stderr)
-    return _write(args, fits)
+    return _write(args, fits, '; '.join(str(r.source) for r, _ in read))
 
 
 def _fit(args: argparse.Namespace, models: list[str], read: list[tuple[Any, bool]],
@@ -204,8 +204,10 @@ def _fit(args: argparse.Namespace, models: list[str], read: list[tuple[Any, bool
                            progress=show)[0]
 
 
-def _write(args: argparse.Namespace, fits: list[Any]) -> str:
-    """Pick the best law, validate it if asked, and write the outputs into --out."""
+def _write(args: argparse.Namespace, fits: list[Any], source: str) -> str:
+    """Pick the best law, validate it if asked, and write the outputs into --out.
+
+    ``source`` says where the records were read (written into ``fit.yaml``)."""
     from .outputs import (
         Body,
         summary,
@@ -238,7 +240,6 @@ def _write(args: argparse.Namespace, fits: list[Any]) -> str:
         if not driven:
             other = {'t': other.t, 'position': other.position, 'velocity': other.velocity}
         checked = validate(best, other, k=args.k, jit=False if args.no_jit else None)
-    source = '; '.join(str(p) for p in args.recording)
     out = Path(args.out)
     # Written to a temporary folder beside --out and moved there whole: nothing on failure.
     out.parent.mkdir(parents=True, exist_ok=True)

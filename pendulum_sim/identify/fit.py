@@ -558,8 +558,8 @@ def fit(t: Any, position: Any = None, *, velocity: Any = None, effort: Any = Non
     known : dict, optional
         Values to hold fixed: for a free swing ``omega0``, ``gamma``, ``n``, ``phi_offset``,
         and ``inertia`` (kg m², which turns the Coulomb deceleration into a friction torque);
-        for a driven fit any of ``inertia``, ``mgl``, ``gamma``, ``n``, ``friction``,
-        ``effort_offset``, ``command_delay``, ``phi_offset``.
+        for a driven fit any of ``inertia``, ``mgl``, ``n``, ``friction``,
+        ``effort_offset``, ``command_delay``, ``phi_offset`` (``driven.KNOWN_DRIVEN``).
     window : float, optional
         A driven fit's window in s (``windows.py``; default half a period of the first
         guess; a window as long as the record is one simulation of it).
