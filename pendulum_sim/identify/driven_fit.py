@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from .checks import MIN_SAMPLES, Progress, as_array, jit_choice
 from .driven import (
     DrivenRecord,
     DrivenSolution,
@@ -25,9 +26,9 @@ from .driven import (
 )
 from .effort import Effort
 from .errors import IdentifyError
-from .fit import MIN_SAMPLES, Fit, Progress, _array, _use_jit
 from .guess import noise_level
 from .laws import COMPARED, get_law
+from .result import Fit
 
 RecordLike = DrivenRecord | Mapping[str, Any]
 """A driven record: :func:`driven_record`'s, or a dict with ``t``, ``position``, ``effort``
@@ -53,11 +54,11 @@ def driven_record(t: Any, position: Any, effort: Any, *, velocity: Any = None,
         Where the record was read and the joint it is of (records of different joints are
         not fitted together).
     """
-    tt = _array('t', t, None)
+    tt = as_array('t', t, None)
     if tt.size < MIN_SAMPLES:
         raise IdentifyError(f'a record needs at least {MIN_SAMPLES} samples, got {tt.size}')
-    y = _array('position', position, tt.size)
-    v = None if velocity is None else _array('velocity', velocity, tt.size)
+    y = as_array('position', position, tt.size)
+    v = None if velocity is None else as_array('velocity', velocity, tt.size)
     steps = np.diff(tt)
     bad = np.flatnonzero(steps <= 0)
     if bad.size:
@@ -156,7 +157,7 @@ def fit_sets(sets: Sequence[Sequence[DrivenRecord]], *, model: str = 'power',
     span = check_window(window)
     for recs in sets:
         check_same_joint(recs)
-    sols = solve_sets(law, sets, fixed, span, _use_jit(jit), progress)
+    sols = solve_sets(law, sets, fixed, span, jit_choice(jit), progress)
     out = []
     for sol, recs in zip(sols, sets, strict=True):
         if sol is None:

@@ -11,29 +11,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 from scipy.stats import t as student_t  # type: ignore[import-untyped]
 
-from pendulum_sim.core.jit import available as jit_available
-
+from .checks import MIN_SAMPLES, Progress, as_array, jit_choice
 from .errors import IdentifyError
 from .guess import Guess, best_exponent, envelope_gamma, first_look
 from .laws import COMPARED, MODELS, Law, get_law
 from .record import Record
+from .result import Fit, Value
 from .solver import BOUNDS, Problem, simulate_columns, solve
 from .starts import EXPONENTS, FRICTION_EXPONENTS, NESTED, reached, search, seed
 
 FloatArray = npt.NDArray[np.float64]
-Value = float | None
 
 STEPS_PER_PERIOD = 64
 """Simulation steps per guessed period, at least (RK4; the output is interpolated to the
 samples)."""
-MIN_SAMPLES = 10
 N_UNDETERMINED = 1.0
 """n is reported as not determined when its 95 % interval is wider than ± this (it then
 cannot tell viscous from quadratic damping)."""
@@ -41,112 +38,16 @@ KNOWN = ('omega0', 'gamma', 'n', 'phi_offset', 'inertia')
 """What ``known`` may fix."""
 
 
-@dataclass(frozen=True)
-class Fit:
-    """A fitted law: the estimates, their uncertainty and how well the law fits.
-
-    Attributes
-    ----------
-    params : dict
-        ``omega0`` (rad/s), ``gamma`` (s^(n−2); for ``coulomb`` the friction deceleration in
-        rad/s²), ``n``, ``friction`` (Coulomb torque in N m: γ I for ``coulomb``, f for
-        ``power+coulomb``, where the inertia is known; 0 for laws without friction),
-        ``friction_accel`` (its deceleration f/I in rad/s², which a free swing determines
-        without the inertia), ``phi_offset`` (rad, the sensor's zero:
-        measured = φ + phi_offset), ``phi0``, ``dphi0`` (the state at the first sample), and
-        ``inertia`` (kg m²) where ``known`` gives it. A value that the record does not determine
-        is None, and ``reasons`` says why.
-    stderr, ci95 : dict
-        Standard error and 95 % interval (low, high) of each parameter; 0 and (v, v) for one
-        the model or ``known`` fixes, None where the value is None.
-    rms_residual : float
-        RMS of measured minus fitted angle, rad.
-    aic, bic : float
-        Akaike and Bayesian information criteria (lower is better; inf when nothing was fitted).
-    model : str
-        The law: ``viscous``, ``quadratic``, ``coulomb``, ``power`` or ``power+coulomb``.
-    samples : int
-        Samples fitted.
-    fixed : tuple of str
-        Parameters the model or ``known`` fixed.
-    reasons : dict
-        Why each None parameter is not determined.
-    correlation : dict
-        Correlation coefficients between pairs of fitted parameters, keyed ``'a/b'``.
-    t, position, fitted : ndarray
-        The record's times (s), its angle (rad, unwrapped) and the fitted angle there (the
-        records one after another where several were fitted together: ``segments``).
-    iterations, starts : int
-        Iterations of the best start, and how many starts were run.
-    at_optimum : int
-        How many starts ended at the law's optimum, the best of them (within
-        ``starts.REACHED`` on the BIC scale); 0 where nothing was fitted.
-    window : float or None
-        The windows' length in s of a fit over windows re-anchored on the measurement (a
-        driven fit's method, ``windows.py``); None for one simulation of each whole record.
-    segments : tuple of int
-        Where each record's samples begin in ``t``, ``position`` and ``fitted``.
-    driven : bool
-        Whether the fit used the record's effort; it then also gives ``inertia`` (kg m²),
-        ``mgl`` (N m), ``friction`` (N m), ``effort_offset`` (N m, the torque τ_off added to
-        the effort) and ``command_delay`` (s, the dead time d of the effort), each determined
-        where the record moves the joint enough (``driven.py``).
-    """
-
-    params: dict[str, Value]
-    stderr: dict[str, Value]
-    ci95: dict[str, tuple[float, float] | None]
-    rms_residual: float
-    aic: float
-    bic: float
-    model: str
-    samples: int
-    fixed: tuple[str, ...]
-    reasons: dict[str, str]
-    correlation: dict[str, float]
-    t: FloatArray
-    position: FloatArray
-    fitted: FloatArray
-    iterations: int
-    starts: int
-    at_optimum: int = 0
-    window: float | None = None
-    segments: tuple[int, ...] = (0,)
-    driven: bool = False
-
-    @property
-    def residual(self) -> FloatArray:
-        """Return measured minus fitted angle at each sample, rad."""
-        return self.position - self.fitted
-
-
-def _array(name: str, value: Any, size: int | None) -> FloatArray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise IdentifyError(f'{name} must be a 1-D array of numbers, got {type(value).__name__}'
-                            ) from None
-    if arr.ndim != 1:
-        raise IdentifyError(f'{name} must be a 1-D array, got shape {arr.shape}')
-    if size is not None and arr.size != size:
-        raise IdentifyError(f'{name} has {arr.size} samples but t has {size}')
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise IdentifyError(f'{name} has {bad.size} samples that are NaN or infinite (the first '
-                            f'at index {bad[0]}); drop them before fitting')
-    return arr
-
-
 def prepare(t: Any, position: Any, velocity: Any = None, effort: Any = None) -> Record:
     """Check a record and return it ready to fit (angle unwrapped, times from the first)."""
-    tt = _array('t', t, None)
+    tt = as_array('t', t, None)
     if tt.size < MIN_SAMPLES:
         raise IdentifyError(f'a record needs at least {MIN_SAMPLES} samples, got {tt.size}')
-    y = _array('position', position, tt.size)
+    y = as_array('position', position, tt.size)
     if velocity is not None:
-        _array('velocity', velocity, tt.size)
+        as_array('velocity', velocity, tt.size)
     if effort is not None:
-        e = _array('effort', effort, tt.size)
+        e = as_array('effort', effort, tt.size)
         if np.any(e != 0.0):
             raise IdentifyError(
                 f'effort is not zero (up to {np.abs(e).max():.3g} N m): a driven record is '
@@ -271,7 +172,7 @@ def model_angle(rec: Record, model: str, params: Mapping[str, float], *,
     """
     law = get_law(model)
     problem = _problem(law, rec, params, {})
-    out = simulate_columns([problem], [problem.theta[None, :]], jit=_use_jit(jit))[0]
+    out = simulate_columns([problem], [problem.theta[None, :]], jit=jit_choice(jit))[0]
     return np.full_like(rec.y, np.nan) if out is None else np.asarray(out[0])
 
 
@@ -421,16 +322,6 @@ def moving_part(rec: Record) -> Record | None:
     return part if part.guess.omega0 is not None else None
 
 
-def _use_jit(jit: bool | None) -> bool:
-    """Say whether the fit simulates on the compiled sweep (None: where numba is installed)."""
-    if jit is None:
-        return jit_available()
-    if not isinstance(jit, bool):
-        raise IdentifyError(f'jit must be True, False or None, got {jit!r}')
-    return jit
-
-
-Progress = Callable[[int, int], None]
 
 
 def fit_records(records: Sequence[Record], *, model: str = 'power',
@@ -445,7 +336,7 @@ def fit_records(records: Sequence[Record], *, model: str = 'power',
     """
     law = get_law(model)
     fixed = _check_known(known)
-    use_jit = _use_jit(jit)
+    use_jit = jit_choice(jit)
     out: list[Fit | None] = [None] * len(records)
     starts: list[list[Mapping[str, float]]] = [[] for _ in records]
     for i, rec in enumerate(records):

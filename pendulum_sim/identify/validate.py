@@ -28,10 +28,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .checks import as_array, jit_choice
 from .driven import SHARED, DrivenRecord, anchors, grid_step, inputs_for, prepare_driven
 from .errors import IdentifyError
-from .fit import Fit, _array
 from .laws import get_law
+from .result import Fit
 from .windows import Problem, Series, Windows, cut, simulate, solve
 
 FloatArray = npt.NDArray[np.float64]
@@ -186,12 +187,12 @@ def _record(record: Any) -> DrivenRecord:
     if isinstance(record, DrivenRecord):
         return record
     if isinstance(record, Mapping):
-        t = _array('t', record.get('t'), None)
-        y = np.unwrap(_array('position', record.get('position'), t.size))
+        t = as_array('t', record.get('t'), None)
+        y = np.unwrap(as_array('position', record.get('position'), t.size))
         vel = record.get('velocity')
-        v = None if vel is None else _array('velocity', vel, t.size)
+        v = None if vel is None else as_array('velocity', vel, t.size)
         eff = record.get('effort')
-        e = np.zeros(t.size) if eff is None else _array('effort', eff, t.size)
+        e = np.zeros(t.size) if eff is None else as_array('effort', eff, t.size)
         return prepare_driven(t, y, v, e)
     raise IdentifyError(f'a record to validate on is a dict with t, position (and effort, '
                         f'velocity) or a prepared driven record, got {type(record).__name__}')
@@ -218,9 +219,7 @@ def validate(fit: Fit, record: Any, *, k: int | None = None, jit: bool | None = 
     -------
     Validation
     """
-    from .fit import _use_jit
-
-    use_jit = _use_jit(jit)
+    use_jit = jit_choice(jit)
     rec = _record(record)
     omega0 = fit.params.get('omega0')
     if omega0 is None:
