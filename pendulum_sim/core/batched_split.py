@@ -22,7 +22,7 @@ steps (``batched_careful.graded_parts``), these splits, and the finiteness and e
 from the same state (nothing counted or changed for it): where the run from rest breaks its
 bounds (the fallback), the force at rest is zero (``split_step``'s plain step), a value is not
 finite, or a Newton step would divide by a zero that Python refuses. Each split it takes counts
-one reversal (``GuardStats.reversals``, as ``SplitSteps._finish`` counts it) where the branch
+one reversal (``GuardStats.reversals``, as ``careful.substep`` counts it) where the branch
 step reached φ' = 0, none where it did not.
 """
 from __future__ import annotations

@@ -27,7 +27,7 @@ tuple out, no exception on its path: :func:`rest_direction`, :func:`rest_step`,
 :func:`creep_state`, :func:`settle_shift`,
 :func:`friction_step`, :func:`stuck`): the Stepper's careful path calls them in Python
 (``split.py``, ``engine.py``), and the compiled sweep's careful step calls the very same functions
-compiled by numba (``compiled_careful.py``). :func:`creep` and :func:`creep_speed` are their
+compiled by numba (``careful.py``). :func:`creep` and :func:`creep_speed` are their
 forms on a :class:`~pendulum_sim.core.problem.Problem`.
 """
 from __future__ import annotations
@@ -234,7 +234,7 @@ def friction_step(branch: Any, laws: Any, p: float, v: float, h: float, ain: flo
     near-Coulomb law may creep (``creeps``: guarded explicit steps), :func:`creep_state`.
     ``taken`` is False (the state unchanged) where neither applies: the step is then the
     guard's. ``Engine.careful`` calls it first, in Python, and the compiled sweep's careful
-    step (``compiled_careful.py``) compiled. ``cf`` is the friction c_f beside the law.
+    step (``careful.py``) compiled. ``cf`` is the friction c_f beside the law.
     """
     if coulomb and v == 0.0:
         p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n, cf)

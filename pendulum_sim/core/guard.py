@@ -219,7 +219,7 @@ def substep_count(h: float, omega0_sq: float, gamma: float, n: float, phi: float
 
     Written to compile (numbers in, an int out, no exception raised for an overflow: the
     compiled form reads ``terminal_formula`` and ``law.slope_formula``, which give inf), so
-    that ``Engine.guarded`` and the compiled sweep's careful step run this one decision.
+    that the careful step (``careful.guarded``), in Python and compiled, runs this one decision.
     ``consts`` is :attr:`StabilityGuard.constants`.
     """
     disk, real, max_angle, cap = consts[0], consts[1], consts[2], int(consts[4])

@@ -194,7 +194,7 @@ power_formula: Callable[[float, float], float] = define(
 """Return a ** n for a speed ``a`` >= 0 and an exponent known only at run time, generated.
 
 The value :func:`power_source` spells for that exponent (one branch per special exponent), for
-code compiled once for every exponent (``compiled_careful.py``)."""
+code compiled once for every exponent (``careful.py``)."""
 
 
 def damping_derivative(gamma: float, n: float, dphi: float) -> float:
@@ -238,6 +238,17 @@ def compile_laws(n: float, vector: bool = False) -> Any:
 
 
 @functools.lru_cache(maxsize=256)
+def compile_speed_power(n: float) -> Any:
+    """Return ``power(a, n)`` = a ** n over numpy arrays, as :func:`power_source` spells n.
+
+    The damping's |φ'|^n of the stiff-transient test on the numpy sweep (``n`` a float or one
+    per pendulum of a text that spells them alike); numpy's power, not the C library's.
+    """
+    src = f'def power(a, n):\n    return {power_source(n, "n", "a")}\n'
+    return define(src, 'power', dict(VECTOR_ENV), '<speed power>')
+
+
+@functools.lru_cache(maxsize=256)
 def compile_power(n: float) -> Any:
     """Return the damping power ``P(v, gamma)`` = γ |v|^(n+1) for exponent ``n`` (numpy)."""
     src = f'def power(v, gamma):\n    return {power_expression(n)}\n'
@@ -255,6 +266,7 @@ __all__ = [
     'compile_damping',
     'compile_laws',
     'compile_power',
+    'compile_speed_power',
     'damping_derivative',
     'damping_expression',
     'laws_source',

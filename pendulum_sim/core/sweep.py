@@ -38,11 +38,10 @@ import numpy.typing as npt
 
 from .batched_careful import batchable_law
 from .batched_split import SPLIT_MIN, careful_steps
-from .compiled_careful import COUNTERS, careful_step
+from .careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
 from .decisions import (
     ain_bounds,
-    compile_kernel,
     energy_rose,
     reversal_suspect,
     specific_energy,
@@ -55,7 +54,8 @@ from .guard import GuardStats, one_substep, safe_speed_ranges
 from .jit import INSTALL_HINT
 from .jit import available as jit_available
 from .jit import compile_kernel as compile_jit_kernel
-from .law import damping_expression
+from .kernel import compile_kernel
+from .law import compile_speed_power, damping_expression
 from .methods import METHODS
 from .model import (
     MAX_INPUT_ACCEL,
@@ -116,7 +116,7 @@ class SweepResult:
     handed_back : int
         Steps of the stretch taken by the careful path in Python (``Engine.careful``): every
         step the fast path refused on the numpy sweep; on the compiled sweep only those the
-        compiled careful step declines (``compiled_careful.py``).
+        compiled careful step declines (``careful.py``).
     batched : int
         Steps of the stretch the careful path took batched over arrays on the numpy sweep
         (``batched_careful.py``: the graded steps next to a reversal; ``batched_split.py``: the
@@ -292,7 +292,7 @@ class _Group:
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
         self.batched = 0  # careful steps taken batched (batched_split.py) this advance
         self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
-        self.use_careful = False  # the compiled run takes the careful step (compiled_careful)
+        self.use_careful = False  # the compiled run takes the careful step (careful.py)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
         self.p = self.v = self.e = np.empty(0)
         self.w2: Any = 0.0
@@ -470,7 +470,9 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
             # on floats as the Stepper does, then takes as the plain step).
             gq = (ga if isinstance(ga, float) else ga[q]) * STIFF_MARGIN
             nq = grp.nn[q] if isinstance(grp.nn, np.ndarray) else grp.nn
-            ok[q] &= ~stiff_transient(vv[q], a0[q], gq, nq, grp.v_acc[q], text=grp.n)
+            aq = av[q]
+            ok[q] &= ~stiff_transient(aq, a0[q], gq, compile_speed_power(grp.n)(aq, nq),
+                                      grp.v_acc[q])
     if grp.any_check:
         e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
         rose = energy_rose(grp.e, e1, w2)
@@ -676,7 +678,7 @@ class Sweep:
             for grp in self._groups:
                 grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n, careful_step,
                                                                grp.any_friction))
-                # The compiled careful step serves the guarded laws (compiled_careful.py).
+                # The compiled careful step serves the guarded laws (careful.py).
                 grp.use_careful = self.guard
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
         self._handed_back = 0  # steps of the current advance taken by Engine.careful
@@ -740,7 +742,7 @@ class Sweep:
         stats: dict[int, GuardStats] = {}
         self._handed_back = 0
         _take_batched(self._groups)  # the batched count starts at 0 as well
-        # What the compiled careful step did, per n-sorted pendulum (compiled_careful.COUNTERS).
+        # What the compiled careful step did, per n-sorted pendulum (careful.COUNTERS).
         counts = np.zeros((self.size, len(COUNTERS)), dtype=np.int64)
         meth = METHODS[self.method]
         groups = self._groups
@@ -806,7 +808,7 @@ class Sweep:
 
         The steps the runs refuse are taken by :func:`_careful_one`, as the numpy path takes
         them (what the compiled careful step did is added to ``counts``, a row per n-sorted
-        pendulum, ``compiled_careful.COUNTERS``); a state
+        pendulum, ``careful.COUNTERS``); a state
         beyond the run's speed bound is refused at the earliest step it occurs.
         """
         meth = METHODS[self.method]
@@ -906,9 +908,9 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         Refuse runs of more steps than this.
     jit : bool
         Run each group of one n compiled by numba (the ``jit`` extra) instead of with numpy: the
-        same generated step and decisions (``decisions.kernel_source``) run step after step per
+        same generated step and decisions (``kernel.kernel_source``) run step after step per
         pendulum, in parallel over the pendulums, the careful path compiled too
-        (``compiled_careful.py``: Coulomb sticking and break-away, the near-Coulomb creep, the
+        (``careful.py``: Coulomb sticking and break-away, the near-Coulomb creep, the
         guard's substeps, the reversal split, the fallback, the stiff transient's substeps, the
         energy redo, a friction beside the law) and every refused step it declines (the
         fallback's refusal by its work bound, a result that is not finite, the fallback beside a

@@ -16,6 +16,7 @@ import pytest
 
 from pendulum_sim.core import METHODS, IntegratorError, PendulumParams, Stepper
 from pendulum_sim.core.batched_careful import batchable_law, graded_meshes, graded_steps
+from pendulum_sim.core.careful import NOT_TRIED, substep
 from pendulum_sim.core.engine import Engine, guard_for
 from pendulum_sim.core.explicit import compile_step_with_n
 from pendulum_sim.core.guard import RANGE_MARGIN, GuardStats, safe_speed_range
@@ -77,7 +78,10 @@ def test_graded_steps_are_engine_careful(n: float | None, hint: bool) -> None:
     for i in np.flatnonzero(done).tolist():
         eng = Engine(float(w2[i]), float(gamma[i]), float(nn[i]), meth, True, bool(check[i]))
         st = GuardStats()
-        want = eng.plain.micro(float(p[i]), float(v[i]), h, float(ain[i]), st)[:2]
+        counts = [0] * 6
+        want = substep(eng.steps, eng.pend, float(p[i]), float(v[i]), h, float(ain[i]), False,
+                       NOT_TRIED, counts)[1:3]
+        assert not any(counts), i
         # Engine.careful itself, where its guard's count is 1 (as the sweep hands it over).
         lo, hi = eng.fast_range(h, float(ain[i]))
         if lo * (1.0 + RANGE_MARGIN) <= abs(v[i]) <= hi * (1.0 - RANGE_MARGIN):

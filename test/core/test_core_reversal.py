@@ -7,11 +7,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pendulum_sim.core import compiled_careful, reversal, split
-from pendulum_sim.core.compiled_careful import careful_step
-from pendulum_sim.core.decisions import compile_kernel
+from pendulum_sim.core import careful, engine, reversal, split
+from pendulum_sim.core.careful import careful_step
 from pendulum_sim.core.explicit import compile_step
 from pendulum_sim.core.jit import available, numba_twin
+from pendulum_sim.core.kernel import compile_kernel
 from pendulum_sim.core.reversal import (
     NEWTON_ITERATIONS,
     NEWTON_TOL,
@@ -35,7 +35,7 @@ def test_both_forms_are_defined_from_the_one_source_text() -> None:
 
 def _closures(branch_fn: Any, p: float, v: float, ain: float, w2: float, gamma: float,
               sign: float, n: float) -> tuple[Any, Any]:
-    """Return ``SplitSteps.split``'s ``at`` and ``accel`` for a branch step from (φ, φ')."""
+    """Return the closures ``at`` and ``accel`` of ``locate_reversal`` for a branch step."""
     def at(x: float) -> tuple[float, float, float]:
         pa, va, wa, _ = branch_fn(p, v, x, ain, w2, gamma, sign)
         return pa, va, wa
@@ -85,19 +85,22 @@ def test_the_branch_form_locates_where_the_closures_do(n: float) -> None:
 def test_the_split_and_its_graded_newton_run_are_written_once() -> None:
     # The Newton run on a graded run's own φ'(θh) after the location is one function,
     # reversal.graded_landing, called by split.split_step; split.micro_step (the plain step,
-    # split at a reversal) calls split_step, the Stepper (SplitSteps) and the compiled sweep's
-    # careful step both call micro_step itself, and the friction decisions after a reversal
-    # are coulomb's (rest_step, creep_state). Its one other form is the masked loop over arrays
-    # of the numpy sweep's batched split (batched_split.graded_landings), which
-    # test_batched_split.py holds to the scalar split's floats, element by element.
+    # split at a reversal) calls split_step, and the one careful step (careful.py) calls
+    # micro_step itself, which the Stepper's engine runs as Python and the compiled sweep
+    # compiled; the friction decisions after a reversal are coulomb's (rest_step, creep_state).
+    # Its one other form is the masked loop over arrays of the numpy sweep's batched split
+    # (batched_split.graded_landings), which test_batched_split.py holds to the scalar split's
+    # floats, element by element.
     core = Path(reversal.__file__).parent
     users = {f.name for f in core.glob('*.py') if 'GRADED_ITERATIONS' in f.read_text('utf-8')}
     assert users == {'reversal.py', 'batched_split.py'}
     assert {'graded_landing', 'locate_on_branch', 'rest_step',
             'creep_state'} <= set(split.split_step.__code__.co_names)
-    assert 'split_step' in split.SplitSteps.split.__code__.co_names
     assert {'split_step', 'rest_step'} <= set(split.micro_step.__code__.co_names)
-    assert 'micro_step' in split.SplitSteps.micro.__code__.co_names
-    assert compiled_careful.micro_step is split.micro_step
-    assert 'micro_step' in compiled_careful.guarded.__code__.co_names
-    assert 'friction_step' in compiled_careful.careful_step.__code__.co_names
+    assert careful.micro_step is split.micro_step
+    assert 'micro_step' in careful.substep.__code__.co_names
+    assert 'substep' in careful.guarded.__code__.co_names
+    assert {'friction_step', 'stiff_cover', 'guarded'} <= set(
+        careful.careful_move.__code__.co_names)
+    assert {'careful_move', 'careful_settle'} <= set(careful.careful_step.__code__.co_names)
+    assert {'careful_step', 'careful_settle'} <= set(engine.Engine.careful.__code__.co_names)
