@@ -33,11 +33,13 @@ forms on a :class:`~pendulum_sim.core.problem.Problem`.
 from __future__ import annotations
 
 import math
+import types
+from math import copysign
 from typing import Any
 
 import numpy as np
 
-from .law import compile_laws
+from .law import VECTOR_ENV, compile_laws
 from .model import coulomb_level
 from .problem import Problem
 
@@ -47,12 +49,19 @@ CREEP_RELAX = 0.01
 StepResult = tuple[float, float, float]
 
 
-def moving_input(ain: float, sign: float, cf: float) -> float:
+def moving_input(ain: Any, sign: Any, cf: Any) -> Any:
     """Return the input a_in − s c_f a motion in the direction ``sign`` feels (c_f = ``cf``).
 
-    ``ain`` itself, to the bit, without friction (c_f = 0).
+    ``ain`` itself, to the bit, without friction (c_f = 0): copysign(0, s) + 0.0 is +0.0 for
+    either sign, and a_in − (+0.0) is a_in, a zero's sign kept. Without a branch, so that the
+    numpy sweep takes the same code over arrays (:data:`moving_inputs`).
     """
-    return ain if cf == 0.0 else ain - math.copysign(cf, sign)
+    return ain - (copysign(cf, sign) + 0.0)
+
+
+moving_inputs = types.FunctionType(moving_input.__code__, dict(VECTOR_ENV), 'moving_inputs')
+"""``moving_inputs(ain, sign, cf)``: :func:`moving_input`'s code over numpy arrays (numpy's
+copysign), the moving input of the numpy sweep's pendulums."""
 
 
 def friction_work(cf: float, sign: float, p0: float, p1: float) -> float:
@@ -252,5 +261,5 @@ def creep(prob: Problem, p: float, v: float, h: float, ain: float) -> StepResult
 
 
 __all__ = ['CREEP_RELAX', 'TINY', 'creep', 'creep_rate', 'creep_speed', 'creep_state',
-           'friction_step', 'friction_work', 'moving_input', 'rest_direction', 'rest_step',
-           'settle_shift', 'stuck']
+           'friction_step', 'friction_work', 'moving_input', 'moving_inputs', 'rest_direction',
+           'rest_step', 'settle_shift', 'stuck']

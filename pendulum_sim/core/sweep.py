@@ -40,6 +40,7 @@ from .batched_careful import batchable_law
 from .batched_split import SPLIT_MIN, careful_steps
 from .careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
+from .coulomb import moving_inputs
 from .decisions import (
     ain_bounds,
     energy_rose,
@@ -446,7 +447,7 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     if grp.any_friction:  # moving, the friction is an input (coulomb.moving_input)
-        ain = ain - np.where(grp.cf == 0.0, 0.0, np.copysign(grp.cf, vv))
+        ain = moving_inputs(ain, vv, grp.cf)
     p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
     av = np.abs(vv)
     ok = av <= grp.hi
