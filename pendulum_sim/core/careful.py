@@ -386,8 +386,37 @@ def careful_step(steps: StepsArg, pend: PendulumArg, p: float, v: float, h: floa
     return careful_settle(pend, p, v, h, ain, p1, v1, w, e0, counts)
 
 
+def careful_each(steps: StepsArg, h: float, idx: Any, p: Any, v: Any, ain: Any, w2: Any,
+                 gamma: Any, n: Any, cf: Any, v_acc: Any, reach: Any, check: Any, nonsmooth: Any,
+                 coulomb: Any, lo: Any, hi: Any, guard: Any, p1: Any, v1: Any, taken: Any,
+                 counts: Any, tally: Any) -> None:
+    """Take the careful step of h of each pendulum ``i = idx[j]`` of a group, compiled.
+
+    The numpy sweep's refused steps (``sweep._careful``): the arrays are the group's columns
+    (its state ``p``, ``v``, the input, the pendulums' constants as :class:`Pendulum` names
+    them, the guard's safe range ``lo``, ``hi``), each step the guarded, strict careful step
+    (:func:`careful_step`, nothing tried: the numpy plain step's floats are not the C
+    library's). Where it takes the step, (φ₁, φ'₁) go to ``p1[i]``, ``v1[i]``, ``taken[j]`` is
+    set and what it did is added to the row ``counts[i]``; elsewhere nothing changes (the
+    sweep hands the step to ``Engine.careful``). ``tally`` is a row of scratch counters.
+    """
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        tally[:] = 0
+        code, pi, vi, _, _ = careful_step(
+            steps, Pendulum(w2[i], gamma[i], n[i], cf[i], v_acc[i], reach[i], check[i],
+                            nonsmooth[i], coulomb[i], True, guard, True),
+            p[i], v[i], h, ain[i], math.nan,
+            Tried(False, 0.0, 0.0, 0.0, 0.0, lo[i], hi[i]), tally)
+        if code == TAKEN:
+            p1[i] = pi
+            v1[i] = vi
+            taken[j] = True
+            counts[i] += tally
+
+
 __all__ = ['COMPILED_FORMS', 'COUNTERS', 'DECLINED', 'NOT_FINITE', 'NOT_TRIED', 'OVERFLOWED',
            'TAKEN', 'FallbackDiverged', 'LawSteps', 'Pendulum', 'PendulumArg', 'Result',
-           'Settled', 'StepsArg', 'Tried', 'TriedArg', 'careful_move', 'careful_settle',
-           'careful_step', 'fallback_formula', 'fallback_step', 'finite', 'guarded',
-           'redo_refusal_formula', 'redo_refused', 'substep']
+           'Settled', 'StepsArg', 'Tried', 'TriedArg', 'careful_each', 'careful_move',
+           'careful_settle', 'careful_step', 'fallback_formula', 'fallback_step', 'finite',
+           'guarded', 'redo_refusal_formula', 'redo_refused', 'substep']

@@ -46,6 +46,7 @@ import sys
 import types
 from typing import Any
 
+from .careful import LawSteps, careful_each
 from .errors import IntegratorError
 from .jit_cache import attach, kernel_module
 from .kernel import FUNCTION_ARGS
@@ -372,24 +373,41 @@ class CachedRun:
         return getattr(self.dispatcher, name)
 
 
+_FUNCTIONS: dict[int, tuple[Any, ...]] = {}
+
+
+def _law_functions(env: dict[str, Any], cached: bool) -> tuple[Any, ...]:
+    """Return the generated functions of a run's namespace (:data:`kernel.FUNCTION_ARGS`).
+
+    Compiled once per namespace as first-class functions of one signature each, on numba's
+    disk cache where ``cached``; the run and the numpy sweep's careful steps share them.
+    """
+    functions = _FUNCTIONS.get(id(env))
+    if functions is None:
+        made = []
+        for name in FUNCTION_ARGS:
+            disp = _first_class_function()(py_func=_twin(env[name], deep=True), locals={},
+                                           targetoptions={'nopython': True,
+                                                          'boundscheck': None})
+            if cached:
+                attach(disp, 'functions')
+            made.append(disp)
+        functions = _FUNCTIONS[id(env)] = tuple(made)
+    return functions
+
+
 def _kernels(env: dict[str, Any], cached: bool) -> tuple[CachedRun, CachedRun]:
     """Return (parallel, serial) of the run of ``env``, on numba's disk cache where ``cached``.
 
     ``env`` is the run's module (``jit_cache.kernel_module``) or, in memory, the namespace
     ``kernel.compile_kernel`` defined it in. The run and its generated functions
-    (``kernel.FUNCTION_ARGS``) are compiled with numba's disk cache (``jit_cache.attach``),
-    the run's careful step (:data:`FIRST_CLASS_CALLS`, :func:`first_class_twin`) too; the run
+    (:func:`_law_functions`) are compiled with numba's disk cache (``jit_cache.attach``), the
+    run's careful step (:data:`FIRST_CLASS_CALLS`, :func:`first_class_twin`) too; the run
     takes those functions as first-class arguments.
     """
     import numba
 
-    functions = []
-    for name in FUNCTION_ARGS:
-        disp = _first_class_function()(py_func=_twin(env[name], deep=True), locals={},
-                                       targetoptions={'nopython': True, 'boundscheck': None})
-        if cached:
-            attach(disp, 'functions')
-        functions.append(disp)
+    functions = _law_functions(env, cached)
     runs = []
     for parallel in (True, False):
         twin = _twin(env['kernel'], deep=True)
@@ -410,3 +428,38 @@ def _kernels(env: dict[str, Any], cached: bool) -> tuple[CachedRun, CachedRun]:
             attach(disp, 'parallel' if parallel else 'serial')
         runs.append(CachedRun(disp, tuple(functions), twin))
     return runs[0], runs[1]
+
+
+@functools.cache
+def _careful_each() -> Any:
+    """Return ``careful.careful_each`` compiled once, on the disk cache, its careful step shared.
+
+    Its function arguments first-class (:func:`first_class_twin`), the careful step it calls
+    the run's (:data:`FIRST_CLASS_CALLS`), so one compiled careful step serves both.
+    """
+    twin = _twin(careful_each, deep=True)
+    for name in FIRST_CLASS_CALLS:
+        twin.__globals__[name] = first_class_twin(careful_each.__globals__[name])
+        attach(twin.__globals__[name], 'careful')
+    disp = _first_class_dispatcher()(py_func=twin, locals={},
+                                     targetoptions={'nopython': True, 'boundscheck': None})
+    attach(disp, 'careful_each')
+    return disp
+
+
+def compile_careful_each(fn: Any) -> tuple[Any, Any] | None:
+    """Return the numpy sweep's compiled careful steps for the run ``fn``'s law text, or None.
+
+    ``(steps, each)``: the text's generated functions (``careful.LawSteps`` of first-class
+    functions, :func:`_law_functions`) and ``careful.careful_each`` compiled, both kept on the
+    disk cache (``jit_cache.py``), so a process loads them; None where numba is not installed
+    or the cache directory cannot be written (the numpy sweep then takes its careful steps in
+    Python, rather than compile them anew in every process). ``fn`` is
+    ``kernel.compile_kernel``'s Python run of the text (its namespace holds the functions).
+    """
+    if not available():
+        return None
+    env = kernel_module(fn)
+    if env is None:
+        return None
+    return LawSteps(*_law_functions(env, True)), _careful_each()

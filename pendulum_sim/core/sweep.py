@@ -36,8 +36,6 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .batched_careful import batchable_law
-from .batched_split import SPLIT_MIN, careful_steps
 from .careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
 from .coulomb import moving_inputs
@@ -51,8 +49,8 @@ from .decisions import (
 from .engine import Engine, guard_for
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step, compile_step_with_n
-from .guard import GuardStats, one_substep, safe_speed_ranges
-from .jit import INSTALL_HINT
+from .guard import GuardStats, safe_speed_ranges
+from .jit import INSTALL_HINT, compile_careful_each
 from .jit import available as jit_available
 from .jit import compile_kernel as compile_jit_kernel
 from .kernel import compile_kernel
@@ -115,15 +113,14 @@ class SweepResult:
     method : str
         Name of the explicit method.
     handed_back : int
-        Steps of the stretch taken by the careful path in Python (``Engine.careful``): every
-        step the fast path refused on the numpy sweep; on the compiled sweep only those the
-        compiled careful step declines (``careful.py``).
+        Steps of the stretch taken by the careful path in Python (``Engine.careful``): on the
+        numpy sweep every step the fast path refused but those taken compiled (``batched``);
+        on the compiled sweep only those the compiled careful step declines (``careful.py``).
     batched : int
-        Steps of the stretch the careful path took batched over arrays on the numpy sweep
-        (``batched_careful.py``: the graded steps next to a reversal; ``batched_split.py``: the
-        steps split at one, where a block's step has ``batched_split.SPLIT_MIN`` of them; the
-        same floats and counts as ``Engine.careful``); ``batched + handed_back`` steps took the
-        careful path there.
+        Steps of the stretch the numpy sweep took by the careful step compiled over the
+        refused pendulums (``careful.careful_each``: the laws graded at reversals, where numba
+        and its disk cache serve; the floats and counts of ``Engine.careful``);
+        ``batched + handed_back`` steps took the careful path there.
     """
 
     phi: FloatArray
@@ -266,7 +263,6 @@ class _Group:
     n: float
     step: Any
     nn: Any  # the exponent: ``n`` itself, or a column where the group's exponents differ
-    batchable: BoolArray  # the careful path's graded and split steps batched (batched_split)
     nonsmooth: BoolArray
     coulomb: BoolArray
     damped: BoolArray
@@ -282,8 +278,6 @@ class _Group:
         # reach = 0 makes the near-reversal test false everywhere: the crossing test decides.
         self.graded = bool(self.reach.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
-        # The careful path's graded and split steps are batched (batched_split.py) for these.
-        self.batch = bool(self.batchable.any()) and self.any_nonsmooth and self.graded
         size = self.sl.stop - self.sl.start
         self.check = np.zeros(size, dtype=bool)
         self.any_check = self.all_check = False
@@ -291,7 +285,12 @@ class _Group:
         self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
-        self.batched = 0  # careful steps taken batched (batched_split.py) this advance
+        self.batched = 0  # careful steps taken compiled (careful.careful_each) this advance
+        # (steps, each) of jit.compile_careful_each for the numpy sweep, looked up at first
+        # use (None: not yet; False: not available, or not this group's).
+        self.careful_each: Any = None
+        self.guard_consts = np.empty(0)  # the guard's StabilityGuard.constants (use_step)
+        self.tally = np.zeros(6, dtype=np.int64)  # careful_each's scratch counters
         self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
         self.use_careful = False  # the compiled run takes the careful step (careful.py)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
@@ -318,6 +317,7 @@ class _Group:
         range made alone is the one made among all.
         """
         sl = self.sl
+        self.guard_consts = np.array(guard.constants)
         bound = bounds[sl]
         old = self.ranges.get(hh)
         if old is None:
@@ -431,7 +431,6 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard
             step = functools.partial(compile_step_with_n(tab, val, vector=True), n=col)
         damped, coulomb, nonsmooth = (flags[:, k] != 0.0 for k in range(3))
         out.append(_Group(sl=sl, n=val, step=step, nn=col,
-                          batchable=_on_unique(batchable_law, nn[sl]) != 0.0,
                           nonsmooth=nonsmooth, coulomb=coulomb, damped=damped,
                           reach=flags[:, 3].copy(), v_acc=flags[:, 4].copy(),
                           cf=fr[sl].copy()))
@@ -440,7 +439,7 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard
 
 def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
-             t: float) -> int:
+             t: float, counts: IntArray) -> int:
     """Advance one group by a step of hh from t: the plain step, the decisions, the careful path.
 
     Returns how many steps the careful path took.
@@ -482,7 +481,8 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
         ok &= ~rose
     else:
         e1 = grp.e
-    return _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1, t)
+    return _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1, t,
+                    counts)
 
 
 def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float, w2: float,
@@ -518,24 +518,26 @@ def _stats_of(stats: dict[int, GuardStats], i: int) -> GuardStats:
 
 def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
-             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray, t: float) -> int:
+             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray, t: float,
+             counts: IntArray) -> int:
     """Redo every step the fast path refused (``~ok``) on the careful path; keep the states.
 
-    The batched ones (:func:`_batched`) are inside the guard's safe speed range, so short
-    enough to work through (``Engine.check_ahead`` has nothing to refuse there). Returns how
-    many steps that was.
+    The one careful step (``careful.py``) takes each: compiled over the refused pendulums
+    where :func:`_compiled` serves the group (what it did added to their rows of ``counts``,
+    ``careful.COUNTERS``), and each it declines, or every one where it does not serve, as
+    Python (``Engine.careful``, after ``Engine.check_ahead``). Returns how many steps the
+    Python path took.
     """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     refused = np.flatnonzero(~ok)
-    batched = 0
-    if refused.size and grp.batch:
-        taken = _batched(grp, hh, meth, guard, refused, p1, v1, e1, stats)
-        batched = int(taken.size)
-        if batched:
+    careful = refused
+    if refused.size and guard and grp.graded:
+        taken = _compiled(grp, meth, hh, refused, p1, v1, counts)
+        grp.batched += int(taken.size)
+        if taken.size:
             keep = np.ones(refused.size, dtype=bool)
             keep[np.searchsorted(refused, taken)] = False
             refused = refused[keep]
-    grp.batched += batched
     if refused.size:
         consts = [np.broadcast_to(c, p.shape)[refused] for c in (ain, w2, ga)]
         ps: list[float] = []
@@ -548,47 +550,41 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
             ps.append(pj)
             vs.append(vj)
         p1[refused], v1[refused] = ps, vs
-        if grp.any_check:
-            # E/I of the careful path's states, with the scalar sine (as the Stepper has it).
-            sines = np.array([math.sin(0.5 * x) for x in ps])
-            e1[refused] = specific_energy(v1[refused], sines, consts[1])
+    if grp.any_check and careful.size:
+        # E/I of the careful path's states, with the scalar sine (as the Stepper has it).
+        sines = np.array([math.sin(0.5 * x) for x in p1[careful].tolist()])
+        e1[careful] = specific_energy(v1[careful], sines, grp.w2_col[careful])
     grp.p, grp.v, grp.e = p1, v1, e1
     return int(refused.size)
 
 
-def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
-             p1: FloatArray, v1: FloatArray, e1: FloatArray,
-             stats: dict[int, GuardStats]) -> IntArray:
-    """Take the refused steps the batched careful path serves (``batched_split.careful_steps``).
+def _compiled(grp: _Group, meth: Any, hh: float, refused: IntArray, p1: FloatArray,
+              v1: FloatArray, counts: IntArray) -> IntArray:
+    """Take the refused steps by the careful step compiled (``careful.careful_each``).
 
-    The candidates are those whose ``Engine.careful`` starts with one plain step: a kink at
-    rest, below the stiff-transient speed and, with the guard, where its count is surely 1
-    (``guard.one_substep``). Writes their states (and E/I, with the scalar
-    sine) into ``p1``, ``v1``, ``e1`` and counts the reversals of the splits it took in
-    ``stats`` (per pendulum, as ``Engine.careful`` counts them); returns the sorted indices it
-    took.
+    For the laws graded at reversals (non-integer 0 < n < 3: about half their steps at
+    h = 1 ms take the careful path, each some 40 µs as Python), with the guard, where numba
+    and its disk cache serve (``jit.compile_careful_each``: the text's generated functions and
+    the careful step compiled once per machine, loaded by later processes). Writes the states
+    it took into ``p1``, ``v1``, adds what it did to the group's rows of ``counts``; returns
+    the sorted indices it took (none where it does not serve: the Python path takes them).
     """
-    p, vv = grp.p, grp.v
-    av = np.abs(vv[refused])
-    fit = grp.batchable[refused] & grp.nonsmooth[refused] & (av <= grp.v_acc[refused])
-    fit &= grp.cf[refused] == 0.0  # the batched steps know no friction beside the law
-    if guard:
-        fit &= one_substep(av, grp.lo[refused], grp.hi[refused])
-    cand = refused[fit]
-    if not cand.size:
-        return cand
-    ain, w2, gam = (c[cand] for c in (grp.ain_col, grp.w2_col, grp.gamma_col))
-    nn = grp.nn[cand] if isinstance(grp.nn, np.ndarray) else grp.nn
-    done, pb, vb, eb, turns = careful_steps(meth.tableau, p[cand], vv[cand], hh, ain, w2, gam,
-                                            nn, grp.reach[cand], grp.check[cand], v1[cand],
-                                            SPLIT_MIN)
-    taken = cand[done]
-    for j in cand[done & (turns > 0)].tolist():
-        _stats_of(stats, grp.sl.start + j).reversals += 1
-    p1[taken], v1[taken] = pb[done], vb[done]
-    if grp.any_check:
-        e1[taken] = eb[done]
-    return taken
+    if grp.careful_each is None:
+        tab = meth.tableau
+        assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
+        runner = compile_careful_each(compile_kernel(tab, grp.n, careful_step, grp.any_friction))
+        grp.careful_each = runner if runner is not None else False
+    if grp.careful_each is False:
+        return refused[:0]
+    steps, each = grp.careful_each
+    size = grp.sl.stop - grp.sl.start
+    nn = grp.nn if isinstance(grp.nn, np.ndarray) else np.full(size, grp.n)
+    taken = np.zeros(refused.size, dtype=bool)
+    each(steps, hh, refused, grp.p, grp.v, grp.ain_col, grp.w2_col, grp.gamma_col, nn, grp.cf,
+         grp.v_acc, grp.reach, grp.check, grp.nonsmooth, grp.coulomb, grp.lo, grp.hi,
+         grp.guard_consts, p1, v1, taken, counts[grp.sl], grp.tally)
+    done: IntArray = refused[taken]
+    return done
 
 
 def _torque(torque: Any, size: int, params: Any) -> FloatArray:
@@ -781,7 +777,8 @@ class Sweep:
                 for _ in range(0 if self.jit else count):
                     for grp in groups:
                         self._handed_back += _advance(grp, hh, self._engines, stats, meth,
-                                                      self.guard, self.energy_check, done * h)
+                                                      self.guard, self.energy_check, done * h,
+                                                      counts)
                         self._check_speed(grp, t_end if done + 1 == total else (done + 1) * h)
                     done += 1
                     if record_every is not None and (done % record_every == 0 or done == total):
