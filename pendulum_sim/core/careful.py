@@ -20,14 +20,14 @@ One function per rule, each in its own module and called from here:
 - the energy redo and projection (``energy_redo.redo``) and the finiteness of the result
   (:func:`careful_settle`).
 
-The step is two functions, :func:`careful_move` (the path the step takes) and
-:func:`careful_settle` (the energy test, the result's finiteness, the Coulomb stick), and
-:func:`careful_step` is the one after the other. Python and compiled code differ in two ways, and
-both are data here, not a second copy of a rule:
+:func:`careful_step` takes the path of the step (friction, the stiff cover or the guard's
+substeps), then settles its result (:func:`careful_settle`: the energy test, the result's
+finiteness, the Coulomb stick). Python and compiled code differ in two ways, and both are data
+here, not a second copy of a rule:
 
 - where Python raises (OverflowError for a power beyond float64, ValueError for the sine of inf)
   compiled code gives inf or NaN. Run as Python (``Pendulum.strict`` False) the exception
-  leaves :func:`careful_move` and the engine takes the step by the fallback (``Engine.careful``);
+  leaves :func:`careful_step` and the engine takes the step by the fallback (``Engine.careful``);
   compiled (``strict`` True) the step is declined (:data:`DECLINED`, :data:`NOT_FINITE`)
   wherever Python may have raised or taken another path, and the sweep hands it to the engine;
 - the fallback (:func:`fallback_step`) and the energy redo's refusal (:func:`redo_refused`) are
@@ -228,49 +228,6 @@ def finite(p: float, v: float) -> bool:
     return math.isfinite(p) and math.isfinite(v)
 
 
-def careful_move(steps: StepsArg, pend: PendulumArg, p: float, v: float, h: float, ain: float,
-                 tried: TriedArg, counts: Any) -> Result:
-    """Take the careful step's path from (φ, φ'): friction, the stiff cover or the guard's.
-
-    In ``Engine.careful``'s order: where friction holds the pendulum, ``coulomb.friction_step``
-    (beside a friction c_f > 0 the guard's substeps take the rest, and nothing creeps); without
-    the guard one micro step (:func:`guarded` with the count 1); a step in a damping-dominated
-    transient (``decisions.stiff_transient``) by ``stiff.stiff_cover`` (the guard takes it from
-    its start where the cover cannot); every other step by :func:`guarded`. Returns
-    (code, φ₁, φ'₁, w) before the energy test (:func:`careful_settle`).
-    """
-    w2, gamma, n, cf, v_acc, _, _, nonsmooth, coulomb, with_guard, _, strict = pend
-    if strict and fallback_refused(v, h, ain, w2, math.sqrt(w2)):
-        # Too long to work through: Engine.check_ahead decides first (the sweep's caller).
-        return DECLINED, p, v, 0.0
-    bare = cf == 0.0
-    _, branch, laws, pair_plain, pair_branch = steps
-    held, p1, v1, w = friction_step(branch, laws, p, v, h, ain, w2, gamma, n,
-                                    coulomb and bare, bare and with_guard, cf)
-    if held:
-        return TAKEN, p1, v1, w
-    speed = abs(v)
-    if bare and speed > v_acc:
-        power = power_formula(speed, n)  # as Python: `**` beyond float64 raises OverflowError
-        if strict and not power < math.inf:
-            return DECLINED, p, v, 0.0
-        taken, _, _, _, a0, _, _ = tried
-        if not taken:
-            a0 = ain - laws(v, gamma, 1.0, n)[0] - w2 * math.sin(p)
-        if stiff_transient(speed, a0, gamma, power, v_acc):
-            code, p1, v1, w, subs, turns = stiff_cover(pair_plain, pair_branch, p, v, h, ain,
-                                                       w2, gamma, n, nonsmooth, strict)
-            counts[SUBSTEPS] += subs
-            counts[REVERSALS] += turns
-            if code == OVERFLOW:
-                return OVERFLOWED, p, v, 0.0
-            if code == STIFF_NOT_FINITE:
-                return DECLINED, p, v, 0.0
-            if code != TO_GUARD:
-                return TAKEN, p1, v1, w
-    return guarded(steps, pend, p, v, h, ain, tried, counts)
-
-
 def guarded(steps: StepsArg, pend: PendulumArg, p: float, v: float, h: float, ain: float,
             tried: TriedArg, counts: Any) -> Result:
     """Cover h with the fewest stable substeps (``guard.substep_count``), re-judged after each.
@@ -373,14 +330,48 @@ def careful_settle(pend: PendulumArg, p: float, v: float, h: float, ain: float, 
 
 def careful_step(steps: StepsArg, pend: PendulumArg, p: float, v: float, h: float, ain: float,
                  e0: float, tried: TriedArg, counts: Any) -> Settled:
-    """Take the careful step of h from (φ, φ'): :func:`careful_move`, then :func:`careful_settle`.
+    """Take the careful step of h from (φ, φ'): its path, then :func:`careful_settle`.
 
-    ``e0`` is E/I at the start where known (NaN: made where the energy test needs it). Returns
-    (code, φ₁, φ'₁, w, E₁/I) as :func:`careful_settle`; any code but :data:`TAKEN` hands the
-    step to the fallback (Python: ``Engine.careful``, which also takes it by the fallback where
-    Python raised) or, compiled, to ``Engine.careful`` itself.
+    In this order: where friction holds the pendulum, ``coulomb.friction_step`` (beside a
+    friction c_f > 0 the guard's substeps take the rest, and nothing creeps); a step in a
+    damping-dominated transient (``decisions.stiff_transient``) by ``stiff.stiff_cover`` (the
+    guard takes it from its start where the cover cannot); every other step by
+    :func:`guarded` (without the guard, one micro step). ``e0`` is E/I at the start where known
+    (NaN: made where the energy test needs it). Returns (code, φ₁, φ'₁, w, E₁/I) as
+    :func:`careful_settle`: any code but :data:`TAKEN` hands the step to the fallback
+    (:data:`OVERFLOWED`, :data:`NOT_FINITE`: ``Engine.careful``, which also has the fallback
+    take it where Python raised, then settles its result) or, compiled, to ``Engine.careful``.
     """
-    code, p1, v1, w = careful_move(steps, pend, p, v, h, ain, tried, counts)
+    w2, gamma, n, cf, v_acc, _, _, nonsmooth, coulomb, with_guard, _, strict = pend
+    if strict and fallback_refused(v, h, ain, w2, math.sqrt(w2)):
+        # Too long to work through: Engine.check_ahead decides first (the sweep's caller).
+        return DECLINED, p, v, 0.0, math.nan
+    bare = cf == 0.0
+    _, branch, laws, pair_plain, pair_branch = steps
+    held, p1, v1, w = friction_step(branch, laws, p, v, h, ain, w2, gamma, n,
+                                    coulomb and bare, bare and with_guard, cf)
+    if held:
+        return careful_settle(pend, p, v, h, ain, p1, v1, w, e0, counts)
+    speed = abs(v)
+    if bare and speed > v_acc:
+        power = power_formula(speed, n)  # as Python: `**` beyond float64 raises OverflowError
+        if strict and not power < math.inf:
+            return DECLINED, p, v, 0.0, math.nan
+        taken, _, _, _, a0, _, _ = tried
+        if not taken:
+            a0 = ain - laws(v, gamma, 1.0, n)[0] - w2 * math.sin(p)
+        if stiff_transient(speed, a0, gamma, power, v_acc):
+            code, p1, v1, w, subs, turns = stiff_cover(pair_plain, pair_branch, p, v, h, ain,
+                                                       w2, gamma, n, nonsmooth, strict)
+            counts[SUBSTEPS] += subs
+            counts[REVERSALS] += turns
+            if code == OVERFLOW:
+                return OVERFLOWED, p, v, 0.0, math.nan
+            if code == STIFF_NOT_FINITE:
+                return DECLINED, p, v, 0.0, math.nan
+            if code != TO_GUARD:
+                return careful_settle(pend, p, v, h, ain, p1, v1, w, e0, counts)
+    code, p1, v1, w = guarded(steps, pend, p, v, h, ain, tried, counts)
     if code != TAKEN:
         return code, p, v, 0.0, math.nan
     return careful_settle(pend, p, v, h, ain, p1, v1, w, e0, counts)
@@ -417,6 +408,6 @@ def careful_each(steps: StepsArg, h: float, idx: Any, p: Any, v: Any, ain: Any, 
 
 __all__ = ['COMPILED_FORMS', 'COUNTERS', 'DECLINED', 'NOT_FINITE', 'NOT_TRIED', 'OVERFLOWED',
            'TAKEN', 'FallbackDiverged', 'LawSteps', 'Pendulum', 'PendulumArg', 'Result',
-           'Settled', 'StepsArg', 'Tried', 'TriedArg', 'careful_each', 'careful_move',
-           'careful_settle', 'careful_step', 'fallback_formula', 'fallback_step', 'finite',
-           'guarded', 'redo_refusal_formula', 'redo_refused', 'substep']
+           'Settled', 'StepsArg', 'Tried', 'TriedArg', 'careful_each', 'careful_settle',
+           'careful_step', 'fallback_formula', 'fallback_step', 'finite', 'guarded',
+           'redo_refusal_formula', 'redo_refused', 'substep']

@@ -4,7 +4,7 @@ At rest the net force per unit inertia is F = a_in − ω0² sin φ. Under Coulo
 or a friction c_f = f/I beside the power law) the pendulum sticks while |F| <= c, the Coulomb
 level c = c_f (+ γ where n = 0) of ``model.coulomb_level``: :func:`rest_direction`, the rest
 rule every family takes (the explicit steps by :func:`rest_step`, the adaptive cover
-``embedded.cover`` and the implicit steps ``engine.slide`` directly). While it moves in the
+``embedded.cover`` and the implicit steps ``implicit.slide`` directly). While it moves in the
 direction s the friction is the constant −s c_f: a step on one side of a reversal is the power
 law's step under the input a_in − s c_f (:func:`moving_input`), and the friction's work per
 unit inertia is c_f |Δφ| = s c_f (φ₁ − φ₀) (:func:`friction_work`); every family takes these

@@ -6,7 +6,7 @@ local tolerance STIFF_TOL (h ω_r)⁴ (``decisions.py``): its substeps grow with
 own time scale, so the transient is resolved, not merely kept stable, and its error falls at
 order ≥ 4 as h falls. :func:`stiff_cover` is that cover, numbers and generated steps in, a tuple
 out (a return code and counts, no exceptions, closures or stats objects), so that the careful
-step (``careful.careful_move``) runs it as Python and compiled, the same function. Its trial
+step (``careful.careful_step``) runs it as Python and compiled, the same function. Its trial
 loop is the adaptive methods'
 (``embedded.cover``) for one step and a law with n > 1 (no Coulomb friction, no output stops,
 no trace, no run budget); the decisions the two loops share are one function each

@@ -804,10 +804,9 @@ class Sweep:
                       stats: dict[int, GuardStats], counts: IntArray) -> None:
         """Advance the loaded groups by ``count`` steps of their compiled runs (``jit=True``).
 
-        The steps the runs refuse are taken by :func:`_careful_one`, as the numpy path takes
-        them (what the compiled careful step did is added to ``counts``, a row per n-sorted
-        pendulum, ``careful.COUNTERS``); a state
-        beyond the run's speed bound is refused at the earliest step it occurs.
+        The steps the runs' careful step declines are taken by :func:`_careful_one` (what the
+        compiled careful step did is added to ``counts``, a row per n-sorted pendulum,
+        ``careful.COUNTERS``); a state beyond the run's speed bound is refused at once.
         """
         meth = METHODS[self.method]
 

@@ -88,8 +88,8 @@ def test_the_split_and_its_graded_newton_run_are_written_once() -> None:
     # reversal.graded_landing, the only reader of its iteration bound; split.split_step calls
     # it, split.micro_step (the plain step, split at a reversal) calls split_step, and the one
     # careful step calls micro_step (careful.substep under careful.guarded under
-    # careful.careful_move), the friction decisions after a reversal being coulomb's
-    # (rest_step, creep_state). The careful step is careful_move then careful_settle: the
+    # careful.careful_step), the friction decisions after a reversal being coulomb's
+    # (rest_step, creep_state). The careful step settles its result by careful_settle: the
     # Stepper's engine runs it as Python, the compiled sweep's run and the numpy sweep's
     # refused steps (careful_each) compiled. No other form of any of these exists.
     core = Path(reversal.__file__).parent
@@ -101,9 +101,8 @@ def test_the_split_and_its_graded_newton_run_are_written_once() -> None:
     assert careful.micro_step is split.micro_step
     assert 'micro_step' in careful.substep.__code__.co_names
     assert 'substep' in careful.guarded.__code__.co_names
-    assert {'friction_step', 'stiff_cover', 'guarded'} <= set(
-        careful.careful_move.__code__.co_names)
-    assert {'careful_move', 'careful_settle'} <= set(careful.careful_step.__code__.co_names)
+    assert {'friction_step', 'stiff_transient', 'stiff_cover', 'guarded',
+            'careful_settle'} <= set(careful.careful_step.__code__.co_names)
     assert 'careful_step' in careful.careful_each.__code__.co_names
     assert {'careful_step', 'careful_settle'} <= set(engine.Engine.careful.__code__.co_names)
     assert 'careful_step(' in kernel_source(TABLEAUS['rk4'], 1.5)

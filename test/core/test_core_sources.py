@@ -25,7 +25,7 @@ from pendulum_sim.core.methods import METHODS
 from pendulum_sim.core.reversal import locate_on_branch, locate_reversal
 from pendulum_sim.core.sources import LAW_TEXTS, SWEEP_GAMMA, SWEEP_W2, main
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 TEMPLATE = """\
 def f(x, y):
