@@ -373,7 +373,8 @@ class CachedRun:
         return getattr(self.dispatcher, name)
 
 
-_FUNCTIONS: dict[int, tuple[Any, ...]] = {}
+_FUNCTIONS: dict[types.CodeType, tuple[Any, ...]] = {}
+"""The compiled generated functions of each run's namespace, by the run's code object."""
 
 
 def _law_functions(env: dict[str, Any], cached: bool) -> tuple[Any, ...]:
@@ -382,7 +383,8 @@ def _law_functions(env: dict[str, Any], cached: bool) -> tuple[Any, ...]:
     Compiled once per namespace as first-class functions of one signature each, on numba's
     disk cache where ``cached``; the run and the numpy sweep's careful steps share them.
     """
-    functions = _FUNCTIONS.get(id(env))
+    key = env['kernel'].__code__  # kept alive by the dict: no key is reused
+    functions = _FUNCTIONS.get(key)
     if functions is None:
         made = []
         for name in FUNCTION_ARGS:
@@ -392,7 +394,7 @@ def _law_functions(env: dict[str, Any], cached: bool) -> tuple[Any, ...]:
             if cached:
                 attach(disp, 'functions')
             made.append(disp)
-        functions = _FUNCTIONS[id(env)] = tuple(made)
+        functions = _FUNCTIONS[key] = tuple(made)
     return functions
 
 
@@ -462,4 +464,37 @@ def compile_careful_each(fn: Any) -> tuple[Any, Any] | None:
     env = kernel_module(fn)
     if env is None:
         return None
-    return LawSteps(*_law_functions(env, True)), _careful_each()
+    return LawSteps(*(_address(fn) for fn in _law_functions(env, True))), _careful_each()
+
+
+@functools.cache
+def _address(fn: Any) -> Any:
+    """Return the compiled first-class function ``fn`` as its address, for calls from Python.
+
+    numba looks a passed function's addresses up in its compiled library at every call (some
+    60 µs a function); an object of its wrapper address protocol (``__wrapper_address__``,
+    ``signature``), holding the address found once, is typed alike
+    (``numba.types.FunctionType`` of the same signature) and passed at once. The numpy sweep's
+    careful steps pass the law's functions so at every step.
+    """
+    ty = fn._numba_type_  # its FunctionType, compiled for float64 arguments where not yet
+    (cres,) = fn.overloads.values()
+    address = cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name)
+
+    class Address:
+        """A compiled function's wrapper address and type (numba's wrapper address protocol).
+
+        Not a subclass of numba's ``WrapperAddressProtocol``, whose ``typeof`` makes a new
+        function type at every call: numba's ``typeof`` reads :attr:`_numba_type_` at once.
+        """
+
+        _numba_type_ = ty
+        function = fn  # the compiled function, kept alive as long as its address is used
+
+        def __wrapper_address__(self) -> int:
+            return int(address)
+
+        def signature(self) -> Any:
+            return cres.signature
+
+    return Address()

@@ -83,6 +83,11 @@ SWEEP_METHODS = tuple(name for name, m in METHODS.items() if m.family.fast_path)
 """The methods a sweep can use: those of the explicit family (``euler``, ``midpoint``, ``rk4``)."""
 BLOCK = 16384
 """Pendulums stepped per numpy pass: a block's temporaries stay in the cache."""
+COMPILED_MIN = 16
+"""Refused steps of one group's step below which its careful steps are taken in Python: a call
+of the compiled careful steps (``careful.careful_each``) costs some 100 µs of numba's argument
+handling, what about 16 near-Coulomb creep steps cost in Python (5 graded ones), measured
+at h = 1 ms on two cores."""
 STIFF_MARGIN = 1.0 - 1e-9
 """γ scale of the array stiff-transient test: far above the last-bit difference of numpy's and
 C's powers, far below anything that moves a decision."""
@@ -523,15 +528,15 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
     """Redo every step the fast path refused (``~ok``) on the careful path; keep the states.
 
     The one careful step (``careful.py``) takes each: compiled over the refused pendulums
-    where :func:`_compiled` serves the group (what it did added to their rows of ``counts``,
-    ``careful.COUNTERS``), and each it declines, or every one where it does not serve, as
-    Python (``Engine.careful``, after ``Engine.check_ahead``). Returns how many steps the
-    Python path took.
+    where :func:`_compiled` serves the group and they are at least :data:`COMPILED_MIN` (what
+    it did added to their rows of ``counts``, ``careful.COUNTERS``), and each it declines, or
+    every one where it does not serve, as Python (``Engine.careful``, after
+    ``Engine.check_ahead``). Returns how many steps the Python path took.
     """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     refused = np.flatnonzero(~ok)
     careful = refused
-    if refused.size and guard and grp.graded:
+    if refused.size >= COMPILED_MIN and guard and grp.graded:
         taken = _compiled(grp, meth, hh, refused, p1, v1, counts)
         grp.batched += int(taken.size)
         if taken.size:
