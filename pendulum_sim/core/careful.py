@@ -3,8 +3,9 @@
 A step of h from (φ, φ') under the input a_in = τ/I that the fast path refuses is taken here, by
 plain Python functions that numba compiles (as ``guard.substep_count`` is): the Stepper's engine
 (``Engine.careful``) calls them as Python, the compiled sweep's run (``kernel.kernel_source``)
-calls :func:`careful_step` compiled, and the numpy sweep hands each refused step to the engine.
-One function per rule, each in its own module and called from here:
+calls :func:`careful_step` compiled, and the numpy sweep takes its refused steps by
+:func:`careful_each` compiled (or hands them to the engine). One function per rule, each in its
+own module and called from here:
 
 - friction holding the pendulum, Coulomb sticking and break-away at rest and the near-Coulomb
   creep (``coulomb.friction_step``; the moving friction as an input, ``coulomb.moving_input``);
@@ -41,8 +42,9 @@ by position, so the engine passes the same fields as plain tuples, which CPython
 times faster than a named tuple (``Engine.careful`` takes several steps a millisecond).
 
 What a step did is added to ``counts`` (:data:`COUNTERS`, the counters of ``guard.GuardStats``)
-as it goes, as ``GuardStats`` was counted by the Python path before: a Python list for the
-engine, a row of an array compiled (the compiled run commits a row only for a step it took).
+as it goes, so that a step Python leaves by an exception has counted what it did: the engine's
+``GuardStats`` itself (indexed by position), compiled a row of scratch counters committed only
+for a step taken (:func:`commit_tally`).
 """
 from __future__ import annotations
 
@@ -54,7 +56,7 @@ from .decisions import energy_rose, specific_energy, stiff_transient
 from .dirk import damping_formula
 from .energy_redo import redo
 from .errors import IntegratorError
-from .guard import FALLBACK, one_substep, substep_count
+from .guard import CAREFUL_COUNTERS, FALLBACK, one_substep, substep_count
 from .implicit import fallback_refused, fallback_run, moving_fallback, refusal
 from .law import power_formula
 from .problem import Problem
@@ -63,7 +65,7 @@ from .split import micro_step
 from .stiff import NOT_FINITE as STIFF_NOT_FINITE
 from .stiff import OVERFLOW, TO_GUARD, stiff_cover
 
-COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks', 'energy_rejections', 'projections')
+COUNTERS = CAREFUL_COUNTERS
 """The counters of ``guard.GuardStats`` the careful step adds to, in this order."""
 SUBSTEPS, FALLBACKS, REVERSALS, STICKS, REJECTIONS, PROJECTIONS = range(len(COUNTERS))
 
@@ -389,25 +391,63 @@ def careful_each(steps: StepsArg, h: float, idx: Any, p: Any, v: Any, ain: Any, 
     (:func:`careful_step`, nothing tried: the numpy plain step's floats are not the C
     library's). Where it takes the step, (φ₁, φ'₁) go to ``p1[i]``, ``v1[i]``, ``taken[j]`` is
     set and what it did is added to the row ``counts[i]``; elsewhere nothing changes (the
-    sweep hands the step to ``Engine.careful``). ``tally`` is a row of scratch counters.
+    sweep hands the step to ``Engine.careful``). ``tally`` is a row of scratch counters, zero
+    (:func:`commit_tally`).
     """
     for j in range(idx.shape[0]):
         i = idx[j]
-        tally[:] = 0
         code, pi, vi, _, _ = careful_step(
             steps, Pendulum(w2[i], gamma[i], n[i], cf[i], v_acc[i], reach[i], check[i],
                             nonsmooth[i], coulomb[i], True, guard, True),
             p[i], v[i], h, ain[i], math.nan,
             Tried(False, 0.0, 0.0, 0.0, 0.0, lo[i], hi[i]), tally)
+        commit_tally(counts[i], tally, code == TAKEN)
         if code == TAKEN:
             p1[i] = pi
             v1[i] = vi
             taken[j] = True
-            counts[i] += tally
 
 
-__all__ = ['COMPILED_FORMS', 'COUNTERS', 'DECLINED', 'NOT_FINITE', 'NOT_TRIED', 'OVERFLOWED',
-           'TAKEN', 'FallbackDiverged', 'LawSteps', 'Pendulum', 'PendulumArg', 'Result',
-           'Settled', 'StepsArg', 'Tried', 'TriedArg', 'careful_each', 'careful_settle',
-           'careful_step', 'fallback_formula', 'fallback_step', 'finite', 'guarded',
-           'redo_refusal_formula', 'redo_refused', 'substep']
+def commit_tally(counts: Any, tally: Any, taken: bool) -> None:
+    """Add a compiled careful step's scratch counters to the pendulum's where ``taken``.
+
+    The scratch row ``tally`` is cleared either way: a step declined counts nothing (the
+    engine takes it and counts it). Element by element, so that nothing is allocated.
+    """
+    for c in range(tally.shape[0]):
+        t = tally[c]
+        if t != 0:
+            if taken:
+                counts[c] += t
+            tally[c] = 0
+
+
+__all__ = [
+    'COMPILED_FORMS',
+    'COUNTERS',
+    'DECLINED',
+    'NOT_FINITE',
+    'NOT_TRIED',
+    'OVERFLOWED',
+    'TAKEN',
+    'FallbackDiverged',
+    'LawSteps',
+    'Pendulum',
+    'PendulumArg',
+    'Result',
+    'Settled',
+    'StepsArg',
+    'Tried',
+    'TriedArg',
+    'careful_each',
+    'careful_settle',
+    'careful_step',
+    'commit_tally',
+    'fallback_formula',
+    'fallback_step',
+    'finite',
+    'guarded',
+    'redo_refusal_formula',
+    'redo_refused',
+    'substep',
+]

@@ -22,12 +22,9 @@ import math
 
 from . import embedded
 from .careful import (
-    COUNTERS,
-    FALLBACKS,
     NOT_FINITE,
     NOT_TRIED,
     OVERFLOWED,
-    STICKS,
     FallbackDiverged,
     LawSteps,
     Pendulum,
@@ -55,9 +52,6 @@ from .model import FloatArray, check_speed_ahead, run_speed_limit
 from .problem import Problem
 from .stiff import stiff_pair
 from .tableaus import RK4, Tableau
-
-_NONE = [0] * len(COUNTERS)
-"""The careful step's counters where it did nothing but a plain step."""
 
 
 @functools.lru_cache(maxsize=64)
@@ -216,42 +210,37 @@ class Engine:
         raises: where a power overflowed or a sine met inf (OverflowError, ValueError), the
         fallback takes the step (:meth:`last_resort`) and the careful step settles its result
         (``careful.careful_settle``); a result that is not finite is the fallback's as well.
-        What the step did is counted in ``stats``, also where it raises.
+        What the step did is counted in ``stats`` as it goes (the careful step indexes it by
+        ``careful.COUNTERS`` position), also where it raises.
         """
-        counts = [0, 0, 0, 0, 0, 0]
+        lp, lv, le = self._last
         try:
-            lp, lv, le = self._last
-            try:
-                code, p1, v1, w, e1 = careful_step(self._steps, self._pend, p, v, h, ain,
-                                                   le if (p == lp and v == lv) else math.nan,
-                                                   NOT_TRIED, counts)
-            except FallbackDiverged as exc:  # the fallback taking the rest of a split step
-                raise self._diverged(exc.p, exc.v) from None
-            except IntegratorError:  # a refusal (the fallback's work bound), not an overflow
-                raise
-            except (OverflowError, ValueError):  # |x|^n beyond float64, sin(inf)
-                code = OVERFLOWED
-            if code == OVERFLOWED:
-                if self.unguarded:
-                    raise self._diverged(p, v) from None
-                counts[FALLBACKS] += 1
-                p1, v1, w = self.last_resort(p, v, h, ain)
-                code, p1, v1, w, e1 = careful_settle(self._pend, p, v, h, ain, p1, v1, w,
-                                                     math.nan, counts)
-            if code == NOT_FINITE:
-                if self.unguarded:  # plain steps as asked: a divergence is the answer
-                    raise self._diverged(p, v)
-                counts[FALLBACKS] += 1
-                p1, v1, w = self.last_resort(p, v, h, ain)
-                if stuck(self.coulomb, v, v1):
-                    counts[STICKS] += 1
-            elif e1 == e1:
-                self._last = (p1, v1, e1)
-            return p1, v1, w
-        finally:
-            if counts != _NONE:
-                for name, count in zip(COUNTERS, counts, strict=True):
-                    setattr(stats, name, getattr(stats, name) + count)
+            code, p1, v1, w, e1 = careful_step(self._steps, self._pend, p, v, h, ain,
+                                               le if (p == lp and v == lv) else math.nan,
+                                               NOT_TRIED, stats)
+        except FallbackDiverged as exc:  # the fallback taking the rest of a split step
+            raise self._diverged(exc.p, exc.v) from None
+        except IntegratorError:  # a refusal (the fallback's work bound), not an overflow
+            raise
+        except (OverflowError, ValueError):  # |x|^n beyond float64, sin(inf)
+            code = OVERFLOWED
+        if code == OVERFLOWED:
+            if self.unguarded:
+                raise self._diverged(p, v) from None
+            stats.fallbacks += 1
+            p1, v1, w = self.last_resort(p, v, h, ain)
+            code, p1, v1, w, e1 = careful_settle(self._pend, p, v, h, ain, p1, v1, w,
+                                                 math.nan, stats)
+        if code == NOT_FINITE:
+            if self.unguarded:  # plain steps as asked: a divergence is the answer
+                raise self._diverged(p, v)
+            stats.fallbacks += 1
+            p1, v1, w = self.last_resort(p, v, h, ain)
+            if stuck(self.coulomb, v, v1):
+                stats.sticks += 1
+        elif e1 == e1:
+            self._last = (p1, v1, e1)
+        return p1, v1, w
 
     def implicit_advance(self, p: float, v: float, h: float, ain: float,
                          stats: GuardStats) -> tuple[float, float, float]:

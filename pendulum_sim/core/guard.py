@@ -91,6 +91,21 @@ class GuardStats:
         for k, v in other.as_dict().items():
             setattr(self, k, getattr(self, k) + v)
 
+    def __getitem__(self, k: int) -> int:
+        """Return the careful step's counter ``k`` (:data:`CAREFUL_COUNTERS`' position)."""
+        value: int = getattr(self, CAREFUL_COUNTERS[k])
+        return value
+
+    def __setitem__(self, k: int, value: int) -> None:
+        """Set the careful step's counter ``k``: the careful step counts into these as Python."""
+        setattr(self, CAREFUL_COUNTERS[k], value)
+
+
+CAREFUL_COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks', 'energy_rejections',
+                    'projections')
+"""The counters the careful step adds to, by position (``careful.COUNTERS``): a
+:class:`GuardStats` in Python, a row of an array compiled."""
+
 
 @functools.cache
 def half_disk_radius(tableau: Tableau, samples: int = 721) -> float:

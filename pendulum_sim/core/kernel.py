@@ -15,7 +15,7 @@ import functools
 import math
 from typing import Any
 
-from .careful import TAKEN, LawSteps, Pendulum, Tried
+from .careful import TAKEN, LawSteps, Pendulum, Tried, commit_tally
 from .codegen import body_of, define, fill
 from .coulomb import moving_input
 from .decisions import (
@@ -103,11 +103,9 @@ def kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, CF, NN, LO, HI, REACH, V_A
                     steps, Pendulum(w2, gamma, n, cf, v_acc, reach, check, nonsmooth,
                                     coulomb, True, GUARD, True),
                     p0, v0, h, a_in, NAN, Tried(known, p1, v1, w, a0, lo, hi), TALLY[i])
+                commit_tally(COUNTS[i], TALLY[i], code == TAKEN)
                 if code != TAKEN:
-                    TALLY[i] = 0
                     break
-                COUNTS[i] += TALLY[i]
-                TALLY[i] = 0
                 if check:
                     $energy_renewed
             p0 = p1
@@ -131,11 +129,11 @@ parallel over j where compiled with ``prange``), its state ``(P[i], V[i], E[i])`
 registers, from step ``K[i]`` to step ``count`` of size h (:func:`kernel_source` tells what
 fills each hole). A refused step is taken, where ``CAREFUL[i]``, by the careful step, its
 counters gathered in the row ``TALLY[i]`` and added to ``COUNTS[i]`` (``careful.COUNTERS``)
-only where it took the step; the run stops at a step neither takes (``K[i]`` is then the step
-``Engine.careful`` must take) or after a step that leaves |φ'| above ``VMAX[i]`` (the run's
-speed bound; the caller refuses to go on). The state after step ``base + k`` is written to the
-row :func:`record_row` gives of ``RP`` and ``RV`` (the next such step kept by
-:func:`next_record`)."""
+only where it took the step (``careful.commit_tally``); the run stops at a step neither takes
+(``K[i]`` is then the step ``Engine.careful`` must take) or after a step that leaves |φ'| above
+``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state after step
+``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV`` (the next such
+step kept by :func:`next_record`)."""
 
 TEST_TEMPLATE = """\
 if ok and $test:
@@ -278,7 +276,7 @@ def compile_kernel(tableau: Tableau, n: float, careful_step: Any, friction: bool
         SCALAR_ENV, INF=math.inf, NAN=math.nan, ENERGY_TOL=ENERGY_TOL, prange=range,
         record_row=record_row, next_record=next_record, careful_step=careful_step,
         stiff_transient=stiff_transient, moving_input=moving_input, LawSteps=LawSteps,
-        Pendulum=Pendulum, Tried=Tried, TAKEN=TAKEN)
+        Pendulum=Pendulum, Tried=Tried, TAKEN=TAKEN, commit_tally=commit_tally)
     return define(kernel_source(tableau, n, friction), 'kernel', env,
                   f'<kernel {tableau.name}>')
 
