@@ -288,59 +288,86 @@ def safe_speed_range(guard: StabilityGuard, omega0_sq: float, gamma: float, n: f
                      ain_bound: float) -> tuple[float, float]:
     """Return (lo, hi): one plain step of h is safe for every state with lo <= |φ'| <= hi.
 
-    Safe means the cheap sufficient test of the module docstring holds at the speed the step can
-    reach: ``h (d(speed) + ω0) <= r`` and ``h · speed <= MAX_ANGLE``, with ``speed = |φ'| +
-    margin`` and the margin the speed an input acceleration up to ``ain_bound`` plus gravity can
-    add in h (:func:`max_speed`). For n > 1 the slope d = γ n s^(n−1) grows with the speed, so
-    the range has an upper end; for n < 1 it falls, so it has a lower end (the slowest speed in
-    the step is |φ'| − h · force); for n = 0 and n = 1 it is constant. This is the guard's one
-    fast-path decision: ``Stepper`` compares a float with it, ``sweep`` an array.
+    The range of one pendulum: :func:`safe_speed_ranges`, the guard's one fast-path decision,
+    for an array of one (``Engine.fast_range`` keeps it per step length and torque octave).
     """
-    force = ain_bound + omega0_sq
-    omega0 = math.sqrt(omega0_sq)
-    margin = max_speed(gamma, n, 0.0, h, force)
-    hi = guard.max_angle / h - margin
-    room = guard.disk / h - omega0  # the largest slope d the step tolerates
-    empty = (math.inf, -math.inf)
-    if room < 0.0 or hi < 0.0:
-        return empty
-    if gamma == 0.0 or n == 0.0:
-        return 0.0, hi
-    if n == 1.0:
-        return (0.0, hi) if gamma <= room else empty
-    if room == 0.0:
-        return empty
+    lo, hi = safe_speed_ranges(guard, [omega0_sq], [gamma], [n], h, [ain_bound])
+    return float(lo[0]), float(hi[0])
+
+
+def _powers(base: npt.NDArray[np.float64], exponent: Any,
+            on_error: Any) -> npt.NDArray[np.float64]:
+    """Return ``base ** exponent`` element-wise as Python's float power computes it.
+
+    numpy's ``power`` may differ from the C library's ``pow`` in the last bit, so the floats go
+    through Python's own operator; where it raises (overflow, 0 to a negative power) the value
+    is ``on_error``, as the scalar code's ``except`` gives it. ``exponent`` and ``on_error``
+    are floats or arrays like ``base``.
+    """
+    values = base.tolist()
+    exps = np.broadcast_to(exponent, base.shape).tolist()
+    errs = np.broadcast_to(on_error, base.shape).tolist()
     try:
-        s = (room / (gamma * n)) ** (1.0 / (n - 1.0))
+        return np.array([b ** e for b, e in zip(values, exps, strict=True)], dtype=np.float64)
     except (OverflowError, ZeroDivisionError):
-        s = math.inf if n > 1.0 else 0.0
-    if n > 1.0:
-        hi = min(hi, s - margin)
-        return (0.0, hi) if hi >= 0.0 else empty
-    lo = s + h * force
-    return (lo, hi) if lo <= hi else empty
+        out = []
+        for b, e, err in zip(values, exps, errs, strict=True):
+            try:
+                out.append(b ** e)
+            except (OverflowError, ZeroDivisionError):
+                out.append(err)
+        return np.array(out, dtype=np.float64)
 
 
 def safe_speed_ranges(guard: StabilityGuard, omega0_sq: npt.ArrayLike, gamma: npt.ArrayLike,
                       n: npt.ArrayLike, h: float, ain_bound: npt.ArrayLike
                       ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """Return :func:`safe_speed_range` for arrays of (ω0², γ, n, a_in bound): (lo, hi).
+    """Return (lo, hi) for arrays of (ω0², γ, n, a_in bound): one plain step of h is safe there.
 
-    The scalar function itself on each element (once per distinct element: pendulums often
-    share their parameters and torque octave), so each (lo[i], hi[i]) is its float; an empty
-    range is (inf, −inf). ``n`` is one exponent or one per pendulum.
+    Safe means the cheap sufficient test of the module docstring holds at the speed the step can
+    reach: ``h (d(speed) + ω0) <= r`` and ``h · speed <= MAX_ANGLE``, with ``speed = |φ'| +
+    margin`` and the margin the speed an input acceleration up to the a_in bound plus gravity
+    can add in h (:func:`max_speed`). For n > 1 the slope d = γ n s^(n−1) grows with the speed,
+    so the range has an upper end; for n < 1 it falls, so it has a lower end (the slowest speed
+    in the step is |φ'| − h · force); for n = 0 and n = 1 it is constant. This is the guard's
+    one fast-path decision, written once over arrays: the sweep takes it for its pendulums,
+    ``Stepper`` for one (:func:`safe_speed_range`). Sums, products, quotients and square roots
+    are correctly rounded in numpy as in Python; powers go through Python's float power
+    (:func:`_powers`). An empty range is (inf, −inf). ``n`` is one exponent or one per pendulum.
     """
     w2, gam, nn, bound = (np.asarray(x, dtype=np.float64)
                           for x in (omega0_sq, gamma, n, ain_bound))
     w2, gam, nn, bound = np.broadcast_arrays(w2, gam, nn, bound)
-    shape = w2.shape
-    memo: dict[tuple[float, float, float, float], tuple[float, float]] = {}
-    out = []
-    for row in zip(w2.ravel().tolist(), gam.ravel().tolist(), nn.ravel().tolist(),
-                   bound.ravel().tolist(), strict=True):
-        r = memo.get(row)
-        if r is None:
-            r = memo[row] = safe_speed_range(guard, row[0], row[1], row[2], h, row[3])
-        out.append(r)
-    both = np.array(out, dtype=np.float64).reshape(*shape, 2)
-    return np.ascontiguousarray(both[..., 0]), np.ascontiguousarray(both[..., 1])
+    size = w2.shape
+    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+        force = bound + w2
+        omega0 = np.sqrt(w2)
+        # max_speed(gamma, n, 0.0, h, force): 0 + min(h force, terminal_speed(gamma, n, force)).
+        term = np.full(size, math.inf)
+        pos = (gam > 0.0) & (nn != 0.0)
+        if pos.any():
+            term[pos] = _powers(force[pos] / gam[pos], 1.0 / nn[pos], math.inf)
+        margin = 0.0 + np.minimum(h * force, term)
+        hi = guard.max_angle / h - margin
+        room = guard.disk / h - omega0
+        lo = np.zeros(size)
+        empty = (room < 0.0) | (hi < 0.0)
+        one, other = nn == 1.0, (nn != 0.0) & (nn != 1.0)
+        empty |= one & (gam != 0.0) & ~(gam <= room)
+        empty |= other & (gam != 0.0) & (room == 0.0)
+        act = ~empty & (gam != 0.0) & other
+        if act.any():
+            na = nn[act]
+            up = na > 1.0
+            s = _powers(room[act] / (gam[act] * na), 1.0 / (na - 1.0),
+                        np.where(up, math.inf, 0.0))
+            at = np.flatnonzero(act)
+            top = np.minimum(hi[act], s - margin[act])
+            low = s + h * force[act]
+            hi[at[up]] = top[up]
+            lo[at[~up]] = low[~up]
+            empty[at[up & ~(top >= 0.0)]] = True
+            empty[at[~up & ~(low <= hi[act])]] = True
+    lo[empty] = math.inf
+    hi[empty] = -math.inf
+    return lo, hi
