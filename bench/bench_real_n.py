@@ -6,12 +6,12 @@ uniform in [0.1, 2], φ0 in [−2, 2] rad, φ'0 in [−3, 3] rad/s, τ/I = 0 (so
 h = 1 ms (``--h``), 500 steps; the exponents (a) integer n = 1..5 mixed, (b) n = 1.5 for all, (c)
 n uniform in [1, 3], all distinct. For each, on the numpy path: ns per pendulum-step (the best of
 ``--repeats``, set-up included, as ``sweep`` is called), the ratios (b)/(a) and (c)/(b), and the
-fraction of pendulum-steps that took the careful path (``SweepResult.batched`` batched over arrays
-plus ``handed_back`` one by one in Python: for non-integer 1 < n < 3 the batched share is the steps
-within the grading window 1/ω0 of a reversal, ``reversal.GRADE_WINDOW``, about half of all steps
-here at 2.7 branch substeps each; the one-by-one share the steps split at a reversal, about 170
-scalar branch substeps each; batched where a block's step has ``batched_split.SPLIT_MIN`` of them,
-as at ``--h 0.01``, where about ten times as many steps split). With ``--jit`` (numba, the ``jit``
+fraction of pendulum-steps that took the careful path (``SweepResult.batched``, taken by the one
+careful step compiled over the refused pendulums, ``careful.careful_each``, plus ``handed_back``,
+one by one in Python: for non-integer 0 < n < 3 the careful share is the steps within the grading
+window 1/ω0 of a reversal, ``reversal.GRADE_WINDOW``, about half of all steps here, taken
+compiled where numba and its disk cache serve; the first call of a process loads them, which the
+best of ``--repeats`` leaves out). With ``--jit`` (numba, the ``jit``
 extra) also the compiled sweep (after a first call that compiles) beside a bare compiled RK4 kernel
 (``bench_sweep_jit.bare_rk4``: per exponent for integer n, the n = 1.5 kernel over all for distinct
 n) over the same pendulums, and the first ``jit=True`` sweep of a fresh process twice on one new,
@@ -113,7 +113,7 @@ def main() -> int:
             steps = size * args.steps
             print(f'N = {size:6d} {case:22s} numpy   : {per[case]:8.0f} ns per pendulum-step, '
                   f'careful path {(res.batched + res.handed_back) / steps:6.1%} of steps '
-                  f'(batched {res.batched / steps:6.2%}, one by one '
+                  f'(compiled {res.batched / steps:6.2%}, in Python '
                   f'{res.handed_back / steps:6.2%})', flush=True)
         print(f'N = {size:6d} numpy: n = 1.5 / integer = {per[CASES[1]] / per[CASES[0]]:.2f}, '
               f'distinct / n = 1.5 = {per[CASES[2]] / per[CASES[1]]:.2f}', flush=True)

@@ -12,6 +12,8 @@ exponents compiles one step, not 2000. The text of each function it defined is k
 from __future__ import annotations
 
 import functools
+import re
+import string
 from types import CodeType
 from typing import Any
 
@@ -40,4 +42,52 @@ def source_of(fn: Any) -> str | None:
     return _SOURCES.get(getattr(fn, '__code__', None))  # type: ignore[arg-type]
 
 
-__all__ = ['define', 'source_of']
+_BLOCK_HOLE = re.compile(r'^(?P<indent>[ ]*)\$(?P<name>[A-Za-z_][A-Za-z0-9_]*)[ ]*$')
+
+
+def fill(template: str, **holes: str) -> str:
+    """Return ``template``, Python source with named holes (``string.Template``), filled in.
+
+    A hole alone on its line (``$name`` after the indentation) takes a block of lines, each
+    indented as the hole is (an empty block removes the line); a hole within a line takes a
+    one-line value. Every hole must be given and every value must fill a hole, so a template
+    reads as the function it becomes.
+    """
+    out: list[str] = []
+    used: set[str] = set()
+    for line in template.splitlines():
+        block = _BLOCK_HOLE.match(line)
+        if block:
+            name = block.group('name')
+            if name not in holes:
+                raise KeyError(f'the template has a hole ${name} that was not given')
+            used.add(name)
+            out += [block.group('indent') + x if x.strip() else '' for x in
+                    holes[name].splitlines()]
+            continue
+        tpl = string.Template(line)
+        names = set(tpl.get_identifiers())
+        for name in names:
+            if name not in holes:
+                raise KeyError(f'the template has a hole ${name} that was not given')
+            if '\n' in holes[name].strip('\n'):
+                raise ValueError(f'the hole ${name} is within a line: its value must be one line')
+        used |= names
+        out.append(tpl.substitute({k: holes[k].strip('\n') for k in names}))
+    unused = sorted(set(holes) - used)
+    if unused:
+        raise KeyError(f'no hole in the template for {", ".join(unused)}')
+    return '\n'.join(out) + '\n'
+
+
+def body_of(src: str) -> str:
+    """Return the body of the one function ``src`` defines, its last line (``return``) left out.
+
+    Dedented by one level, to be filled into a template's hole (:func:`fill`): the generated
+    steps are inlined into the runs that take them.
+    """
+    lines = src.splitlines()[1:-1]
+    return '\n'.join(x[4:] for x in lines) + '\n'
+
+
+__all__ = ['body_of', 'define', 'fill', 'source_of']

@@ -1,11 +1,11 @@
 """The compiled sweep's driver: long runs of fast steps compiled, refused steps handed back.
 
 With ``jit=True`` a :class:`~pendulum_sim.core.sweep.Sweep` advances each group of pendulums (one
-exponent n) by its compiled run (``decisions.kernel_source``, compiled by ``jit.compile_kernel``
+exponent n) by its compiled run (``kernel.kernel_source``, compiled by ``jit.compile_kernel``
 once per law text, the careful step it calls once, both kept on disk by ``jit_cache.py``): every
 pendulum takes fast steps, its state in registers, in parallel over the pendulums, until a step is
 refused or the piece of the run is done. A refused step is taken by the compiled careful path
-(``compiled_careful.careful_step``: Coulomb friction at rest, the near-Coulomb creep, the guard's
+(``careful.careful_step``: Coulomb friction at rest, the near-Coulomb creep, the guard's
 substeps, the reversal split, the fallback, the stiff transient's error-controlled substeps, the
 energy redo) where the group's ``use_careful`` is set; the steps it declines (the fallback's
 refusal by its work bound, a result that is not finite, the fallback beside a Coulomb friction)
@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .compiled_careful import COUNTERS
-from .decisions import record_row
+from .careful import COUNTERS
+from .kernel import record_row
 
 PARALLEL_MIN = 512
 """Pendulums below which a run is taken by the serial kernel (threads cost more to wake)."""
@@ -48,7 +48,7 @@ def run_piece(groups: list[Any], h: float, count: int, base: int, total: int, ev
     over the n-sorted pendulums, ``guard`` the guard's ``StabilityGuard.constants`` for the
     compiled careful step (a group takes it where its ``use_careful`` is set). What the
     compiled careful step did is added to ``counts`` (a row per n-sorted pendulum,
-    ``compiled_careful.COUNTERS``). Returns ``(step, position)`` of every pendulum whose |φ'|
+    ``careful.COUNTERS``). Returns ``(step, position)`` of every pendulum whose |φ'|
     went beyond its bound (it stops there; the caller refuses the run) and how many steps were
     handed back to ``careful``.
     """
@@ -109,6 +109,7 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
     size = offs[-1]
     # The kernel adds to its rows of the counters: a lone group's own rows, else a joint array.
     cnt = counts[grps[0].sl] if one else np.zeros((size, len(COUNTERS)), dtype=np.int64)
+    tally = np.zeros((size, len(COUNTERS)), dtype=np.int64)  # a careful step's, until taken
     handed_back = 0
     k = np.zeros(size, dtype=np.int64)
     idx = np.arange(size, dtype=np.int64)
@@ -123,7 +124,7 @@ def _run_together(grps: list[Any], recs: list[tuple[FloatArray, FloatArray]], h:
     while idx.size:
         run = kernel[0] if idx.size >= PARALLEL_MIN else kernel[1]
         run(P, V, E, k, idx, h, count, *cols, nn, *decide, vm, base, every, total, rp, rv,
-            cnt, use, guard)
+            cnt, tally, use, guard)
         if whole:
             fast = ~(np.abs(V) <= vm)
             stopped, handed = np.flatnonzero(fast), np.flatnonzero(~fast & (k < count))

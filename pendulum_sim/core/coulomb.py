@@ -4,7 +4,7 @@ At rest the net force per unit inertia is F = a_in − ω0² sin φ. Under Coulo
 or a friction c_f = f/I beside the power law) the pendulum sticks while |F| <= c, the Coulomb
 level c = c_f (+ γ where n = 0) of ``model.coulomb_level``: :func:`rest_direction`, the rest
 rule every family takes (the explicit steps by :func:`rest_step`, the adaptive cover
-``embedded.cover`` and the implicit steps ``engine.slide`` directly). While it moves in the
+``embedded.cover`` and the implicit steps ``implicit.slide`` directly). While it moves in the
 direction s the friction is the constant −s c_f: a step on one side of a reversal is the power
 law's step under the input a_in − s c_f (:func:`moving_input`), and the friction's work per
 unit inertia is c_f |Δφ| = s c_f (φ₁ − φ₀) (:func:`friction_work`); every family takes these
@@ -27,17 +27,19 @@ tuple out, no exception on its path: :func:`rest_direction`, :func:`rest_step`,
 :func:`creep_state`, :func:`settle_shift`,
 :func:`friction_step`, :func:`stuck`): the Stepper's careful path calls them in Python
 (``split.py``, ``engine.py``), and the compiled sweep's careful step calls the very same functions
-compiled by numba (``compiled_careful.py``). :func:`creep` and :func:`creep_speed` are their
+compiled by numba (``careful.py``). :func:`creep` and :func:`creep_speed` are their
 forms on a :class:`~pendulum_sim.core.problem.Problem`.
 """
 from __future__ import annotations
 
 import math
+import types
+from math import copysign
 from typing import Any
 
 import numpy as np
 
-from .law import compile_laws
+from .law import VECTOR_ENV, compile_laws
 from .model import coulomb_level
 from .problem import Problem
 
@@ -47,12 +49,19 @@ CREEP_RELAX = 0.01
 StepResult = tuple[float, float, float]
 
 
-def moving_input(ain: float, sign: float, cf: float) -> float:
+def moving_input(ain: Any, sign: Any, cf: Any) -> Any:
     """Return the input a_in − s c_f a motion in the direction ``sign`` feels (c_f = ``cf``).
 
-    ``ain`` itself, to the bit, without friction (c_f = 0).
+    ``ain`` itself, to the bit, without friction (c_f = 0): copysign(0, s) + 0.0 is +0.0 for
+    either sign, and a_in − (+0.0) is a_in, a zero's sign kept. Without a branch, so that the
+    numpy sweep takes the same code over arrays (:data:`moving_inputs`).
     """
-    return ain if cf == 0.0 else ain - math.copysign(cf, sign)
+    return ain - (copysign(cf, sign) + 0.0)
+
+
+moving_inputs = types.FunctionType(moving_input.__code__, dict(VECTOR_ENV), 'moving_inputs')
+"""``moving_inputs(ain, sign, cf)``: :func:`moving_input`'s code over numpy arrays (numpy's
+copysign), the moving input of the numpy sweep's pendulums."""
 
 
 def friction_work(cf: float, sign: float, p0: float, p1: float) -> float:
@@ -234,7 +243,7 @@ def friction_step(branch: Any, laws: Any, p: float, v: float, h: float, ain: flo
     near-Coulomb law may creep (``creeps``: guarded explicit steps), :func:`creep_state`.
     ``taken`` is False (the state unchanged) where neither applies: the step is then the
     guard's. ``Engine.careful`` calls it first, in Python, and the compiled sweep's careful
-    step (``compiled_careful.py``) compiled. ``cf`` is the friction c_f beside the law.
+    step (``careful.py``) compiled. ``cf`` is the friction c_f beside the law.
     """
     if coulomb and v == 0.0:
         p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n, cf)
@@ -252,5 +261,5 @@ def creep(prob: Problem, p: float, v: float, h: float, ain: float) -> StepResult
 
 
 __all__ = ['CREEP_RELAX', 'TINY', 'creep', 'creep_rate', 'creep_speed', 'creep_state',
-           'friction_step', 'friction_work', 'moving_input', 'rest_direction', 'rest_step',
-           'settle_shift', 'stuck']
+           'friction_step', 'friction_work', 'moving_input', 'moving_inputs', 'rest_direction',
+           'rest_step', 'settle_shift', 'stuck']

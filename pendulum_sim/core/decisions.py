@@ -17,10 +17,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .codegen import define
-from .explicit import step_source, step_source_with_n
-from .law import SCALAR_ENV, VECTOR_ENV, damping_expression, laws_source, power_source, whole
-from .model import smooth_law
+from .codegen import body_of, define, fill
+from .explicit import step_source
+from .law import SCALAR_ENV, damping_expression, power_source
 from .tableaus import DOP853, Tableau
 
 ENERGY_TOL = 1e-12
@@ -31,16 +30,15 @@ this relative size (of E/I + ω0²) is a defect and the step is redone implicitl
 CROSS_SRC = '(v1 * v < 0.0) | ((a0 * v < 0.0) & (abs(v) <= h * abs(a0)))'
 NEAR_SRC = 'abs(v) < reach * abs(a0)'
 REVERSAL_SRC = f'{CROSS_SRC} | ({NEAR_SRC})'
-STIFF_SRC = '(abs(v) > v_acc) & (abs(a0) > 0.5 * gamma * ({power}))'
 ENERGY_SRC = '0.5 * v * v + 2.0 * w2 * s * s'
 ROSE_SRC = 'e1 > e0 + ENERGY_TOL * (e0 + w2)'
 """The fast path's decisions as source text, written once: compiled into the functions below
 (which work on floats and numpy arrays: ``sweep`` and the careful path use them) and inlined
 as they stand (``&`` and ``|`` take Python's and numba's bools as numpy's, every operand in
 parentheses) into the Stepper's generated fast step
-(:func:`compile_fast_step`) and the compiled sweep's run (:func:`kernel_source`).
-``STIFF_SRC`` holds the damping's |φ'|^n as ``{power}``: :func:`stiff_source` fills it in
-with the law's one power rule (``law.power_source``)."""
+(:func:`compile_fast_step`) and the compiled sweep's run (:func:`kernel_source`). The
+stiff-transient test is a function (:func:`stiff_transient`), which the generated texts call
+(:func:`stiff_source`)."""
 
 ENERGY_KEPT_SRC = """\
 k_dl = 0.5 * (p1 - p0)
@@ -82,7 +80,7 @@ def reversal_suspect(v: Any, v1: Any, a0: Any, h: float, reach: Any = 0.0) -> An
 STIFF_K = 100.0
 """For n > 1: a plain step's error in a damping-dominated transient, relative to its error on
 the smooth oscillation, is about γ⁴ |φ'|^(4n−3) / (n ω_r⁵) (ω_r = max(ω0, 1 s⁻¹)); above
-this factor the step is taken by error-controlled substeps instead (:meth:`Engine.stiff`)."""
+this factor the step is taken by error-controlled substeps instead (``stiff.stiff_cover``)."""
 
 STIFF_TOL = 1.0
 """Local tolerance of the error-controlled substeps: STIFF_TOL (h ω_r)⁴ in rad and rad/s, so
@@ -111,33 +109,27 @@ def accuracy_speed(gamma: float, n: float, omega0: float) -> float:
     return math.exp(min(log_v, 700.0))
 
 
-def stiff_source(n: float) -> str:
-    """Return the stiff-transient test for the exponent ``n`` as source (:data:`STIFF_SRC`).
-
-    |φ'|^n is the damping law's power (``law.power_source``): multiplications for a whole n,
-    ``sqrt`` for 0.5, ``abs(v) ** n`` for every other exponent (one text for all of those).
-    """
-    return STIFF_SRC.format(power=power_source(n, 'n'))
-
-
-@functools.lru_cache(maxsize=256)
-def _stiff(n: float, vector: bool) -> Any:
-    env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV)
-    return define(f'def f(v, a0, gamma, n, v_acc):\n    return {stiff_source(n)}\n', 'f', env,
-                  '<decision>')
-
-
-def stiff_transient(v: Any, a0: Any, gamma: Any, n: Any, v_acc: Any,
-                    text: float | None = None) -> Any:
+def stiff_transient(speed: Any, a0: Any, gamma: Any, power: Any, v_acc: Any) -> Any:
     """Return where a step starts in a damping-dominated transient too fast for a plain step.
 
-    Above :func:`accuracy_speed` and with the net acceleration at least half the damping
-    γ|φ'|^n (the damping is not balanced by gravity and input, as it is in a creep;
-    :func:`stiff_source`). ``v`` a float or a numpy array, the others alike or floats; ``n``
-    an array of exponents that share one text needs ``text``, one of them (whose text it is).
+    Above the accuracy speed ``v_acc`` (:func:`accuracy_speed`) and with the net acceleration
+    φ''₀ = ``a0`` at least half the damping γ|φ'|^n (the damping is not balanced by gravity and
+    input, as it is in a creep). ``speed`` is |φ'| and ``power`` |φ'|^n by the law's power rule
+    (``law.power_source`` in generated text, ``law.power_formula`` for a run-time n). The rule,
+    written once: floats or numpy arrays, and compiled by numba; the texts of the fast path
+    call it only above ``v_acc``, so that the power is not taken below it (:func:`stiff_source`).
     """
-    return _stiff(n if text is None else text, isinstance(v, np.ndarray))(v, a0, gamma, n,
-                                                                         v_acc)
+    return (speed > v_acc) & (abs(a0) > 0.5 * gamma * power)
+
+
+def stiff_source(n: float) -> str:
+    """Return the call of :func:`stiff_transient` for the exponent ``n`` as generated source.
+
+    Reads ``v``, ``a0``, ``gamma``, ``n``, ``v_acc``; |φ'|^n is the damping law's power
+    (``law.power_source``): multiplications for a whole n, ``sqrt`` for 0.5, ``abs(v) ** n``
+    for every other exponent (one text for all of those).
+    """
+    return f'stiff_transient(abs(v), a0, gamma, {power_source(n, "n")}, v_acc)'
 
 
 def specific_energy(v: Any, sin_half: Any, w2: Any) -> Any:
@@ -207,6 +199,64 @@ def kept_stage(tableau: Tableau) -> int | None:
     return min(cands, key=lambda i: (abs(float(A[i] @ C) - 0.25), i))
 
 
+FAST_STEP_TEMPLATE = """\
+def fast(p0, v0, h, ain, e0):
+    $plain_step
+    if not (-INF < p1 < INF and -INF < v1 < INF):
+        return None
+    v = v0
+    a0 = a_0
+    $reversal_test
+    $stiff_test
+    $energy_test
+"""
+"""The Stepper's fast step (:func:`compile_fast_step`): the plain step, then the decisions."""
+
+REFUSE_TEMPLATE = """\
+if $test:
+    return None
+"""
+"""A decision of :data:`FAST_STEP_TEMPLATE` that refuses the step."""
+
+FAST_ENERGY_TEMPLATE = """\
+if ain != 0.0:
+    return p1, v1, w, NAN
+if e0 != e0:
+    s = sin(0.5 * p0)
+    e0 = $energy
+v = v1
+s = sin(0.5 * p1)
+e1 = $energy
+if $rose:
+    return None
+return p1, v1, w, e1
+"""
+"""The energy test of :data:`FAST_STEP_TEMPLATE` (without input), E/I returned for the next."""
+
+
+@functools.lru_cache(maxsize=256)
+def fast_step_source(tableau: Tableau, n: float, nonsmooth: bool, reach: float, v_acc: float,
+                     check_energy: bool) -> str:
+    """Return the text of :func:`compile_fast_step`: :data:`FAST_STEP_TEMPLATE` filled.
+
+    The plain step of ``explicit.step_source`` inlined, the reversal test where the law is not
+    smooth (:data:`REVERSAL_SRC`, or the crossing test alone without grading), the
+    stiff-transient test where a transient can be stiff (:func:`stiff_source`, above
+    ``v_acc`` only) and the energy test where it applies (:data:`FAST_ENERGY_TEMPLATE`).
+    """
+    reversal = ''
+    if nonsmooth:
+        reversal = fill(REFUSE_TEMPLATE, test=REVERSAL_SRC if reach > 0.0 else CROSS_SRC)
+    stiff = ''
+    if math.isfinite(v_acc):
+        stiff = fill(REFUSE_TEMPLATE, test=f'abs(v) > v_acc and {stiff_source(n)}')
+    energy = (fill(FAST_ENERGY_TEMPLATE, energy=ENERGY_SRC, rose=ROSE_SRC) if check_energy
+              else 'return p1, v1, w, NAN')
+    return fill(FAST_STEP_TEMPLATE,
+                plain_step=body_of(step_source(tableau, damping_expression(n, scalar=True))),
+                reversal_test=reversal, stiff_test=stiff, energy_test=energy)
+
+
 @functools.lru_cache(maxsize=256)
 def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float, v_acc: float,
                       check_energy: bool, w2: float, gamma: float) -> Any:
@@ -215,209 +265,15 @@ def compile_fast_step(tableau: Tableau, n: float, nonsmooth: bool, reach: float,
     ``fast(p0, v0, h, ain, e0)`` (ω0² = ``w2`` and γ = ``gamma`` bound in) returns
     ``(φ₁, φ'₁, w, E₁/I)`` when the engine's decisions accept the plain step (E₁/I is NaN
     where the energy check does not apply), and None when the careful path must take it;
-    ``e0`` is E/I at the start or NaN if unknown.
-    The step is ``explicit.step_source`` and the decisions are the ``*_SRC`` texts above, so
-    this is the same code ``sweep`` runs on arrays, without the calls between its parts.
+    ``e0`` is E/I at the start or NaN if unknown. The text is :func:`fast_step_source`: the
+    step is ``explicit.step_source`` and the decisions are the texts above, so this is the same
+    code ``sweep`` runs on arrays, without the calls between its parts.
     """
-    body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
-    lines = ['def fast(p0, v0, h, ain, e0):', *body,
-             '    if not (-INF < p1 < INF and -INF < v1 < INF):', '        return None',
-             '    v = v0', '    a0 = a_0']
-    if nonsmooth:
-        test = REVERSAL_SRC if reach > 0.0 else CROSS_SRC
-        lines += [f'    if {test}:', '        return None']
-    if math.isfinite(v_acc):
-        lines += [f'    if abs(v) > v_acc and {stiff_source(n)}:', '        return None']
-    if check_energy:
-        lines += ['    if ain != 0.0:', '        return p1, v1, w, NAN',
-                  '    if e0 != e0:', '        s = sin(0.5 * p0)',
-                  f'        e0 = {ENERGY_SRC}',
-                  '    v = v1', '    s = sin(0.5 * p1)', f'    e1 = {ENERGY_SRC}',
-                  f'    if {ROSE_SRC}:', '        return None', '    return p1, v1, w, e1']
-    else:
-        lines += ['    return p1, v1, w, NAN']
     env: dict[str, object] = dict(SCALAR_ENV, n=n, reach=reach, v_acc=v_acc, INF=math.inf,
-                                  NAN=math.nan, ENERGY_TOL=ENERGY_TOL, w2=w2, gamma=gamma)
-    return define('\n'.join(lines) + '\n', 'fast', env, f'<fast {tableau.name}>')
-
-
-KERNEL_ARGS = ('P', 'V', 'E', 'K', 'IDX', 'h', 'count', 'AIN', 'W2', 'GAMMA', 'CF', 'NN',
-               'LO', 'HI', 'REACH', 'V_ACC', 'CHECK', 'NONSMOOTH', 'COULOMB', 'VMAX', 'base',
-               'every', 'total', 'RP', 'RV', 'COUNTS', 'CAREFUL', 'GUARD')
-"""The arguments of a compiled sweep run (:func:`kernel_source`), arrays in capitals."""
-
-
-def record_row(done: int, every: int, total: int, rows: int) -> int:
-    """Return the row of the recording that holds the state after step ``done``, or −1.
-
-    Row 0 is the start; a state is recorded every ``every`` steps and after the last step
-    ``total`` (in the last of ``rows`` rows); ``every`` = 0 records nothing.
-    """
-    if every <= 0:
-        return -1
-    if done % every == 0:
-        return done // every
-    if done == total:
-        return rows - 1
-    return -1
-
-
-def next_record(done: int, every: int, total: int) -> int:
-    """Return the first step after ``done`` whose state :func:`record_row` records, or −1.
-
-    The compiled run keeps it beside its step counter, so that a step that records nothing
-    costs one comparison (no division).
-    """
-    if every <= 0 or done >= total:
-        return -1
-    return min((done // every + 1) * every, total)
-
-
-@functools.lru_cache(maxsize=256)
-def kernel_source(tableau: Tableau, n: float, friction: bool = False) -> str:
-    """Return the sweep's run of many steps for one exponent, over arrays, as source text.
-
-    ``kernel(P, V, E, K, IDX, h, count, AIN, W2, GAMMA, CF, NN, LO, HI, REACH, V_ACC, CHECK,
-    NONSMOOTH, COULOMB, VMAX, base, every, total, RP, RV, COUNTS, CAREFUL, GUARD)``
-    advances every pendulum ``i = IDX[j]`` (in parallel over j where compiled with
-    ``prange``), its state ``(P[i], V[i], E[i])`` held in registers, from step ``K[i]`` to
-    step ``count`` of size h, under the input ``AIN[0, i]`` (shape (1, N)) or, where ``AIN``
-    is a schedule of shape (steps, N), ``AIN[base + k, i]`` in the step after ``base + k``.
-    Each step is the plain step of ``explicit.step_source`` where the
-    fast-path decisions accept it: the guard's range ``LO[i] <= |φ'| <= HI[i]``, a finite
-    result, not a Coulomb pendulum at rest, the reversal test where ``NONSMOOTH[i]``, the
-    stiff-transient test and, where ``CHECK[i]``, the energy test (E/I kept in ``E[i]``;
-    where the method has a stage for it, :func:`kept_stage`, the sound pre-test
-    :data:`ENERGY_KEPT_SRC` first, the energy test only where it cannot decide, and E/I made
-    from the state where it is read after steps the pre-test accepted: the same floats); a
-    text that serves one special exponent leaves out the tests its pendulums cannot fail.
-    A refused step is taken, where ``CAREFUL[i]``, by ``careful_step`` (the careful path,
-    ``compiled_careful.py``: Coulomb friction at rest, the near-Coulomb creep, the guard's
-    substeps, the reversal split, the fallback, the stiff transient's error-controlled substeps
-    (its test's |φ'|^n by ``law.power_formula``, the rule :func:`stiff_source` spells) and the
-    energy redo; what it did counted in the row ``COUNTS[i]`` as ``compiled_careful.COUNTERS``
-    orders them, ``GUARD`` the guard's ``StabilityGuard.constants``). The run stops at a step
-    neither takes (``K[i]`` is then the step ``Engine.careful`` must take) or after a step that
-    leaves |φ'| above ``VMAX[i]`` (the run's speed bound; the caller refuses to go on). The state
-    after step ``base + k`` is written to the row :func:`record_row` gives of ``RP`` and ``RV``
-    (the next such step kept by :func:`next_record`).
-    The texts are the ``*_SRC`` above, as in :func:`compile_fast_step`;
-    the exponent is read per pendulum (``NN[i]``), so one text serves every exponent whose law
-    it spells alike, in one call.
-    With ``friction`` the text serves pendulums with a Coulomb friction c_f = ``CF[i]`` beside
-    the law: a moving step takes it as the input ``coulomb.moving_input`` of its direction
-    (``a_in − copysign(c_f, φ'₀)``, the numpy sweep's floats), and the Coulomb rest and the
-    reversal test are kept whatever the exponent (friction makes every law stick and kink at
-    φ' = 0); the careful step gets the input a_in itself and c_f. Without it (``CF`` all
-    zero) the text is as it was, the friction never read.
-    The source also defines ``plain`` and ``branch``, the scalar steps (plain and branch law)
-    with the exponent an argument (``explicit.step_source_with_n``), ``laws``, the two laws
-    themselves (``law.laws_source``), and ``pair_plain`` and ``pair_branch``, the steps of
-    STIFF_PAIR with error estimate (``stiff.stiff_pair``), which ``careful_step`` takes as
-    arguments (compiled, as first-class functions: ``jit.first_class_twin`` compiles
-    ``careful_step`` once for every text).
-    """
-    body = step_source(tableau, damping_expression(n, scalar=True)).splitlines()[1:-1]
-    stiff = stiff_source(n)
-    # A text serves its exponent alone where the law spells it specially (law.power_source):
-    # a test that cannot refuse a step of that exponent is left out (Problem: Coulomb only at
-    # n = 0, no kink for odd whole n, no stiff transient for n <= 1).
-    special = n in (0.0, 0.5) or whole(n)
-    tests = []
-    if friction or not special or n == 0.0:
-        tests += ['            if ok and coulomb and v == 0.0:', '                ok = False']
-    if friction or not (special and smooth_law(n)):
-        tests += [f'            if ok and nonsmooth and ({REVERSAL_SRC}):',
-                  '                ok = False']
-    if not special or n > 1.0:
-        tests += [f'            if ok and av > v_acc and {stiff}:', '                ok = False']
-    pad = '        '
-    exact = ['e0 = e', 'v = v1', 's = sin(0.5 * p1)', f'e1 = {ENERGY_SRC}',
-             f'if {ROSE_SRC}:', '    ok = False', 'else:', '    e = e1']
-    stage = kept_stage(tableau)
-    if stage is None:
-        energy = [' ' * 16 + line for line in exact]
-        renew = [' ' * 20 + line for line in ('v = v1', 's = sin(0.5 * p1)',
-                                               f'e = {ENERGY_SRC}')]
-        fresh = []
-    else:
-        # E/I is carried lazily: a step the pre-test accepts leaves it stale, and it is made
-        # from (φ₀, φ'₀) by the same formula where it is read (the same float as carried).
-        make = ['if stale:', '    v = v0', '    s = sin(0.5 * p0)', f'    e = {ENERGY_SRC}',
-                '    stale = False']
-        energy = [' ' * 16 + line for line in (
-            *energy_kept_source(f'p_{stage}').splitlines(), 'if kept:', '    stale = True',
-            'else:', *('    ' + x for x in (*make, *exact)))]
-        renew = [' ' * 20 + 'stale = True']
-        fresh = [' ' * 8 + line for line in make]
-    lines = [*step_source_with_n(tableau, n, False, 'plain').splitlines(),
-             *step_source_with_n(tableau, n, True, 'branch').splitlines(),
-             *laws_source(n).splitlines(),
-             *step_source_with_n(STIFF_PAIR, n, False, 'pair_plain', True).splitlines(),
-             *step_source_with_n(STIFF_PAIR, n, True, 'pair_branch', True).splitlines(),
-             f'def kernel({", ".join(KERNEL_ARGS)}):',
-             '    rows = RP.shape[0]',
-             # AIN is (1, N), one input per pendulum, or a schedule (steps, N): row base + k
-             # is the input of step base + k + 1 of the stretch.
-             '    rs = 1 if AIN.shape[0] > 1 else 0',
-             '    for j in prange(IDX.shape[0]):',
-             '        i = IDX[j]',
-             '        w2 = W2[i]', '        gamma = GAMMA[i]',
-             *(['        cf = CF[i]'] if friction else []),
-             '        lo = LO[i]', '        hi = HI[i]', '        reach = REACH[i]',
-             '        v_acc = V_ACC[i]', '        check = CHECK[i]',
-             '        nonsmooth = NONSMOOTH[i]', '        coulomb = COULOMB[i]',
-             '        vmax = VMAX[i]', '        n = NN[i]', '        use_careful = CAREFUL[i]',
-             '        p0 = P[i]', '        v0 = V[i]', '        e = E[i]', '        k = K[i]',
-             '        stale = False',
-             '        nxt = next_record(base + k, every, total)',
-             '        while k < count:',
-             '            a_in = AIN[rs * (base + k), i]',
-             pad + ('    ain = a_in if cf == 0.0 else a_in - copysign(cf, v0)' if friction
-                    else '    ain = a_in'),
-             # Outside the guard's range the run refuses the step before taking it: the
-             # careful step then takes its plain step itself where it needs one.
-             '            av = abs(v0)', '            known = lo <= av <= hi',
-             '            if known:',
-             *(pad + '    ' + line for line in body),
-             '                v = v0', '                a0 = a_0',
-             '                ok = -INF < p1 < INF and -INF < v1 < INF',
-             *('    ' + line for line in tests),
-             '                if ok and check:', *('    ' + line for line in energy),
-             '            else:', '                ok = False', '                p1 = 0.0',
-             '                v1 = 0.0', '                w = 0.0', '                a0 = 0.0',
-             '            if not ok:',
-             '                if not use_careful:', '                    break',
-             '                done, p1, v1 = careful_step(',
-             '                    plain, branch, laws, pair_plain, pair_branch, p0, v0, h, a_in,',
-             '                    w2, gamma, n, ' + ('cf' if friction else '0.0')
-             + ', v_acc, reach, check, nonsmooth, coulomb,',
-             '                    GUARD, COUNTS[i], known, p1, v1, w, a0, lo, hi)',
-             '                if not done:', '                    break',
-             '                if check:', *renew,
-             '            p0 = p1', '            v0 = v1', '            k += 1',
-             '            if base + k == nxt:',
-             '                r = record_row(nxt, every, total, rows)',
-             '                RP[r, i] = p0', '                RV[r, i] = v0',
-             '                nxt = next_record(nxt, every, total)',
-             '            if not abs(v0) <= vmax:', '                break',
-             *fresh,
-             '        P[i] = p0', '        V[i] = v0', '        E[i] = e', '        K[i] = k']
-    return '\n'.join(lines) + '\n'
-
-
-def compile_kernel(tableau: Tableau, n: float, careful_step: Any, friction: bool = False) -> Any:
-    """Return the Python function of :func:`kernel_source` (``jit.compile_kernel`` compiles it).
-
-    ``careful_step`` is ``compiled_careful.careful_step``; ``friction`` as for
-    :func:`kernel_source`. Run as Python, ``prange`` is
-    ``range``: the same steps, one pendulum after another.
-    """
-    env: dict[str, object] = dict(SCALAR_ENV, INF=math.inf, ENERGY_TOL=ENERGY_TOL,
-                                  prange=range, record_row=record_row,
-                                  next_record=next_record, careful_step=careful_step)
-    return define(kernel_source(tableau, n, friction), 'kernel', env,
-                  f'<kernel {tableau.name}>')
+                                  NAN=math.nan, ENERGY_TOL=ENERGY_TOL, w2=w2, gamma=gamma,
+                                  stiff_transient=stiff_transient)
+    return define(fast_step_source(tableau, n, nonsmooth, reach, v_acc, check_energy), 'fast',
+                  env, f'<fast {tableau.name}>')
 
 
 def ain_bound(ain: float) -> float:
@@ -437,27 +293,25 @@ __all__ = [
     'ENERGY_KEPT_SRC',
     'ENERGY_SRC',
     'ENERGY_TOL',
-    'KERNEL_ARGS',
+    'FAST_ENERGY_TEMPLATE',
+    'FAST_STEP_TEMPLATE',
     'NEAR_SRC',
+    'REFUSE_TEMPLATE',
     'REVERSAL_SRC',
     'ROSE_SRC',
     'STIFF_K',
     'STIFF_MAX_TRIALS',
     'STIFF_PAIR',
-    'STIFF_SRC',
     'STIFF_TOL',
     'accuracy_speed',
     'ain_bound',
     'ain_bounds',
     'compile_fast_step',
-    'compile_kernel',
     'energy_kept',
     'energy_kept_source',
     'energy_rose',
+    'fast_step_source',
     'kept_stage',
-    'kernel_source',
-    'next_record',
-    'record_row',
     'reference_rate',
     'reversal_suspect',
     'specific_energy',

@@ -6,9 +6,9 @@ that rose it is projected (Hairer, Lubich and Wanner, Geometric Numerical Integr
 φ₁ is kept and |φ'₁| rescaled onto the energy E₀ − W the step itself says was dissipated, the
 energy balance the exact flow obeys.
 
-Written to compile (numbers in, numbers out): ``Engine.redo_energy`` and the compiled sweep's
-careful step (``compiled_careful.py``) run these functions; the caller checks the fallback's
-work bound first (``implicit.fallback_refused``).
+Written to compile (numbers in, numbers out): the careful step (``careful.careful_settle``)
+runs these functions as Python and compiled; it checks the fallback's work bound first
+(``implicit.fallback_refused``).
 """
 from __future__ import annotations
 

@@ -19,11 +19,19 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable
-from typing import Any
 
 from . import embedded
-from .coulomb import friction_work, moving_input, rest_direction, stuck
+from .careful import (
+    NOT_FINITE,
+    NOT_TRIED,
+    OVERFLOWED,
+    FallbackDiverged,
+    LawSteps,
+    Pendulum,
+    careful_settle,
+    careful_step,
+)
+from .coulomb import stuck
 from .decisions import (
     ENERGY_TOL,
     accuracy_speed,
@@ -34,83 +42,21 @@ from .decisions import (
     specific_energy,
     stiff_transient,
 )
-from .dirk import stage_law
-from .energy_redo import redo
 from .errors import IntegratorError
-from .explicit import ErrStepFn
-from .guard import FALLBACK, GuardStats, StabilityGuard, safe_speed_range
-from .implicit import dirk_safe, fallback, fallback_refused
-from .law import DampingFn
+from .explicit import ErrStepFn, compile_step_with_n
+from .guard import GuardStats, StabilityGuard, safe_speed_range
+from .implicit import dirk_safe, fallback_refused, moving_fallback, slide
+from .law import DampingFn, compile_laws
 from .methods import Advance, Method
 from .model import FloatArray, check_speed_ahead, run_speed_limit
 from .problem import Problem
-from .reversal import CUT_ITERATIONS, CUT_TOL, branch_accel, locate_reversal
-from .split import SplitSteps
-from .stiff import OVERFLOW, TO_GUARD, stiff_cover, stiff_pair
+from .stiff import stiff_pair
 from .tableaus import RK4, Tableau
 
 
 @functools.lru_cache(maxsize=64)
 def guard_for(tableau: Tableau) -> StabilityGuard:
     return StabilityGuard(tableau)
-
-
-StepFn = Callable[[float, float, float, float], tuple[float, float, float]]
-"""An implicit step ``(φ, φ', h, a_in) → (φ₁, φ'₁, w)`` that knows only the power law."""
-
-
-def slide(prob: Problem, step: StepFn, p: float, v: float, h: float, ain: float,
-          stats: GuardStats | None = None) -> tuple[float, float, float]:
-    """Take an implicit ``step`` of h with the friction beside the law; return (φ₁, φ'₁, w).
-
-    The implicit family's own DIRK steps (:meth:`Engine.implicit_advance`) and the L-stable
-    fallback (:func:`moving_fallback`) take the friction the way the explicit family's steps
-    do. At rest the rest rule decides (``coulomb.rest_direction``): the joint sticks, or breaks
-    away in the direction of the force. Moving in the direction s, the friction is the input
-    ``coulomb.moving_input`` (constant over a step that does not reverse) and its work
-    ``coulomb.friction_work`` is counted. A step that reverses is split at the reversal
-    (counted in ``stats`` where given), located on the step's own φ'(θh) = 0
-    (``reversal.locate_reversal``, the embedded cover's cut), and the rest of it is taken from
-    rest by the same rule; a break-away that reverses within its step stops again
-    (``coulomb.rest_step``'s rule). Without friction, ``step`` itself.
-    """
-    cf = prob.friction
-    if cf == 0.0:
-        return step(p, v, h, ain)
-    w2, g, n = prob.w2, prob.gamma, prob.n
-    if v == 0.0:
-        sign = rest_direction(p, ain, w2, g, n, cf)
-        if sign == 0.0:
-            return p, 0.0, 0.0
-    else:
-        sign = 1.0 if v > 0.0 else -1.0
-    a = moving_input(ain, sign, cf)
-    p1, v1, w = step(p, v, h, a)
-    if v1 * sign >= 0.0:
-        return p1, v1, w + friction_work(cf, sign, p, p1)
-    if v == 0.0:
-        return p, 0.0, 0.0  # the break-away reversed within the step: it stops again
-
-    def accel(pp: float, vv: float) -> float:
-        return branch_accel(pp, vv, a, sign, g, n, w2)
-
-    th, pm, _, wm = locate_reversal(lambda hh: step(p, v, hh, a), accel, v, v1, accel(p, v),
-                                    accel(p1, v1), h, CUT_TOL, CUT_ITERATIONS)
-    wm += friction_work(cf, sign, p, pm)
-    if stats is not None:
-        stats.reversals += 1
-    p2, v2, w2_ = slide(prob, step, pm, 0.0, (1.0 - th) * h, ain, stats)
-    return p2, v2, wm + w2_
-
-
-def moving_fallback(prob: Problem, p: float, v: float, h: float,
-                    ain: float) -> tuple[float, float, float]:
-    """Return the L-stable fallback's step (``implicit.fallback``) with the friction beside it.
-
-    :func:`slide` over the fallback: the friction of the direction of motion an input, the
-    step split at a reversal, the rest rule at rest. Without friction, ``fallback`` itself.
-    """
-    return slide(prob, functools.partial(fallback, prob), p, v, h, ain)
 
 
 @functools.lru_cache(maxsize=64)
@@ -177,25 +123,30 @@ class Engine:
         fast = self.fast = method.family.fast_path  # plain explicit steps, guarded
         tab = method.tableau
         self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
-        # May creep (``coulomb.py``; not beside a friction); unguarded steps are taken as asked.
-        self.near_coulomb = (0.0 < n < 1.0 and gamma > 0.0 and not friction
-                             and not (fast and not guard))
         self.v_acc = prob.v_acc if guard and fast else math.inf
         # The plain explicit step: the method's own, or RK4 where the method is implicit (used
         # only for a Coulomb break-away, never for the implicit method's own steps).
         self.plain_tableau = tab if isinstance(tab, Tableau) and _explicit(tab) else RK4
-        self.plain = SplitSteps(prob, self.plain_tableau, self.last_resort)
-        self.micro = self.plain.micro
         self.guard = guard_for(tab) if guard and fast else None
         self.unguarded = fast and not guard  # plain explicit steps, as asked
         self.energy_check = energy_check and prob.damped and fast and not friction
         self.damping: DampingFn = prob.damping
         self._ranges: dict[tuple[float, float], tuple[float, float]] = {}
         self.rtol, self.atol = rtol, atol
-        self._stiff_steps: Any = None  # the pair of :meth:`stiff` (stiff_pair), on first use
         self._pair: tuple[ErrStepFn, ErrStepFn] | None = None  # the adaptive method's
         self.check_ahead = AheadCheck(prob, self.unguarded)
-        self._last = (math.nan, math.nan, math.nan)  # (φ₁, φ'₁, E₁/I) of the last energy check
+        # The careful step's generated functions (the exponent an argument; the stiff pair
+        # only where a stiff transient can occur) and what the pendulum fixes for it.
+        plain = self.plain_tableau
+        pair = stiff_pair(n) if math.isfinite(self.v_acc) else (None, None)
+        self.steps = LawSteps(compile_step_with_n(plain, n), compile_step_with_n(plain, n, True),
+                              compile_laws(n), *pair)
+        self.pend = Pendulum(w2, gamma, n, friction, self.v_acc, self.reach, self.energy_check,
+                             self.nonsmooth, self.coulomb, self.guard is not None,
+                             self.guard.constants if self.guard is not None else (), False)
+        # The same fields as plain tuples: the careful step unpacks them by position.
+        self._steps, self._pend = tuple(self.steps), tuple(self.pend)
+        self._last = (math.nan, math.nan, math.nan)  # (φ₁, φ'₁, E₁/I) of the last energy test
 
     def fresh_advance(self) -> Advance:
         """Return this method's :class:`~pendulum_sim.core.methods.Advance` with fresh memory."""
@@ -253,39 +204,43 @@ class Engine:
                 stats: GuardStats) -> tuple[float, float, float]:
         """Take an explicit step of h from (φ, φ') with every safeguard; return (φ₁, φ'₁, w).
 
-        ``w`` is the damping work per unit inertia. Coulomb sticking, the stiff-transient
-        substeps, the guard's substeps or fallback, reversal splitting, the energy redo; a
-        non-finite result is replaced by the fallback's.
+        ``w`` is the damping work per unit inertia. The careful step (``careful.careful_step``)
+        run as Python: Coulomb sticking, the creep, the stiff-transient substeps, the guard's
+        substeps or fallback, reversal splitting, the energy redo. Around it, what Python alone
+        raises: where a power overflowed or a sine met inf (OverflowError, ValueError), the
+        fallback takes the step (:meth:`last_resort`) and the careful step settles its result
+        (``careful.careful_settle``); a result that is not finite is the fallback's as well.
+        What the step did is counted in ``stats`` as it goes (the careful step indexes it by
+        ``careful.COUNTERS`` position), also where it raises.
         """
+        lp, lv, le = self._last
         try:
-            held, p1, v1, w = self.plain.friction(p, v, h, ain, self.near_coulomb)
-            if held:  # Coulomb friction at rest, the near-Coulomb creep
-                pass
-            elif self.guard is None:
-                p1, v1, w = self.micro(p, v, h, ain, stats)
-            elif abs(v) > self.v_acc and not self.cf and stiff_transient(
-                    v, ain - self.damping(v) - self.w2 * math.sin(p), self.gamma, self.n,
-                    self.v_acc):  # beside a friction the guard's substeps take it
-                p1, v1, w = self.stiff(p, v, h, ain, stats)
-            else:
-                p1, v1, w = self.guarded(p, v, h, ain, stats)
+            code, p1, v1, w, e1 = careful_step(self._steps, self._pend, p, v, h, ain,
+                                               le if (p == lp and v == lv) else math.nan,
+                                               NOT_TRIED, stats)
+        except FallbackDiverged as exc:  # the fallback taking the rest of a split step
+            raise self._diverged(exc.p, exc.v) from None
         except IntegratorError:  # a refusal (the fallback's work bound), not an overflow
             raise
         except (OverflowError, ValueError):  # |x|^n beyond float64, sin(inf)
+            code = OVERFLOWED
+        if code == OVERFLOWED:
             if self.unguarded:
                 raise self._diverged(p, v) from None
             stats.fallbacks += 1
             p1, v1, w = self.last_resort(p, v, h, ain)
-        if self.energy_check and ain == 0.0:
-            w2 = self.w2
-            lp, lv, le = self._last
-            e0 = le if (p == lp and v == lv) else specific_energy(v, math.sin(0.5 * p), w2)
-            e1 = specific_energy(v1, math.sin(0.5 * p1), w2)
-            if energy_rose(e0, e1, w2):
-                p1, v1, w = self.redo_energy(p, v, h, e0, stats)
-            else:
-                self._last = (p1, v1, e1)
-        return self._settle(p, v, h, ain, p1, v1, w, stats)
+            code, p1, v1, w, e1 = careful_settle(self._pend, p, v, h, ain, p1, v1, w,
+                                                 math.nan, stats)
+        if code == NOT_FINITE:
+            if self.unguarded:  # plain steps as asked: a divergence is the answer
+                raise self._diverged(p, v)
+            stats.fallbacks += 1
+            p1, v1, w = self.last_resort(p, v, h, ain)
+            if stuck(self.coulomb, v, v1):
+                stats.sticks += 1
+        elif e1 == e1:
+            self._last = (p1, v1, e1)
+        return p1, v1, w
 
     def implicit_advance(self, p: float, v: float, h: float, ain: float,
                          stats: GuardStats) -> tuple[float, float, float]:
@@ -308,32 +263,6 @@ class Engine:
             stats.sticks += 1
         return p1, v1, w
 
-    def stiff(self, p: float, v: float, h: float, ain: float,
-              stats: GuardStats) -> tuple[float, float, float]:
-        """Cover a step in a damping-dominated transient with error-controlled substeps.
-
-        ``stiff.stiff_cover``: the Dormand-Prince 8(5,3) pair (``dop853``) at the local
-        tolerance STIFF_TOL (h ω_r)⁴: its substeps grow with the transient's own time scale (a
-        handful per decade of it), so the transient is resolved, not merely kept stable, and
-        its error falls at order ≥ 4 as h falls; at such tolerances the order-8 pair needs about
-        a third of the trials of the order-5 one (13 against 34 µs a call measured on an n = 5
-        kick). Beyond STIFF_MAX_TRIALS trials (or below the smallest substep) the guard takes
-        the step; a damping slope beyond float64 raises OverflowError (the fallback takes it).
-        """
-        if self._stiff_steps is None:
-            self._stiff_steps = stiff_pair(self.n)
-        pair_plain, pair_branch = self._stiff_steps
-        code, p1, v1, w, subs, turns = stiff_cover(pair_plain, pair_branch, p, v, h, ain,
-                                                   self.w2, self.gamma, self.n, self.nonsmooth,
-                                                   False)
-        stats.substeps += subs
-        stats.reversals += turns
-        if code == OVERFLOW:  # the guard's fallback takes the step (Engine.careful)
-            raise OverflowError('damping slope beyond float64')
-        if code == TO_GUARD:
-            return self.guarded(p, v, h, ain, stats)
-        return p1, v1, w
-
     def _diverged(self, p: float, v: float) -> IntegratorError:
         if self.unguarded:
             return IntegratorError(
@@ -353,50 +282,6 @@ class Engine:
         except (OverflowError, ValueError):
             # Reachable only once the state itself has blown up.
             raise self._diverged(p, v) from None
-
-    def guarded(self, p: float, v: float, h: float, ain: float,
-                stats: GuardStats) -> tuple[float, float, float]:
-        """Cover h with the fewest stable substeps, re-judged after each one.
-
-        The stiffness of n ≠ 1 damping moves with the velocity, so after each substep the
-        guard looks again at what is left of the step; beyond its cap the fallback takes it.
-        """
-        assert self.guard is not None
-        w2 = self.w2
-        force = abs(ain) + self.cf + w2
-        left, w, taken = h, 0.0, 0
-        while left > 0.0:
-            m = self.guard.substeps(left, w2, self.gamma, self.n, p, v, force,
-                                    abs(moving_input(ain, v, self.cf) - w2 * math.sin(p)))
-            if m == FALLBACK:
-                stats.fallbacks += 1
-                p, v, wi = moving_fallback(self.problem, p, v, left, ain)
-                stats.substeps += max(taken - 1, 0)
-                return p, v, w + wi
-            hh = left / m
-            p, v, wi = self.micro(p, v, hh, ain, stats)
-            w += wi
-            taken += 1
-            left = 0.0 if m == 1 else left - hh
-        stats.substeps += taken - 1
-        return p, v, w
-
-    def redo_energy(self, p: float, v: float, h: float, e0: float,
-                    stats: GuardStats) -> tuple[float, float, float]:
-        """Redo a step whose energy rose without input; project if the implicit one rose too.
-
-        ``energy_redo.redo``: the fallback's step, projected (Hairer, Lubich and Wanner,
-        Geometric Numerical Integration, IV.4) onto the energy E₀ − W the step itself says
-        was dissipated where it rose as well.
-        """
-        prob = self.problem
-        stats.energy_rejections += 1
-        if fallback_refused(v, h, 0.0, prob.w2, prob.omega0):
-            fallback(prob, p, v, h, 0.0)  # raises the refusal
-        p1, v1, w, projected = redo(p, v, h, e0, prob.w2, prob.gamma, prob.n, prob.omega0,
-                                    stage_law(prob.n))
-        stats.projections += projected
-        return p1, v1, w
 
 
 __all__ = [

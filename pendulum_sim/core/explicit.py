@@ -141,9 +141,8 @@ def compile_step_with_n(tableau: Tableau, n: float, branch: bool = False,
                         with_error: bool = False, vector: bool = False) -> Any:
     """Return :func:`step_source_with_n`'s step for ``n`` (scalar, ``math``).
 
-    ``vector`` defines the same text with numpy: passed ``n`` as a ``law.ExactExponent`` it
-    takes the scalar step's floats over arrays (the careful path batched,
-    ``batched_careful.py``).
+    ``vector`` defines the same text with numpy (numpy's power: the numpy sweep's plain step for
+    a group of exponents one text serves, the exponent a column).
     """
     src = step_source_with_n(tableau, n, branch, 'step', with_error)
     env: dict[str, object] = dict(VECTOR_ENV if vector else SCALAR_ENV)

@@ -91,6 +91,21 @@ class GuardStats:
         for k, v in other.as_dict().items():
             setattr(self, k, getattr(self, k) + v)
 
+    def __getitem__(self, k: int) -> int:
+        """Return the careful step's counter ``k`` (:data:`CAREFUL_COUNTERS`' position)."""
+        value: int = getattr(self, CAREFUL_COUNTERS[k])
+        return value
+
+    def __setitem__(self, k: int, value: int) -> None:
+        """Set the careful step's counter ``k``: the careful step counts into these as Python."""
+        setattr(self, CAREFUL_COUNTERS[k], value)
+
+
+CAREFUL_COUNTERS = ('substeps', 'fallbacks', 'reversals', 'sticks', 'energy_rejections',
+                    'projections')
+"""The counters the careful step adds to, by position (``careful.COUNTERS``): a
+:class:`GuardStats` in Python, a row of an array compiled."""
+
 
 @functools.cache
 def half_disk_radius(tableau: Tableau, samples: int = 721) -> float:
@@ -219,7 +234,7 @@ def substep_count(h: float, omega0_sq: float, gamma: float, n: float, phi: float
 
     Written to compile (numbers in, an int out, no exception raised for an overflow: the
     compiled form reads ``terminal_formula`` and ``law.slope_formula``, which give inf), so
-    that ``Engine.guarded`` and the compiled sweep's careful step run this one decision.
+    that the careful step (``careful.guarded``), in Python and compiled, runs this one decision.
     ``consts`` is :attr:`StabilityGuard.constants`.
     """
     disk, real, max_angle, cap = consts[0], consts[1], consts[2], int(consts[4])
@@ -273,37 +288,11 @@ def safe_speed_range(guard: StabilityGuard, omega0_sq: float, gamma: float, n: f
                      ain_bound: float) -> tuple[float, float]:
     """Return (lo, hi): one plain step of h is safe for every state with lo <= |φ'| <= hi.
 
-    Safe means the cheap sufficient test of the module docstring holds at the speed the step can
-    reach: ``h (d(speed) + ω0) <= r`` and ``h · speed <= MAX_ANGLE``, with ``speed = |φ'| +
-    margin`` and the margin the speed an input acceleration up to ``ain_bound`` plus gravity can
-    add in h (:func:`max_speed`). For n > 1 the slope d = γ n s^(n−1) grows with the speed, so
-    the range has an upper end; for n < 1 it falls, so it has a lower end (the slowest speed in
-    the step is |φ'| − h · force); for n = 0 and n = 1 it is constant. This is the guard's one
-    fast-path decision: ``Stepper`` compares a float with it, ``sweep`` an array.
+    The range of one pendulum: :func:`safe_speed_ranges`, the guard's one fast-path decision,
+    for an array of one (``Engine.fast_range`` keeps it per step length and torque octave).
     """
-    force = ain_bound + omega0_sq
-    omega0 = math.sqrt(omega0_sq)
-    margin = max_speed(gamma, n, 0.0, h, force)
-    hi = guard.max_angle / h - margin
-    room = guard.disk / h - omega0  # the largest slope d the step tolerates
-    empty = (math.inf, -math.inf)
-    if room < 0.0 or hi < 0.0:
-        return empty
-    if gamma == 0.0 or n == 0.0:
-        return 0.0, hi
-    if n == 1.0:
-        return (0.0, hi) if gamma <= room else empty
-    if room == 0.0:
-        return empty
-    try:
-        s = (room / (gamma * n)) ** (1.0 / (n - 1.0))
-    except (OverflowError, ZeroDivisionError):
-        s = math.inf if n > 1.0 else 0.0
-    if n > 1.0:
-        hi = min(hi, s - margin)
-        return (0.0, hi) if hi >= 0.0 else empty
-    lo = s + h * force
-    return (lo, hi) if lo <= hi else empty
+    lo, hi = safe_speed_ranges(guard, [omega0_sq], [gamma], [n], h, [ain_bound])
+    return float(lo[0]), float(hi[0])
 
 
 def _powers(base: npt.NDArray[np.float64], exponent: Any,
@@ -333,13 +322,18 @@ def _powers(base: npt.NDArray[np.float64], exponent: Any,
 def safe_speed_ranges(guard: StabilityGuard, omega0_sq: npt.ArrayLike, gamma: npt.ArrayLike,
                       n: npt.ArrayLike, h: float, ain_bound: npt.ArrayLike
                       ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """Return :func:`safe_speed_range` for arrays of (ω0², γ, n, a_in bound): (lo, hi).
+    """Return (lo, hi) for arrays of (ω0², γ, n, a_in bound): one plain step of h is safe there.
 
-    The same operations in the same order on each element (sums, products, quotients and square
-    roots are correctly rounded in numpy as in Python; powers go through Python's float power),
-    so each (lo[i], hi[i]) equals the scalar function's result exactly (a test checks it). An
-    empty range is (inf, −inf). ``n`` is one exponent or one per pendulum (the branches of the
-    scalar function taken element by element).
+    Safe means the cheap sufficient test of the module docstring holds at the speed the step can
+    reach: ``h (d(speed) + ω0) <= r`` and ``h · speed <= MAX_ANGLE``, with ``speed = |φ'| +
+    margin`` and the margin the speed an input acceleration up to the a_in bound plus gravity
+    can add in h (:func:`max_speed`). For n > 1 the slope d = γ n s^(n−1) grows with the speed,
+    so the range has an upper end; for n < 1 it falls, so it has a lower end (the slowest speed
+    in the step is |φ'| − h · force); for n = 0 and n = 1 it is constant. This is the guard's
+    one fast-path decision, written once over arrays: the sweep takes it for its pendulums,
+    ``Stepper`` for one (:func:`safe_speed_range`). Sums, products, quotients and square roots
+    are correctly rounded in numpy as in Python; powers go through Python's float power
+    (:func:`_powers`). An empty range is (inf, −inf). ``n`` is one exponent or one per pendulum.
     """
     w2, gam, nn, bound = (np.asarray(x, dtype=np.float64)
                           for x in (omega0_sq, gamma, n, ain_bound))

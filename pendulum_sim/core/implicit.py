@@ -11,12 +11,16 @@ Problem, with the refusal raised.
 """
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
 
+from .coulomb import friction_work, moving_input, rest_direction
 from .dirk import Coefficients, StageLaw, coefficients, dirk_step, stage_law
 from .errors import IntegratorError
-from .guard import MAX_ANGLE
+from .guard import MAX_ANGLE, GuardStats
 from .problem import Problem, speed_gain
+from .reversal import CUT_ITERATIONS, CUT_TOL, branch_accel, locate_reversal
 from .tableaus import BACKWARD_EULER, SDIRK3, Tableau
 
 FALLBACK_TABLEAU = SDIRK3
@@ -82,14 +86,77 @@ def fallback(prob: Problem, p: float, v: float, h: float,
     than MAX_FALLBACK_SUBSTEPS substeps is refused (IntegratorError).
     """
     if fallback_refused(v, h, ain, prob.w2, prob.omega0):
-        raise IntegratorError(
-            f'a step of {h:g} s from phi = {p:g} rad, dphi = {v:g} rad/s needs more than '
-            f'MAX_FALLBACK_SUBSTEPS = {MAX_FALLBACK_SUBSTEPS} substeps of the fallback '
-            f'(each sweeps at most {MAX_ANGLE:g} rad); use a smaller h')
+        raise refusal(p, v, h)
     return fallback_run(p, v, h, ain, prob.w2, prob.gamma, prob.n, prob.omega0,
                         stage_law(prob.n))
 
 
+def refusal(p: float, v: float, h: float) -> IntegratorError:
+    """Return the fallback's refusal of a step of h from (φ, φ') (:func:`fallback_refused`)."""
+    return IntegratorError(
+        f'a step of {h:g} s from phi = {p:g} rad, dphi = {v:g} rad/s needs more than '
+        f'MAX_FALLBACK_SUBSTEPS = {MAX_FALLBACK_SUBSTEPS} substeps of the fallback '
+        f'(each sweeps at most {MAX_ANGLE:g} rad); use a smaller h')
+
+
+StepFn = Callable[[float, float, float, float], tuple[float, float, float]]
+"""An implicit step ``(φ, φ', h, a_in) → (φ₁, φ'₁, w)`` that knows only the power law."""
+
+
+def slide(prob: Problem, step: StepFn, p: float, v: float, h: float, ain: float,
+          stats: GuardStats | None = None) -> tuple[float, float, float]:
+    """Take an implicit ``step`` of h with the friction beside the law; return (φ₁, φ'₁, w).
+
+    The implicit family's own DIRK steps (``Engine.implicit_advance``) and the L-stable
+    fallback (:func:`moving_fallback`) take the friction the way the explicit family's steps
+    do. At rest the rest rule decides (``coulomb.rest_direction``): the joint sticks, or breaks
+    away in the direction of the force. Moving in the direction s, the friction is the input
+    ``coulomb.moving_input`` (constant over a step that does not reverse) and its work
+    ``coulomb.friction_work`` is counted. A step that reverses is split at the reversal
+    (counted in ``stats`` where given), located on the step's own φ'(θh) = 0
+    (``reversal.locate_reversal``, the embedded cover's cut), and the rest of it is taken from
+    rest by the same rule; a break-away that reverses within its step stops again
+    (``coulomb.rest_step``'s rule). Without friction, ``step`` itself.
+    """
+    cf = prob.friction
+    if cf == 0.0:
+        return step(p, v, h, ain)
+    w2, g, n = prob.w2, prob.gamma, prob.n
+    if v == 0.0:
+        sign = rest_direction(p, ain, w2, g, n, cf)
+        if sign == 0.0:
+            return p, 0.0, 0.0
+    else:
+        sign = 1.0 if v > 0.0 else -1.0
+    a = moving_input(ain, sign, cf)
+    p1, v1, w = step(p, v, h, a)
+    if v1 * sign >= 0.0:
+        return p1, v1, w + friction_work(cf, sign, p, p1)
+    if v == 0.0:
+        return p, 0.0, 0.0  # the break-away reversed within the step: it stops again
+
+    def accel(pp: float, vv: float) -> float:
+        return branch_accel(pp, vv, a, sign, g, n, w2)
+
+    th, pm, _, wm = locate_reversal(lambda hh: step(p, v, hh, a), accel, v, v1, accel(p, v),
+                                    accel(p1, v1), h, CUT_TOL, CUT_ITERATIONS)
+    wm += friction_work(cf, sign, p, pm)
+    if stats is not None:
+        stats.reversals += 1
+    p2, v2, w2_ = slide(prob, step, pm, 0.0, (1.0 - th) * h, ain, stats)
+    return p2, v2, wm + w2_
+
+
+def moving_fallback(prob: Problem, p: float, v: float, h: float,
+                    ain: float) -> tuple[float, float, float]:
+    """Return the L-stable fallback's step (:func:`fallback`) with the friction beside it.
+
+    :func:`slide` over the fallback: the friction of the direction of motion an input, the
+    step split at a reversal, the rest rule at rest. Without friction, ``fallback`` itself.
+    """
+    return slide(prob, functools.partial(fallback, prob), p, v, h, ain)
+
+
 __all__ = ['BACKWARD_EULER_COEFFS', 'FALLBACK_COEFFS', 'FALLBACK_TABLEAU',
-           'MAX_FALLBACK_SUBSTEPS', 'dirk_safe', 'fallback', 'fallback_refused', 'fallback_run',
-           'safe_step']
+           'MAX_FALLBACK_SUBSTEPS', 'StepFn', 'dirk_safe', 'fallback', 'fallback_refused',
+           'fallback_run', 'moving_fallback', 'refusal', 'safe_step', 'slide']

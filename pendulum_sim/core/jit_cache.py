@@ -4,18 +4,17 @@ numba's own cache (``cache=True``) keeps a function's machine code beside its so
 keyed by the file's contents and the signature, but it cannot keep a function defined from
 generated text by ``exec`` (it has no file) nor one that embeds the address of a Python object
 (a compiled function used as a value: numba's "dynamic globals"). The compiled sweep's run is
-both (``decisions.kernel_source``, the generated functions it hands to the careful step), so
+both (``kernel.kernel_source``, the generated functions it hands to the careful step), so
 :func:`kernel_module` writes the text to a module file of the cache directory (named by the
 hash of the text) and defines the run and its generated functions from that file, and
 ``jit.compile_kernel`` compiles them with numba's cache pointed there (:func:`attach`):
 
 - the run takes the generated functions its careful step needs (``plain``, ``branch``,
   ``laws``, ``pair_plain``, ``pair_branch``) as arguments, first-class functions of one
-  signature each (:data:`FUNCTION_ARGS`, passed by ``jit.CachedRun`` at each call), instead
-  of reading them as globals: the same text, its header extended by those five names, the
-  same arithmetic;
-- the careful step (``compiled_careful.careful_step``, ``jit.first_class_twin``) is cached
-  beside them, once for all texts, so a new law text in a later process compiles its run alone.
+  signature each (``kernel.FUNCTION_ARGS``, passed by ``jit.CachedRun`` at each call),
+  instead of reading them as globals;
+- the careful step (``careful.careful_step``, ``jit.first_class_twin``) is cached beside them,
+  once for all texts, so a new law text in a later process compiles its run alone.
 
 A second process therefore loads every piece of the compiled sweep and compiles nothing.
 What numba's cache checks (the file's contents, the bytecode, numba's version, the CPU) does not
@@ -47,13 +46,10 @@ from pathlib import Path
 from typing import Any
 
 from .codegen import source_of
-from .decisions import KERNEL_ARGS
+from .kernel import FUNCTION_ARGS
 
 ENV_VAR = 'PENDULUM_SIM_JIT_CACHE'
 """The environment variable that names the cache directory (:func:`cache_root`)."""
-
-FUNCTION_ARGS = ('plain', 'branch', 'laws', 'pair_plain', 'pair_branch')
-"""The generated functions a cached run takes as arguments and passes to its careful step."""
 
 EVENTS: collections.Counter[str] = collections.Counter()
 """What the cache did in this process: ``hits`` and ``misses`` (numba's, summed over every
@@ -219,21 +215,16 @@ def attach(dispatcher: Any, part: str) -> bool:
 def kernel_module(fn: Any) -> dict[str, Any] | None:
     """Return the namespace of a sweep run's module file: the run and its generated functions.
 
-    ``fn`` is the run ``decisions.compile_kernel`` defined; its text, its header extended by
-    :data:`FUNCTION_ARGS`, is written to a module file of the cache directory
-    (:func:`module_file`) and imported from there, in a module of its own (registered in
-    ``sys.modules``: numba imports it where it loads the functions' environment) holding the
-    names the run reads. None where the cache directory is not writable or the text is not
-    the one this module knows how to extend (then the caller compiles in memory).
+    ``fn`` is the run ``kernel.compile_kernel`` defined; its text is written to a module
+    file of the cache directory (:func:`module_file`) and imported from there, in a module of
+    its own (registered in ``sys.modules``: numba imports it where it loads the functions'
+    environment) holding the names the run reads. None where the cache directory is not
+    writable (then the caller compiles in memory).
     """
     directory = cache_dir()
     text = source_of(fn)
     if directory is None or text is None:
         return None
-    header = f'def kernel({", ".join(KERNEL_ARGS)}):'
-    if text.count(header) != 1:
-        return None
-    text = text.replace(header, f'def kernel({", ".join(KERNEL_ARGS + FUNCTION_ARGS)}):')
     try:
         path = module_file(directory, text)
     except OSError as exc:  # the directory was removed or made read-only since
@@ -285,5 +276,5 @@ def compiling(callback: Callable[[bool], None]) -> Iterator[None]:
         yield
 
 
-__all__ = ['ENV_VAR', 'EVENTS', 'FUNCTION_ARGS', 'JitCacheWarning', 'attach', 'cache_dir',
-           'cache_root', 'compiling', 'kernel_module', 'module_file', 'write_atomic']
+__all__ = ['ENV_VAR', 'EVENTS', 'JitCacheWarning', 'attach', 'cache_dir', 'cache_root',
+           'compiling', 'kernel_module', 'module_file', 'write_atomic']

@@ -56,27 +56,6 @@ VECTOR_ENV: dict[str, object] = {'sin': np.sin, 'copysign': np.copysign, 'sign':
 """The same names over arrays (``numpy``: the sweep and the dense output)."""
 
 
-class ExactExponent:
-    """An exponent whose powers of numpy arrays are the C library's ``pow``, to the bit.
-
-    numpy's ``power`` may take a vectorised power that differs from the C library's ``pow``
-    (Python's float power, the scalar steps') in the last bit; ``numpy.float_power`` on float64
-    takes the C library's. A generated text spells a power ``abs(v) ** n``: with ``n`` this
-    object (``__array_ufunc__ = None`` makes an array hand the operator to
-    :meth:`__rpow__`, NEP 13) the same text over arrays takes the scalar text's floats, so a
-    batch of the careful path's steps (``batched_careful.py``) is the scalar careful path's.
-    ``value`` is a float or an array (one exponent per pendulum).
-    """
-
-    __array_ufunc__ = None
-
-    def __init__(self, value: Any) -> None:
-        self.value = value
-
-    def __rpow__(self, base: Any) -> Any:
-        return np.float_power(base, self.value)
-
-
 def whole(e: float) -> bool:
     """Return True where the exponent ``e`` is written as multiplications (1, 2, ..., 8)."""
     return e == int(e) and 1.0 <= e <= WHOLE_MAX
@@ -194,7 +173,7 @@ power_formula: Callable[[float, float], float] = define(
 """Return a ** n for a speed ``a`` >= 0 and an exponent known only at run time, generated.
 
 The value :func:`power_source` spells for that exponent (one branch per special exponent), for
-code compiled once for every exponent (``compiled_careful.py``)."""
+code compiled once for every exponent (``careful.py``)."""
 
 
 def damping_derivative(gamma: float, n: float, dphi: float) -> float:
@@ -226,15 +205,20 @@ def laws_source(n: float, name: str = 'laws') -> str:
 
 
 @functools.lru_cache(maxsize=256)
-def compile_laws(n: float, vector: bool = False) -> Any:
-    """Return :func:`laws_source`'s function for the exponent ``n`` (scalar, ``math``).
+def compile_laws(n: float) -> Any:
+    """Return :func:`laws_source`'s function for the exponent ``n`` (scalar, ``math``)."""
+    return define(laws_source(n), 'laws', dict(SCALAR_ENV), '<laws>')
 
-    ``vector`` defines the same text with numpy: passed ``n`` as an :class:`ExactExponent` it
-    takes the scalar function's floats over arrays (the reversal split batched,
-    ``batched_split.py``).
+
+@functools.lru_cache(maxsize=256)
+def compile_speed_power(n: float) -> Any:
+    """Return ``power(a, n)`` = a ** n over numpy arrays, as :func:`power_source` spells n.
+
+    The damping's |φ'|^n of the stiff-transient test on the numpy sweep (``n`` a float or one
+    per pendulum of a text that spells them alike); numpy's power, not the C library's.
     """
-    return define(laws_source(n), 'laws', dict(VECTOR_ENV if vector else SCALAR_ENV),
-                  '<laws>')
+    src = f'def power(a, n):\n    return {power_source(n, "n", "a")}\n'
+    return define(src, 'power', dict(VECTOR_ENV), '<speed power>')
 
 
 @functools.lru_cache(maxsize=256)
@@ -251,10 +235,10 @@ __all__ = [
     'VECTOR_ENV',
     'WHOLE_MAX',
     'DampingFn',
-    'ExactExponent',
     'compile_damping',
     'compile_laws',
     'compile_power',
+    'compile_speed_power',
     'damping_derivative',
     'damping_expression',
     'laws_source',

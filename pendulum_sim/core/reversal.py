@@ -8,7 +8,7 @@ source text :data:`LOCATE_SRC` with its two evaluations as named fields, and def
 forms by ``codegen.define``: :func:`locate_reversal` on Python callables (the explicit family's
 split, ``split.py``, and the embedded cover's reversal cut, ``embedded.py``) and
 :func:`locate_on_branch` on a generated branch step, which numba compiles for the compiled
-careful step (``compiled_careful.py``). What follows the location in a split, the Newton run on
+careful step (``careful.py``). What follows the location in a split, the Newton run on
 a graded run's own φ'(θh) and the landing on φ' = 0 (:func:`graded_landing`, over
 :func:`branch_run`), is one function written to compile, which ``split.split_step`` calls in
 Python and compiled alike.
@@ -133,7 +133,7 @@ LOCATE_FORMS: dict[str, tuple[str, str, str]] = {
 for the explicit family's split (``split.py``) and the embedded cover's reversal cut
 (``embedded.py``). ``locate_on_branch`` calls a generated branch step
 ``branch(φ, φ', dt, a_in, ω0², γ, s, n)`` → (φ₁, φ'₁, w, φ''₀) itself (its φ'' is the step's
-φ''₀ at dt = 0), so numba compiles it for the compiled careful step (``compiled_careful.py``),
+φ''₀ at dt = 0), so numba compiles it for the compiled careful step (``careful.py``),
 which cannot pass Python closures.
 """
 

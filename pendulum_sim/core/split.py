@@ -5,21 +5,16 @@ straddles a reversal has a local error of low order (the paper's Fig 9 remark on
 :func:`split_step` locates the reversal inside the step (``reversal.locate_on_branch``),
 integrates each side on its own branch of the law in graded substeps (``reversal.graded_mesh``,
 ``reversal.graded_landing``), lets Coulomb friction stick at rest (``coulomb.rest_step``) and a
-near-Coulomb law creep (``coulomb.creep_state``). It is written to compile: :class:`SplitSteps`
-(the Stepper's careful path) calls it in Python, the compiled sweep compiled.
+near-Coulomb law creep (``coulomb.creep_state``). It is written to compile: the careful step
+(``careful.substep``) calls it, as Python for the Stepper and compiled in the compiled sweep.
 """
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Any
 
-from .coulomb import creep_state, friction_step, friction_work, moving_input, rest_step
+from .coulomb import creep_state, friction_work, moving_input, rest_step
 from .decisions import reversal_suspect
-from .explicit import StepFn, compile_step_with_n
-from .guard import GuardStats
-from .law import compile_laws
-from .problem import Problem
 from .reversal import (
     NEWTON_ITERATIONS,
     NEWTON_TOL,
@@ -28,9 +23,6 @@ from .reversal import (
     graded_mesh,
     locate_on_branch,
 )
-from .tableaus import Tableau
-
-Fallback = Callable[[float, float, float, float], tuple[float, float, float]]
 
 SplitResult = tuple[bool, float, float, float, int, float, float, float, float]
 """``split_step``'s (done, φ₁, φ'₁, w, reversals, φm, φ'm, wm, rest)."""
@@ -56,8 +48,8 @@ def split_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
     fallback must take ``rest`` from the reversal's (φm, φ'm), wm being the work up to it.
     With a friction ``cf`` = c_f beside the law (``coulomb`` then holds), the side up to the
     reversal is taken under ``coulomb.moving_input`` and its work counts the friction's.
-    Written to compile: :meth:`SplitSteps.split` calls it in Python and the compiled sweep's
-    careful step (``compiled_careful.py``) compiled, the same function.
+    Written to compile: :func:`micro_step` calls it, as Python for the Stepper and compiled in
+    the compiled sweep's careful step (``careful.py``), the same function.
     """
     sign = 1.0 if v > 0.0 else -1.0
     a = moving_input(ain, sign, cf)
@@ -119,8 +111,8 @@ def micro_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
     finite (where Python may have raised inside it) is declined: ``done`` False and
     ``reversals`` NOT_FINITE. With a friction ``cf`` = c_f beside the law, a step in motion is
     taken under ``coulomb.moving_input`` and its work counts the friction's. Written to compile:
-    :meth:`SplitSteps.micro` calls it in Python, the compiled sweep's careful step
-    (``compiled_careful.py``) compiled. With ``known`` the plain step's result is given,
+    ``careful.substep`` calls it, as Python for the Stepper and compiled in the compiled
+    sweep's careful step. With ``known`` the plain step's result is given,
     (``kp1``, ``kv1``, ``kw``, ``ka0``) = ``plain(p, v, h, moving_input(ain, v, cf), ...)``,
     the very floats the compiled sweep's run took before it refused the step, and is not
     taken again.
@@ -161,73 +153,4 @@ def micro_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
     return True, p1, v1, w, 0, p, v, 0.0, 0.0
 
 
-class SplitSteps:
-    """The plain steps of an explicit ``tableau`` for one problem, split at reversals.
-
-    Parameters
-    ----------
-    prob : Problem
-        The pendulum.
-    tableau : Tableau
-        An explicit method.
-    last_resort : callable
-        ``(φ, φ', h, a_in) → (φ₁, φ'₁, w)``: the step where the branch run cannot take it.
-    """
-
-    def __init__(self, prob: Problem, tableau: Tableau, last_resort: Fallback) -> None:
-        self.problem = prob
-        self.w2, self.gamma, self.n = prob.w2, prob.gamma, prob.n
-        self.coulomb, self.nonsmooth, self.reach = prob.coulomb, prob.nonsmooth, prob.reach
-        self.cf = prob.friction
-        # The same steps and the laws with the exponent an argument: what the functions
-        # written to compile (split_step, coulomb.rest_step) take, in Python as compiled.
-        self.plain_n: StepFn = compile_step_with_n(tableau, prob.n)
-        self.branch_n: StepFn = compile_step_with_n(tableau, prob.n, branch=True)
-        self.laws = compile_laws(prob.n)
-        self.last_resort = last_resort
-
-    def friction(self, p: float, v: float, h: float, ain: float,
-                 creeps: bool) -> tuple[bool, float, float, float]:
-        """Return ``coulomb.friction_step``: (taken, φ₁, φ'₁, w) where friction holds.
-
-        Beside a friction (c_f > 0) the rest is left to the guard's substeps (``micro_step``
-        takes ``coulomb.rest_step`` in each): the break-away's branch step under a stiff power
-        law (γ h beyond RK4's stability) must be as short as the guard's substeps.
-        """
-        return friction_step(self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma,
-                             self.n, self.coulomb and not self.cf, creeps, self.cf)
-
-    def speed_gain(self, h: float, ain: float) -> float:
-        """Return the most |φ'| can grow in h (:meth:`Problem.speed_gain`)."""
-        return self.problem.speed_gain(h, ain)
-
-    def micro(self, p: float, v: float, h: float, ain: float,
-              stats: GuardStats) -> tuple[float, float, float]:
-        """Take one plain step, split at a velocity reversal where the damping is not smooth.
-
-        :func:`micro_step`; the fallback takes the rest of a split the branch cannot finish.
-        """
-        return self._finish(micro_step(
-            self.plain_n, self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma, self.n,
-            self.reach, self.nonsmooth, self.coulomb, False, self.cf), ain, stats)
-
-    def _finish(self, res: SplitResult, ain: float,
-                stats: GuardStats) -> tuple[float, float, float]:
-        """Count the reversals; hand what the branch could not finish to the fallback."""
-        done, p1, v1, w, turns, pm, vm, wm, rest = res
-        stats.reversals += turns
-        if done:
-            return p1, v1, w
-        stats.fallbacks += 1
-        p2, v2, w2_ = self.last_resort(pm, vm, rest, ain)
-        return p2, v2, wm + w2_
-
-    def split(self, p: float, v: float, h: float, ain: float, a0: float,
-              stats: GuardStats) -> tuple[float, float, float]:
-        """Split a step that straddles φ' = 0 at the reversal (:func:`split_step`)."""
-        return self._finish(split_step(
-            self.plain_n, self.branch_n, self.laws, p, v, h, ain, self.w2, self.gamma, self.n,
-            a0, self.reach, self.coulomb, self.cf), ain, stats)
-
-
-__all__ = ['NOT_FINITE', 'SplitResult', 'SplitSteps', 'micro_step', 'split_step']
+__all__ = ['NOT_FINITE', 'SplitResult', 'micro_step', 'split_step']

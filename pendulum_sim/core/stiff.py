@@ -5,9 +5,9 @@ covered by error-controlled substeps of the Dormand-Prince 8(5,3) pair (``dop853
 local tolerance STIFF_TOL (h ω_r)⁴ (``decisions.py``): its substeps grow with the transient's
 own time scale, so the transient is resolved, not merely kept stable, and its error falls at
 order ≥ 4 as h falls. :func:`stiff_cover` is that cover, numbers and generated steps in, a tuple
-out (a return code and counts, no exceptions, closures or stats objects), so that
-``Engine.stiff`` runs it in Python and the compiled sweep's careful step
-(``compiled_careful.py``) compiled, the same function. Its trial loop is the adaptive methods'
+out (a return code and counts, no exceptions, closures or stats objects), so that the careful
+step (``careful.careful_step``) runs it as Python and compiled, the same function. Its trial
+loop is the adaptive methods'
 (``embedded.cover``) for one step and a law with n > 1 (no Coulomb friction, no output stops,
 no trace, no run budget); the decisions the two loops share are one function each
 (``error_control.py``: the error norm, the acceptance, the step-size factor), the cut at a
@@ -17,9 +17,9 @@ Where Python raises inside a trial step (OverflowError for a power beyond float6
 for the sine of inf), compiled code gives inf or NaN: the trial is rejected either way (its
 error norm is not finite). Elsewhere a raise would change Python's path (``Engine.careful``'s
 ``except``); there the function returns a code instead (:data:`OVERFLOW`: the damping slope at
-the start is beyond float64, where ``Engine.stiff`` raises OverflowError; :data:`NOT_FINITE`,
-with ``strict``: the location of a reversal is not finite, where Python may have raised), and
-the compiled careful step declines the step.
+the start is beyond float64, where the fallback takes the step; :data:`NOT_FINITE`, with
+``strict``: the location of a reversal is not finite, where Python may have raised), and the
+compiled careful step declines the step.
 """
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def stiff_pair(n: float) -> tuple[Any, Any]:
 
     ``(pair_plain, pair_branch)``, each ``step(φ, φ', h, a_in, ω0², γ, s, n)`` →
     (φ₁, φ'₁, w, φ''₀, e_φ, e_φ') (``explicit.step_source_with_n``), as the compiled sweep's
-    run defines them (``decisions.kernel_source``).
+    run defines them (``kernel.kernel_source``).
     """
     return (compile_step_with_n(STIFF_PAIR, n, False, True),
             compile_step_with_n(STIFF_PAIR, n, True, True))

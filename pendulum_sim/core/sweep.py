@@ -36,13 +36,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .batched_careful import batchable_law
-from .batched_split import SPLIT_MIN, careful_steps
-from .compiled_careful import COUNTERS, careful_step
+from .careful import COUNTERS, careful_step
 from .compiled_sweep import run_piece
+from .coulomb import moving_inputs
 from .decisions import (
     ain_bounds,
-    compile_kernel,
     energy_rose,
     reversal_suspect,
     specific_energy,
@@ -51,11 +49,12 @@ from .decisions import (
 from .engine import Engine, guard_for
 from .errors import IntegratorError, ModelError
 from .explicit import compile_step, compile_step_with_n
-from .guard import GuardStats, one_substep, safe_speed_ranges
-from .jit import INSTALL_HINT
+from .guard import GuardStats, safe_speed_ranges
+from .jit import INSTALL_HINT, compile_careful_each
 from .jit import available as jit_available
 from .jit import compile_kernel as compile_jit_kernel
-from .law import damping_expression
+from .kernel import compile_kernel
+from .law import compile_speed_power, damping_expression
 from .methods import METHODS
 from .model import (
     MAX_INPUT_ACCEL,
@@ -84,6 +83,11 @@ SWEEP_METHODS = tuple(name for name, m in METHODS.items() if m.family.fast_path)
 """The methods a sweep can use: those of the explicit family (``euler``, ``midpoint``, ``rk4``)."""
 BLOCK = 16384
 """Pendulums stepped per numpy pass: a block's temporaries stay in the cache."""
+COMPILED_MIN = 16
+"""Refused steps of one group's step below which its careful steps are taken in Python: a call
+of the compiled careful steps (``careful.careful_each``) costs some 100 µs of numba's argument
+handling, what about 16 near-Coulomb creep steps cost in Python (5 graded ones), measured
+at h = 1 ms on two cores."""
 STIFF_MARGIN = 1.0 - 1e-9
 """γ scale of the array stiff-transient test: far above the last-bit difference of numpy's and
 C's powers, far below anything that moves a decision."""
@@ -114,15 +118,14 @@ class SweepResult:
     method : str
         Name of the explicit method.
     handed_back : int
-        Steps of the stretch taken by the careful path in Python (``Engine.careful``): every
-        step the fast path refused on the numpy sweep; on the compiled sweep only those the
-        compiled careful step declines (``compiled_careful.py``).
+        Steps of the stretch taken by the careful path in Python (``Engine.careful``): on the
+        numpy sweep every step the fast path refused but those taken compiled (``batched``);
+        on the compiled sweep only those the compiled careful step declines (``careful.py``).
     batched : int
-        Steps of the stretch the careful path took batched over arrays on the numpy sweep
-        (``batched_careful.py``: the graded steps next to a reversal; ``batched_split.py``: the
-        steps split at one, where a block's step has ``batched_split.SPLIT_MIN`` of them; the
-        same floats and counts as ``Engine.careful``); ``batched + handed_back`` steps took the
-        careful path there.
+        Steps of the stretch the numpy sweep took by the careful step compiled over the
+        refused pendulums (``careful.careful_each``: the laws graded at reversals, where numba
+        and its disk cache serve; the floats and counts of ``Engine.careful``);
+        ``batched + handed_back`` steps took the careful path there.
     """
 
     phi: FloatArray
@@ -274,7 +277,6 @@ class _Group:
     n: float
     step: Any
     nn: Any  # the exponent: ``n`` itself, or a column where the group's exponents differ
-    batchable: BoolArray  # the careful path's graded and split steps batched (batched_split)
     nonsmooth: BoolArray
     coulomb: BoolArray
     damped: BoolArray
@@ -290,8 +292,6 @@ class _Group:
         # reach = 0 makes the near-reversal test false everywhere: the crossing test decides.
         self.graded = bool(self.reach.any())
         self.any_stiff = bool(np.isfinite(self.v_acc).any())
-        # The careful path's graded and split steps are batched (batched_split.py) for these.
-        self.batch = bool(self.batchable.any()) and self.any_nonsmooth and self.graded
         size = self.sl.stop - self.sl.start
         self.check = np.zeros(size, dtype=bool)
         self.any_check = self.all_check = False
@@ -299,9 +299,14 @@ class _Group:
         self.any_lo = False  # lo = 0 everywhere: |φ'| >= lo needs no test
         # Guard ranges per step length: (the torque bounds they were made for, lo, hi).
         self.ranges: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
-        self.batched = 0  # careful steps taken batched (batched_split.py) this advance
+        self.batched = 0  # careful steps taken compiled (careful.careful_each) this advance
+        # (steps, each) of jit.compile_careful_each for the numpy sweep, looked up at first
+        # use (None: not yet; False: not available, or not this group's).
+        self.careful_each: Any = None
+        self.guard_consts = np.empty(0)  # the guard's StabilityGuard.constants (use_step)
+        self.tally = np.zeros(6, dtype=np.int64)  # careful_each's scratch counters
         self.kernel: Any = None  # the compiled run (``jit=True``), or None: numpy
-        self.use_careful = False  # the compiled run takes the careful step (compiled_careful)
+        self.use_careful = False  # the compiled run takes the careful step (careful.py)
         self.ain_col = self.w2_col = self.gamma_col = np.empty(0)
         self.sched: FloatArray | None = None  # the stretch's input per step (steps, size)
         self.p = self.v = self.e = np.empty(0)
@@ -341,6 +346,7 @@ class _Group:
         range made alone is the one made among all.
         """
         sl = self.sl
+        self.guard_consts = np.array(guard.constants)
         bound = bounds[sl]
         old = self.ranges.get(hh)
         if old is None:
@@ -454,7 +460,6 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard
             step = functools.partial(compile_step_with_n(tab, val, vector=True), n=col)
         damped, coulomb, nonsmooth = (flags[:, k] != 0.0 for k in range(3))
         out.append(_Group(sl=sl, n=val, step=step, nn=col,
-                          batchable=_on_unique(batchable_law, nn[sl]) != 0.0,
                           nonsmooth=nonsmooth, coulomb=coulomb, damped=damped,
                           reach=flags[:, 3].copy(), v_acc=flags[:, 4].copy(),
                           cf=fr[sl].copy()))
@@ -463,14 +468,14 @@ def _groups(nn: FloatArray, gam: FloatArray, om2: FloatArray, method: str, guard
 
 def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
-             t: float) -> int:
+             t: float, counts: IntArray) -> int:
     """Advance one group by a step of hh from t: the plain step, the decisions, the careful path.
 
     Returns how many steps the careful path took.
     """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     if grp.any_friction:  # moving, the friction is an input (coulomb.moving_input)
-        ain = ain - np.where(grp.cf == 0.0, 0.0, np.copysign(grp.cf, vv))
+        ain = moving_inputs(ain, vv, grp.cf)
     p1, v1, _, a0 = grp.step(p, vv, hh, ain, w2, ga, 1.0)
     av = np.abs(vv)
     ok = av <= grp.hi
@@ -494,7 +499,9 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
             # on floats as the Stepper does, then takes as the plain step).
             gq = (ga if isinstance(ga, float) else ga[q]) * STIFF_MARGIN
             nq = grp.nn[q] if isinstance(grp.nn, np.ndarray) else grp.nn
-            ok[q] &= ~stiff_transient(vv[q], a0[q], gq, nq, grp.v_acc[q], text=grp.n)
+            aq = av[q]
+            ok[q] &= ~stiff_transient(aq, a0[q], gq, compile_speed_power(grp.n)(aq, nq),
+                                      grp.v_acc[q])
     if grp.any_check:
         e1 = specific_energy(v1, np.sin(0.5 * p1), w2)
         rose = energy_rose(grp.e, e1, w2)
@@ -503,7 +510,8 @@ def _advance(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
         ok &= ~rose
     else:
         e1 = grp.e
-    return _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1, t)
+    return _careful(grp, hh, engines, stats, meth, guard, energy_check, ok, p1, v1, e1, t,
+                    counts)
 
 
 def _careful_one(grp: _Group, j: int, p: float, v: float, hh: float, ain: float, w2: float,
@@ -539,24 +547,26 @@ def _stats_of(stats: dict[int, GuardStats], i: int) -> GuardStats:
 
 def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
              stats: dict[int, GuardStats], meth: Any, guard: bool, energy_check: bool,
-             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray, t: float) -> int:
+             ok: BoolArray, p1: FloatArray, v1: FloatArray, e1: FloatArray, t: float,
+             counts: IntArray) -> int:
     """Redo every step the fast path refused (``~ok``) on the careful path; keep the states.
 
-    The batched ones (:func:`_batched`) are inside the guard's safe speed range, so short
-    enough to work through (``Engine.check_ahead`` has nothing to refuse there). Returns how
-    many steps that was.
+    The one careful step (``careful.py``) takes each: compiled over the refused pendulums
+    where :func:`_compiled` serves the group and they are at least :data:`COMPILED_MIN` (what
+    it did added to their rows of ``counts``, ``careful.COUNTERS``), and each it declines, or
+    every one where it does not serve, as Python (``Engine.careful``, after
+    ``Engine.check_ahead``). Returns how many steps the Python path took.
     """
     p, vv, w2, ga, ain = grp.p, grp.v, grp.w2, grp.gamma, grp.ain
     refused = np.flatnonzero(~ok)
-    batched = 0
-    if refused.size and grp.batch:
-        taken = _batched(grp, hh, meth, guard, refused, p1, v1, e1, stats)
-        batched = int(taken.size)
-        if batched:
+    careful = refused
+    if refused.size >= COMPILED_MIN and guard and grp.graded:
+        taken = _compiled(grp, meth, hh, refused, p1, v1, counts)
+        grp.batched += int(taken.size)
+        if taken.size:
             keep = np.ones(refused.size, dtype=bool)
             keep[np.searchsorted(refused, taken)] = False
             refused = refused[keep]
-    grp.batched += batched
     if refused.size:
         consts = [np.broadcast_to(c, p.shape)[refused] for c in (ain, w2, ga)]
         ps: list[float] = []
@@ -569,47 +579,41 @@ def _careful(grp: _Group, hh: float, engines: dict[tuple[float, ...], Engine],
             ps.append(pj)
             vs.append(vj)
         p1[refused], v1[refused] = ps, vs
-        if grp.any_check:
-            # E/I of the careful path's states, with the scalar sine (as the Stepper has it).
-            sines = np.array([math.sin(0.5 * x) for x in ps])
-            e1[refused] = specific_energy(v1[refused], sines, consts[1])
+    if grp.any_check and careful.size:
+        # E/I of the careful path's states, with the scalar sine (as the Stepper has it).
+        sines = np.array([math.sin(0.5 * x) for x in p1[careful].tolist()])
+        e1[careful] = specific_energy(v1[careful], sines, grp.w2_col[careful])
     grp.p, grp.v, grp.e = p1, v1, e1
     return int(refused.size)
 
 
-def _batched(grp: _Group, hh: float, meth: Any, guard: bool, refused: IntArray,
-             p1: FloatArray, v1: FloatArray, e1: FloatArray,
-             stats: dict[int, GuardStats]) -> IntArray:
-    """Take the refused steps the batched careful path serves (``batched_split.careful_steps``).
+def _compiled(grp: _Group, meth: Any, hh: float, refused: IntArray, p1: FloatArray,
+              v1: FloatArray, counts: IntArray) -> IntArray:
+    """Take the refused steps by the careful step compiled (``careful.careful_each``).
 
-    The candidates are those whose ``Engine.careful`` starts with one plain step: a kink at
-    rest, below the stiff-transient speed and, with the guard, where its count is surely 1
-    (``guard.one_substep``). Writes their states (and E/I, with the scalar
-    sine) into ``p1``, ``v1``, ``e1`` and counts the reversals of the splits it took in
-    ``stats`` (per pendulum, as ``Engine.careful`` counts them); returns the sorted indices it
-    took.
+    For the laws graded at reversals (non-integer 0 < n < 3: about half their steps at
+    h = 1 ms take the careful path, each some 40 µs as Python), with the guard, where numba
+    and its disk cache serve (``jit.compile_careful_each``: the text's generated functions and
+    the careful step compiled once per machine, loaded by later processes). Writes the states
+    it took into ``p1``, ``v1``, adds what it did to the group's rows of ``counts``; returns
+    the sorted indices it took (none where it does not serve: the Python path takes them).
     """
-    p, vv = grp.p, grp.v
-    av = np.abs(vv[refused])
-    fit = grp.batchable[refused] & grp.nonsmooth[refused] & (av <= grp.v_acc[refused])
-    fit &= grp.cf[refused] == 0.0  # the batched steps know no friction beside the law
-    if guard:
-        fit &= one_substep(av, grp.lo[refused], grp.hi[refused])
-    cand = refused[fit]
-    if not cand.size:
-        return cand
-    ain, w2, gam = (c[cand] for c in (grp.ain_col, grp.w2_col, grp.gamma_col))
-    nn = grp.nn[cand] if isinstance(grp.nn, np.ndarray) else grp.nn
-    done, pb, vb, eb, turns = careful_steps(meth.tableau, p[cand], vv[cand], hh, ain, w2, gam,
-                                            nn, grp.reach[cand], grp.check[cand], v1[cand],
-                                            SPLIT_MIN)
-    taken = cand[done]
-    for j in cand[done & (turns > 0)].tolist():
-        _stats_of(stats, grp.sl.start + j).reversals += 1
-    p1[taken], v1[taken] = pb[done], vb[done]
-    if grp.any_check:
-        e1[taken] = eb[done]
-    return taken
+    if grp.careful_each is None:
+        tab = meth.tableau
+        assert isinstance(tab, Tableau)  # the explicit family's methods are tableaus
+        runner = compile_careful_each(compile_kernel(tab, grp.n, careful_step, grp.any_friction))
+        grp.careful_each = runner if runner is not None else False
+    if grp.careful_each is False:
+        return refused[:0]
+    steps, each = grp.careful_each
+    size = grp.sl.stop - grp.sl.start
+    nn = grp.nn if isinstance(grp.nn, np.ndarray) else np.full(size, grp.n)
+    taken = np.zeros(refused.size, dtype=bool)
+    each(steps, hh, refused, grp.p, grp.v, grp.ain_col, grp.w2_col, grp.gamma_col, nn, grp.cf,
+         grp.v_acc, grp.reach, grp.check, grp.nonsmooth, grp.coulomb, grp.lo, grp.hi,
+         grp.guard_consts, p1, v1, taken, counts[grp.sl], grp.tally)
+    done: IntArray = refused[taken]
+    return done
 
 
 def _torque(torque: Any, size: int, params: Any) -> FloatArray:
@@ -647,6 +651,63 @@ def _schedule(torque: FloatArray, steps: int, size: int, params: Any) -> FloatAr
         except ModelError as exc:
             raise ModelError(f'{exc} at index {i}, step {k + 1}') from None
     return tau
+
+
+def _use_input(groups: list[_Group], tau: FloatArray, fr: FloatArray,
+               energy_check: bool) -> tuple[FloatArray, FloatArray]:
+    """Give the groups the n-sorted input ``tau``: (N,), or a schedule (steps, N).
+
+    Returns the input that holds after the stretch (a schedule's last row) and the torque
+    bounds of the guard's speed ranges (over a schedule, each pendulum's largest input).
+    """
+    if tau.ndim == 2:
+        last, bounds = tau[-1].copy(), _input_bounds(np.max(np.abs(tau), axis=0), fr)
+        for grp in groups:
+            grp.use_torque(last, energy_check, tau)
+        return last, bounds
+    for grp in groups:
+        grp.use_torque(tau, energy_check)
+    return tau, _input_bounds(tau, fr)
+
+
+class _Recording:
+    """The states a stretch records: at its start, every ``every`` steps and at its end.
+
+    The numpy sweep appends them as it goes (:meth:`take`); the compiled runs write them into
+    ``rows``, a pair of arrays per group (``kernel.record_row``), read by :meth:`from_rows`.
+    ``every`` = 0 records nothing.
+    """
+
+    def __init__(self, groups: list[_Group], every: int, total: int, phi: FloatArray,
+                 v: FloatArray) -> None:
+        self.every, self.total = every, total
+        count = 1 + total // every + (1 if total % every else 0) if every else 0
+        self.rows = [(np.empty((count, grp.sl.stop - grp.sl.start)),
+                      np.empty((count, grp.sl.stop - grp.sl.start))) for grp in groups]
+        self.t: list[float] = []
+        self.p: list[FloatArray] = []
+        self.v: list[FloatArray] = []
+        if every:
+            self.t.append(0.0)
+            self.p.append(phi.copy())
+            self.v.append(v.copy())
+            for grp, (rp, rv) in zip(groups, self.rows, strict=True):
+                rp[0], rv[0] = phi[grp.sl], v[grp.sl]
+
+    def take(self, groups: list[_Group], done: int, t: float) -> None:
+        """Record the groups' states after step ``done`` (time ``t``) if it is recorded."""
+        if self.every and (done % self.every == 0 or done == self.total):
+            self.t.append(t)
+            self.p.append(np.concatenate([grp.p for grp in groups]))
+            self.v.append(np.concatenate([grp.v for grp in groups]))
+
+    def from_rows(self, h: float, t_end: float) -> None:
+        """Take the states the compiled runs wrote into ``rows``."""
+        every, total = self.every, self.total
+        self.t = [0.0, *(t_end if d == total else d * h for d in range(1, total + 1)
+                         if d % every == 0 or d == total)]
+        self.p = list(np.concatenate([rp for rp, _ in self.rows], axis=1))
+        self.v = list(np.concatenate([rv for _, rv in self.rows], axis=1))
 
 
 def _sort_order(nn: FloatArray) -> IntArray:
@@ -720,7 +781,7 @@ class Sweep:
             for grp in self._groups:
                 grp.kernel = compile_jit_kernel(compile_kernel(tab, grp.n, careful_step,
                                                                grp.any_friction))
-                # The compiled careful step serves the guarded laws (compiled_careful.py).
+                # The compiled careful step serves the guarded laws (careful.py).
                 grp.use_careful = self.guard
         self._engines: dict[tuple[float, ...], Engine] = {}  # per (ω0², γ, n): no state
         self._handed_back = 0  # steps of the current advance taken by Engine.careful
@@ -781,15 +842,12 @@ class Sweep:
         if torque is not None and np.ndim(torque) == 2:
             schedule = _schedule(_as_vector_rows(torque), total, self.size,
                                  self._params)[:, self._order]
-            self._tau = schedule[-1].copy()
-            self._bounds = _input_bounds(np.max(np.abs(schedule), axis=0), self._fr)
-            for grp in self._groups:
-                grp.use_torque(self._tau, self.energy_check, schedule)
+            self._tau, self._bounds = _use_input(self._groups, schedule, self._fr,
+                                                 self.energy_check)
         elif torque is not None:
-            self._tau = _torque(torque, self.size, self._params)[self._order]
-            self._bounds = _input_bounds(self._tau, self._fr)
-            for grp in self._groups:
-                grp.use_torque(self._tau, self.energy_check)
+            self._tau, self._bounds = _use_input(
+                self._groups, _torque(torque, self.size, self._params)[self._order], self._fr,
+                self.energy_check)
         om2, gam, phi, v = self._om2, self._gam, self._phi, self._v
         # E/I of the current states: the last result's, or made here (after a refused run).
         energy = self._energy
@@ -799,28 +857,12 @@ class Sweep:
         stats: dict[int, GuardStats] = {}
         self._handed_back = 0
         _take_batched(self._groups)  # the batched count starts at 0 as well
-        # What the compiled careful step did, per n-sorted pendulum (compiled_careful.COUNTERS).
+        # What the compiled careful step did, per n-sorted pendulum (careful.COUNTERS).
         counts = np.zeros((self.size, len(COUNTERS)), dtype=np.int64)
         meth = METHODS[self.method]
         groups = self._groups
-        rec_t: list[float] = []
-        rec_p: list[FloatArray] = []
-        rec_v: list[FloatArray] = []
-        loaded = False
-
-        def record(t: float) -> None:
-            rec_t.append(t)
-            rec_p.append(np.concatenate([grp.p for grp in groups]) if loaded else phi.copy())
-            rec_v.append(np.concatenate([grp.v for grp in groups]) if loaded else v.copy())
-
         every = record_every or 0
-        rows = 1 + total // every + (1 if total % every else 0) if every else 0
-        records = [(np.empty((rows, grp.sl.stop - grp.sl.start)),
-                    np.empty((rows, grp.sl.stop - grp.sl.start))) for grp in groups]
-        if record_every is not None:
-            record(0.0)
-            for grp, (rp, rv) in zip(groups, records, strict=True):
-                rp[0], rv[0] = phi[grp.sl], v[grp.sl]
+        rec = _Recording(groups, every, total, phi, v)
         done = 0
         g = guard_for(meth.tableau)
         with np.errstate(all='ignore'):
@@ -829,9 +871,8 @@ class Sweep:
                     if self.guard:
                         grp.use_step(g, hh, om2, gam, self._bounds)
                     grp.load(phi, v, energy, om2, gam, uniform=not self.jit)
-                loaded = True
                 if self.jit:
-                    self._run_compiled(hh, count, done, total, t_end, every, records, stats,
+                    self._run_compiled(hh, count, done, total, t_end, every, rec.rows, stats,
                                        counts)
                     done += count
                 for _ in range(0 if self.jit else count):
@@ -839,25 +880,18 @@ class Sweep:
                         if schedule is not None:
                             grp.take_row(done)
                         self._handed_back += _advance(grp, hh, self._engines, stats, meth,
-                                                      self.guard, self.energy_check, done * h)
+                                                      self.guard, self.energy_check, done * h,
+                                                      counts)
                         self._check_speed(grp, t_end if done + 1 == total else (done + 1) * h)
                     done += 1
-                    if record_every is not None and (done % record_every == 0 or done == total):
-                        record(t_end if done == total else done * h)
+                    rec.take(groups, done, t_end if done == total else done * h)
                 for grp in groups:
                     grp.store(phi, v, energy)
-                loaded = False
         if schedule is not None:   # the last input holds from here, as a constant one
-            self._bounds = _input_bounds(self._tau, self._fr)
-            for grp in groups:
-                grp.use_torque(self._tau, self.energy_check)
+            self._tau, self._bounds = _use_input(groups, self._tau, self._fr, self.energy_check)
         if self.jit and every:
-            rec_t = [0.0, *(t_end if d == total else d * h for d in range(1, total + 1)
-                            if d % every == 0 or d == total)]
-            rec_p = list(np.concatenate([rp for rp, _ in records], axis=1))
-            rec_v = list(np.concatenate([rv for _, rv in records], axis=1))
-        return self._result(stats, counts, rec_t, rec_p, rec_v, record_every is not None, total,
-                            t_end)
+            rec.from_rows(h, t_end)
+        return self._result(stats, counts, rec, total, t_end)
 
     def _params(self, i: int) -> PendulumParams:
         """Return the parameters of pendulum ``i`` (in the order given)."""
@@ -869,10 +903,9 @@ class Sweep:
                       stats: dict[int, GuardStats], counts: IntArray) -> None:
         """Advance the loaded groups by ``count`` steps of their compiled runs (``jit=True``).
 
-        The steps the runs refuse are taken by :func:`_careful_one`, as the numpy path takes
-        them (what the compiled careful step did is added to ``counts``, a row per n-sorted
-        pendulum, ``compiled_careful.COUNTERS``); a state
-        beyond the run's speed bound is refused at the earliest step it occurs.
+        The steps the runs' careful step declines are taken by :func:`_careful_one` (what the
+        compiled careful step did is added to ``counts``, a row per n-sorted pendulum,
+        ``careful.COUNTERS``); a state beyond the run's speed bound is refused at once.
         """
         meth = METHODS[self.method]
 
@@ -910,9 +943,8 @@ class Sweep:
         except IntegratorError as exc:
             raise IntegratorError(f'{exc} (index {int(self._order[j])})') from None
 
-    def _result(self, stats: dict[int, GuardStats], counts: IntArray, rec_t: list[float],
-                rec_p: list[FloatArray], rec_v: list[FloatArray], rec: bool, total: int,
-                t_end: float) -> SweepResult:
+    def _result(self, stats: dict[int, GuardStats], counts: IntArray, rec: _Recording,
+                total: int, t_end: float) -> SweepResult:
         """Return the stretch's result in the order the pendulums were given.
 
         ``stats`` are the careful path's counters per n-sorted pendulum it acted on (in
@@ -928,9 +960,9 @@ class Sweep:
         self._energy = energy[order]  # where the next advance starts
         return SweepResult(
             phi=phi_out, dphi=v_out, energy=energy,
-            t_record=np.array(rec_t) if rec else None,
-            phi_record=np.array(rec_p)[:, inv] if rec else None,
-            dphi_record=np.array(rec_v)[:, inv] if rec else None,
+            t_record=np.array(rec.t) if rec.every else None,
+            phi_record=np.array(rec.p)[:, inv] if rec.every else None,
+            dphi_record=np.array(rec.v)[:, inv] if rec.every else None,
             substeps=counters['substeps'], fallbacks=counters['fallbacks'],
             reversals=counters['reversals'], sticks=counters['sticks'],
             energy_rejections=counters['energy_rejections'],
@@ -973,9 +1005,9 @@ def sweep(omega0_sq: Any, gamma: Any, n: Any, phi0: Any, dphi0: Any, t_end: floa
         Refuse runs of more steps than this.
     jit : bool
         Run each group of one n compiled by numba (the ``jit`` extra) instead of with numpy: the
-        same generated step and decisions (``decisions.kernel_source``) run step after step per
+        same generated step and decisions (``kernel.kernel_source``) run step after step per
         pendulum, in parallel over the pendulums, the careful path compiled too
-        (``compiled_careful.py``: Coulomb sticking and break-away, the near-Coulomb creep, the
+        (``careful.py``: Coulomb sticking and break-away, the near-Coulomb creep, the
         guard's substeps, the reversal split, the fallback, the stiff transient's substeps, the
         energy redo, a friction beside the law) and every refused step it declines (the
         fallback's refusal by its work bound, a result that is not finite, the fallback beside a

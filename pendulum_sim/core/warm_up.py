@@ -1,7 +1,7 @@
 """Compile the compiled sweep's paths before the clock starts: the ``jit`` warm-up.
 
 A ``jit=True`` sweep compiles the careful path once and a run per spelling of the damping law
-(``decisions.kernel_source``), in a serial and a parallel form: 25–45 s on a 2-core machine
+(``kernel.kernel_source``), in a serial and a parallel form: 25–45 s on a 2-core machine
 for the first spelling, 10–15 s for each further one. The compiled code is kept on disk
 (``jit_cache.py``), so only the first process on a machine pays this; a later process loads it
 (about 1 s for the first sweep, imports included). :func:`warm_up` takes one compiled step of
@@ -33,7 +33,7 @@ def warm_up(exponents: Iterable[float] = DEFAULT_EXPONENTS, method: str = 'rk4',
     One exponent stands for all that the law spells alike (``law.power_source``: 0, 0.5 and
     each whole n up to 8 their own, every other n one spelling), so ``(1.5,)`` serves every
     non-integer exponent. ``method`` is one of the sweep's methods. With ``friction`` the runs
-    of those laws beside a Coulomb friction (their own texts: ``decisions.kernel_source``) are
+    of those laws beside a Coulomb friction (their own texts: ``kernel.kernel_source``) are
     compiled as well.
 
     Raises

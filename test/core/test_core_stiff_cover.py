@@ -1,6 +1,6 @@
 """The stiff transient's cover written to compile decides as the adaptive methods' cover.
 
-``stiff.stiff_cover`` (which ``Engine.stiff`` and the compiled careful step run) and
+``stiff.stiff_cover`` (which the careful step runs, in Python and compiled) and
 ``embedded.cover`` (the adaptive methods' trial loop) share their error control
 (``error_control.py``). Oracle: ``embedded.cover`` itself, run with the same pair (``dop853``,
 the exponent bound in), tolerance, first trial and trial limit: the two loops must give the same
@@ -22,7 +22,7 @@ from pendulum_sim.core.decisions import (
     stiff_transient,
 )
 from pendulum_sim.core.guard import GuardStats
-from pendulum_sim.core.law import damping_derivative
+from pendulum_sim.core.law import damping_derivative, power_formula
 from pendulum_sim.core.model import run_speed_limit
 from pendulum_sim.core.problem import Problem
 
@@ -58,8 +58,8 @@ def test_the_stiff_cover_takes_the_adaptive_covers_substeps(n: float) -> None:
                     0.5 * run_speed_limit(gamma, n, w2))
         v = speed if rng.uniform() < 0.5 else -speed
         prob = Problem(w2, gamma, n)
-        if not stiff_transient(v, ain - prob.damping(v) - w2 * math.sin(p), gamma, n,
-                               prob.v_acc):
+        if not stiff_transient(abs(v), ain - prob.damping(v) - w2 * math.sin(p), gamma,
+                               power_formula(abs(v), n), prob.v_acc):
             continue  # the input and gravity balance the damping: not a stiff transient
         got = stiff.stiff_cover(*pair, p, v, h, ain, w2, gamma, n, prob.nonsmooth, False)
         want = _by_embedded_cover(prob, p, v, h, ain)
@@ -85,8 +85,8 @@ def test_a_step_the_substeps_cannot_cover_fails_alike() -> None:
 
 
 def test_an_overflowing_slope_is_reported_not_raised() -> None:
-    # γ n |φ'|^(n−1) beyond float64: the code OVERFLOW (Engine.stiff raises OverflowError from
-    # it, and the compiled careful step declines the step).
+    # γ n |φ'|^(n−1) beyond float64: the code OVERFLOW (the careful step then has the fallback
+    # take the step as Python, and declines it compiled).
     got = stiff.stiff_cover(*stiff.stiff_pair(2.5), 0.5, 1e200, 1e-3, 0.0, 9.8, 1e10, 2.5,
                             True, True)
     assert got == (stiff.OVERFLOW, 0.5, 1e200, 0.0, 0, 0)

@@ -15,8 +15,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from pendulum_sim.core import decisions
-from pendulum_sim.core.compiled_careful import careful_step
+from pendulum_sim.core import kernel
+from pendulum_sim.core.careful import careful_step
 from pendulum_sim.core.decisions import (
     ENERGY_TOL,
     energy_kept,
@@ -125,15 +125,15 @@ def test_the_pre_test_decides_the_ordinary_damped_step() -> None:
 def run_kernel(pre_test: bool, n: float, h: float, steps: int) -> list[bytes]:
     """Run the sweep's kernel as Python on a fixed batch; return its arrays' bytes."""
     tab = RK4
-    stage = decisions.kept_stage
-    decisions.kernel_source.cache_clear()
+    stage = kernel.kept_stage
+    kernel.kernel_source.cache_clear()
     try:
         if not pre_test:
-            decisions.kept_stage = lambda tableau: None
-        kernel = decisions.compile_kernel(tab, n, careful_step)
+            kernel.kept_stage = lambda tableau: None
+        run = kernel.compile_kernel(tab, n, careful_step)
     finally:
-        decisions.kept_stage = stage
-        decisions.kernel_source.cache_clear()
+        kernel.kept_stage = stage
+        kernel.kernel_source.cache_clear()
     rng = np.random.default_rng(11)
     size = 240
     w2 = rng.choice(np.array([0.0, 9.8, 40.0]), size)
@@ -150,11 +150,12 @@ def run_kernel(pre_test: bool, n: float, h: float, steps: int) -> list[bytes]:
     careful[::5] = False  # these stop at a refused step, E/I written back where they stop
     full, zero = np.full(size, math.inf), np.zeros(size)
     guard = np.array(StabilityGuard(tab).constants)
-    kernel(p, v, e, k, np.arange(size), h, steps, zero.reshape(1, -1).copy(), w2, gamma,
-           zero.copy(), np.full(size, n),
+    functions = [run.__globals__[name] for name in kernel.FUNCTION_ARGS]
+    run(p, v, e, k, np.arange(size), h, steps, zero.reshape(1, -1).copy(), w2, gamma,
+        zero.copy(), np.full(size, n),
            zero.copy(), full.copy(), zero.copy(), full.copy(), check, np.zeros(size, np.bool_),
            np.zeros(size, np.bool_), full.copy(), 0, 0, steps, np.empty((0, size)),
-           np.empty((0, size)), counts, careful, guard)
+           np.empty((0, size)), counts, np.zeros_like(counts), careful, guard, *functions)
     return [a.tobytes() for a in (p, v, e, k, counts)]
 
 

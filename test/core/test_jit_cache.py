@@ -18,8 +18,7 @@ from typing import Any
 
 import pytest
 
-from pendulum_sim.core.compiled_careful import careful_step
-from pendulum_sim.core.decisions import compile_kernel
+from pendulum_sim.core.careful import careful_step
 from pendulum_sim.core.jit import available
 from pendulum_sim.core.jit_cache import (
     ENV_VAR,
@@ -30,6 +29,7 @@ from pendulum_sim.core.jit_cache import (
     module_file,
     write_atomic,
 )
+from pendulum_sim.core.kernel import compile_kernel
 from pendulum_sim.core.tableaus import TABLEAUS
 
 pytestmark = pytest.mark.skipif(not available(), reason='numba is not installed (jit extra)')

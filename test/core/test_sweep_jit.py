@@ -18,17 +18,20 @@ import numpy as np
 import pytest
 
 from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen, jit
-from pendulum_sim.core.compiled_careful import COUNTERS as CAREFUL_COUNTERS
-from pendulum_sim.core.compiled_careful import careful_step
+from pendulum_sim.core.careful import COUNTERS as CAREFUL_COUNTERS
+from pendulum_sim.core.careful import (
+    NOT_TRIED,
+    TAKEN,
+    LawSteps,
+    Pendulum,
+    Tried,
+    careful_step,
+)
 from pendulum_sim.core.compiled_sweep import PARALLEL_MIN
 from pendulum_sim.core.coulomb import creep_rate, friction_step, moving_input
 from pendulum_sim.core.decisions import (
     STIFF_MAX_TRIALS,
     accuracy_speed,
-    compile_kernel,
-    kernel_source,
-    next_record,
-    record_row,
     stiff_source,
     stiff_transient,
 )
@@ -37,7 +40,13 @@ from pendulum_sim.core.explicit import step_source
 from pendulum_sim.core.guard import FALLBACK, GuardStats, one_substep, substep_count
 from pendulum_sim.core.implicit import MAX_FALLBACK_SUBSTEPS
 from pendulum_sim.core.jit import available, numba_twin
-from pendulum_sim.core.law import damping_derivative, damping_expression, power_source
+from pendulum_sim.core.kernel import compile_kernel, kernel_source, next_record, record_row
+from pendulum_sim.core.law import (
+    damping_derivative,
+    damping_expression,
+    power_formula,
+    power_source,
+)
 from pendulum_sim.core.methods import METHODS
 from pendulum_sim.core.model import _eigs, run_speed_limit
 from pendulum_sim.core.problem import Problem
@@ -131,25 +140,34 @@ def test_jit_must_be_a_bool() -> None:
     assert str(info.value) == 'jit must be True or False, got 1'
 
 
-STEP_FUNCTIONS = ('plain', 'branch', 'laws', 'pair_plain', 'pair_branch')
-"""The generated functions careful_step takes first (exponent an argument), in its order."""
-
-
-def _careful_steps(method: str, n: float) -> tuple[Any, Any, Any, Any, Any]:
-    """Return the generated functions of :data:`STEP_FUNCTIONS` as Python."""
+def _careful_steps(method: str, n: float) -> LawSteps:
+    """Return the generated functions a sweep's run passes to its careful step, as Python."""
     env = compile_kernel(TABLEAUS[method], n, careful_step).__globals__
-    return env['plain'], env['branch'], env['laws'], env['pair_plain'], env['pair_branch']
+    return LawSteps(*(env[name] for name in LawSteps._fields))
 
 
-def _compiled(method: str, n: float) -> tuple[Any, ...]:
-    """Return the compiled careful_step and :data:`STEP_FUNCTIONS` a compiled sweep's run calls.
+def _compiled(method: str, n: float) -> tuple[Any, LawSteps]:
+    """Return the compiled careful_step and the generated functions a compiled run passes it.
 
     The very objects of the sweep's kernel for this law (``jit.compile_kernel``: compiled
     once per text), so the test checks what the sweep runs and compiles nothing again.
     """
     grp = Sweep(W2, 1.0, n, 0.5, 0.0, 1e-3, method=method, jit=True)._groups[0]
     env = grp.kernel[1].py_func.__globals__
-    return (env['careful_step'], *(env[name] for name in STEP_FUNCTIONS))
+    return env['careful_step'], LawSteps(*(env[name] for name in LawSteps._fields))
+
+
+def _pendulum(eng: Engine, method: str) -> Pendulum:
+    """Return what a compiled run gives its careful step for the engine's pendulum (strict)."""
+    consts = np.array(guard_for(TABLEAUS[method]).constants)
+    return Pendulum(eng.w2, eng.gamma, eng.n, eng.cf, eng.v_acc, eng.reach, eng.energy_check,
+                    eng.nonsmooth, eng.coulomb, True, consts, True)
+
+
+def _same(a: tuple[Any, ...], b: tuple[Any, ...]) -> bool:
+    """Return True where the tuples hold the same values, NaN the same as NaN."""
+    return len(a) == len(b) and all(x == y or (x != x and y != y)
+                                    for x, y in zip(a, b, strict=True))
 
 
 def _stats(st: GuardStats) -> tuple[int, ...]:
@@ -187,13 +205,12 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
     # fallback's refusal and results that are not finite; test below), each Engine.careful's
     # step to the bit, every counter equal (the guard's substeps, the fallback, reversals,
     # Coulomb sticks, the energy redo and projection). For n > 1 the states include stiff
-    # transients (|φ'| well above decisions.accuracy_speed), which Engine.stiff covers with
+    # transients (|φ'| well above decisions.accuracy_speed), which the careful step covers with
     # error-controlled DOP853 substeps (stiff.stiff_cover, compiled here). The same function
     # run as Python and compiled must agree. Friction at rest (Coulomb, the near-Coulomb
     # creep) is among them.
-    plain, branch, laws, pair_plain, pair_branch = _careful_steps(method, n)
-    compiled = _compiled(method, n)
-    consts = np.array(guard_for(TABLEAUS[method]).constants)
+    steps = _careful_steps(method, n)
+    compiled, compiled_steps = _compiled(method, n)
     rng = np.random.default_rng(int(10 * n))
     held = stiff = stiff_turns = inside = 0
     seen = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
@@ -202,32 +219,32 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
         eng = Engine(w2, gamma, n, METHODS[method])
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
-        args = (p, v, h, ain, w2, gamma, n, eng.cf, eng.v_acc, eng.reach, eng.energy_check,
-                eng.nonsmooth, eng.coulomb, consts)
+        pend = _pendulum(eng, method)
         # The plain step of h the compiled run took before it refused the step.
-        known = plain(p, v, h, moving_input(ain, v, eng.cf), w2, gamma, 1.0, n)
+        known = steps.plain(p, v, h, moving_input(ain, v, eng.cf), w2, gamma, 1.0, n)
         # The guard's safe range: inside it (by its margin) the count is 1 without computing it.
         lo, hi = eng.fast_range(h, ain)
         inside += bool(one_substep(abs(v), lo, hi))
+        tried = Tried(True, *known, lo, hi)
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-        got = compiled[0](*compiled[1:], *args, counts, True, *known, lo, hi)
+        got = compiled(compiled_steps, pend, p, v, h, ain, math.nan, tried, counts)
         again = np.zeros_like(counts)
-        assert careful_step(plain, branch, laws, pair_plain, pair_branch, *args, again,
-                            True, *known, lo, hi) == got
+        assert _same(careful_step(steps, pend, p, v, h, ain, math.nan, tried, again), got)
         # Outside the guard's range the run takes no plain step: the careful step takes it;
         # with an empty range the guard's count is computed.
         alone = np.zeros_like(counts)
-        assert compiled[0](*compiled[1:], *args, alone, False, 0.0, 0.0, 0.0, 0.0, math.inf,
-                           -math.inf) == got
+        assert _same(compiled(compiled_steps, pend, p, v, h, ain, math.nan, Tried(*NOT_TRIED),
+                              alone), got)
         assert np.array_equal(alone, counts)
         assert np.array_equal(again, counts)
-        assert got[0], (gamma, w2, h, ain, p, v)  # taken compiled
-        assert got[1:] == want[:2], (gamma, w2, h, ain, p, v)
+        assert got[:4] == (TAKEN, *want), (gamma, w2, h, ain, p, v)  # taken compiled, w too
         assert tuple(counts.tolist()) == _stats(st), (gamma, w2, h, ain, p, v)
         seen += counts
-        held += friction_step(branch, laws, p, v, h, ain, w2, gamma, n, eng.coulomb, True)[0]
+        held += friction_step(steps.branch, steps.laws, p, v, h, ain, w2, gamma, n, eng.coulomb,
+                              True)[0]
         if abs(v) > eng.v_acc and stiff_transient(
-                v, ain - eng.damping(v) - w2 * math.sin(p), gamma, n, eng.v_acc):
+                abs(v), ain - eng.damping(v) - w2 * math.sin(p), gamma, power_formula(abs(v), n),
+                eng.v_acc):
             stiff += 1
             stiff_turns += counts[CAREFUL_COUNTERS.index('reversals')] > 0
         else:
@@ -251,24 +268,19 @@ def test_the_compiled_careful_step_is_the_engines_careful_path(method: str, n: f
         assert stiff_turns > 5
 
 
-def _known(compiled: tuple[Any, ...], eng: Engine, p: float, v: float, h: float,
-           ain: float) -> tuple[float, float, float, float]:
+def _tried(steps: LawSteps, eng: Engine, p: float, v: float, h: float, ain: float) -> Tried:
     """Return the plain step of h a compiled run takes before it refuses the step (compiled)."""
-    known: tuple[float, float, float, float] = compiled[1](
-        p, v, h, moving_input(ain, v, eng.cf), eng.w2, eng.gamma, 1.0, eng.n)
-    return known
+    known = steps.plain(p, v, h, moving_input(ain, v, eng.cf), eng.w2, eng.gamma, 1.0, eng.n)
+    return Tried(True, *known, *eng.fast_range(h, ain))
 
 
 def _decline(eng: Engine, method: str, p: float, v: float, h: float) -> None:
-    """Assert that the compiled careful step declines the step and leaves the counters."""
-    compiled = _compiled(method, eng.n)
-    consts = np.array(guard_for(TABLEAUS[method]).constants)
+    """Assert that the compiled careful step declines the step (the run then drops its tally)."""
+    compiled, steps = _compiled(method, eng.n)
     counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-    got = compiled[0](*compiled[1:], p, v, h, 0.0, eng.w2, eng.gamma, eng.n, eng.cf,
-                      eng.v_acc, eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb,
-                      consts, counts, True, *_known(compiled, eng, p, v, h, 0.0),
-                      *eng.fast_range(h, 0.0))
-    assert got == (False, p, v) and not counts.any()
+    got = compiled(steps, _pendulum(eng, method), p, v, h, 0.0, math.nan,
+                   _tried(steps, eng, p, v, h, 0.0), counts)
+    assert got[0] != TAKEN and got[1:4] == (p, v, 0.0)
 
 
 def test_overflow_and_the_fallbacks_refusal_are_left_to_python() -> None:
@@ -389,7 +401,7 @@ STIFF_CELLS = [(10.0, 2.0, 1.0, 30.0, 0.0), (50.0, 2.0, 2.0, -20.0, 1.7),
 
 
 def test_the_compiled_sweep_takes_stiff_transients_without_handing_back() -> None:
-    # Engine.stiff's error-controlled substeps run compiled (stiff.stiff_cover): the numpy
+    # The stiff transient's error-controlled substeps run compiled (stiff.stiff_cover): the numpy
     # sweep hands each stiff step to Engine.careful, the compiled sweep none. The compiled
     # sweep ends on the Stepper's floats and counters; the numpy one on its counters, its
     # floats to round-off for non-integer n (numpy's power is not the C library's pow).
@@ -424,12 +436,11 @@ UNCOVERED = [(1e5, 1e4, 0.2, 1.7, -0.18886198245603225, 34.53516442633296),
 
 
 def test_a_stiff_step_the_substeps_cannot_cover_goes_to_the_guard_compiled() -> None:
-    # stiff_cover returns TO_GUARD; Engine.stiff then has the guard take the step from its
+    # stiff_cover returns TO_GUARD; the careful step then has the guard take the step from its
     # start, the cover's trials still counted. The compiled careful step does the same, to the
     # bit and counter.
     n = 1.5
-    compiled = _compiled('rk4', n)
-    consts = np.array(guard_for(TABLEAUS['rk4']).constants)
+    compiled, steps = _compiled('rk4', n)
     for gamma, w2, h, ain, p, v in UNCOVERED:
         eng = Engine(w2, gamma, n, METHODS['rk4'])
         code, *_, subs, _ = stiff_cover(*stiff_pair(n), p, v, h, ain, w2, gamma, n,
@@ -438,11 +449,9 @@ def test_a_stiff_step_the_substeps_cannot_cover_goes_to_the_guard_compiled() -> 
         st = GuardStats()
         want = eng.careful(p, v, h, ain, st)
         counts = np.zeros(len(CAREFUL_COUNTERS), dtype=np.int64)
-        got = compiled[0](*compiled[1:], p, v, h, ain, w2, gamma, n, eng.cf, eng.v_acc,
-                          eng.reach, eng.energy_check, eng.nonsmooth, eng.coulomb, consts,
-                          counts, True, *_known(compiled, eng, p, v, h, ain),
-                          *eng.fast_range(h, ain))
-        assert got == (True, *want[:2])
+        got = compiled(steps, _pendulum(eng, 'rk4'), p, v, h, ain, math.nan,
+                       _tried(steps, eng, p, v, h, ain), counts)
+        assert got[:4] == (TAKEN, *want)
         assert tuple(counts.tolist()) == _stats(st)
         assert st.substeps >= STIFF_MAX_TRIALS and st.reversals > 0
 
@@ -492,9 +501,11 @@ def test_the_stiff_test_spells_the_power_by_the_laws_rule() -> None:
     v = next(x for x in rng.uniform(1.0, 2.0, 100_000).tolist() if x * x * x < x ** 3.0)
     gamma = 1.0
     a0 = -float(np.nextafter(0.5 * gamma * (v * v * v), np.inf))
-    assert stiff_transient(v, a0, gamma, 3.0, 0.5)
-    assert stiff_transient(np.array([v]), np.array([a0]), gamma, 3.0, np.array([0.5]))[0]
-    assert not stiff_transient(v, np.nextafter(a0, 0.0), gamma, 3.0, 0.5)
+    assert stiff_transient(v, a0, gamma, v * v * v, 0.5)
+    assert stiff_transient(np.array([v]), np.array([a0]), gamma, np.array([v * v * v]),
+                           np.array([0.5]))[0]
+    assert not stiff_transient(v, np.nextafter(a0, 0.0), gamma, v * v * v, 0.5)
+    assert not stiff_transient(0.5, a0, gamma, v * v * v, 0.5)  # not above the speed
 
 
 def test_the_run_keeps_the_next_recorded_step() -> None:
@@ -653,7 +664,8 @@ def test_a_friction_text_keeps_the_coulomb_and_reversal_tests() -> None:
         beside = kernel_source(tab, n, True).split('def kernel')[1]
         assert 'coulomb and v == 0.0' not in plain and 'coulomb and v == 0.0' in beside
         assert 'nonsmooth and (' in beside
-        assert 'copysign(cf, v0)' in beside and 'cf' not in plain.replace('careful', '')
+        assert 'moving_input(a_in, v0, cf)' in beside and 'moving_input' not in plain
+        assert 'CF[i]' in beside and 'CF[i]' not in plain  # without friction it is never read
     assert Problem(W2, 1.0, 3.0, 0.5).coulomb and Problem(W2, 1.0, 3.0, 0.5).nonsmooth
 
 
@@ -679,7 +691,9 @@ def test_the_careful_step_compiles_once_for_every_law_text() -> None:
         assert (res.phi[0], res.dphi[0]) == (st.phi, st.dphi), n
         assert len(twin.signatures) == 1, twin.signatures
     fn_type = type(numba_types().FunctionType(numba_types().float64()))
-    assert [type(a) for a in twin.signatures[0][:3]] == [fn_type] * 3
+    steps = twin.signatures[0][0]  # careful.LawSteps, a named tuple of first-class functions
+    assert steps.instance_class is LawSteps
+    assert [type(a) for a in steps.types] == [fn_type] * len(LawSteps._fields)
 
 
 def numba_types() -> Any:
