@@ -38,6 +38,7 @@ from .effort import Effort, from_samples
 from .errors import IdentifyError
 from .guess import noise_level
 from .laws import Law
+from .starts import count_reached
 from .windows import Problem, Series, Windows, covariance, cut, schedule, simulate, solve
 
 FloatArray = npt.NDArray[np.float64]
@@ -360,6 +361,7 @@ class DrivenSolution:
     starts: int
     window: float | None
     v_ref: float
+    at_optimum: int = 0   # starts that ended within starts.REACHED of the best on BIC
     effort_motion: float = math.inf   # RMS of the angle the effort moves in the fitted model
 
 
@@ -433,10 +435,14 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
         if best is None or best.jac is None:
             out.append(None)
         else:
+            ended = [p for p in mine if p.jac is not None and p.residual is not None]
             out.append(DrivenSolution(law=law, problem=best, windows=best.win,
                                       starts=owner.count(i), window=made[i][2],
                                       v_ref=reference_speed(sets[i]),
-                                      effort_motion=effort_motion(law, sets[i], best, jit)))
+                                      effort_motion=effort_motion(law, sets[i], best, jit),
+                                      at_optimum=count_reached(
+                                          [p.cost for p in ended], [1] * len(ended),
+                                          best.win.y.size)))
     return out
 
 

@@ -145,6 +145,7 @@ def _result(sol: DrivenSolution, recs: Sequence[DrivenRecord]) -> Fit:
                bic=loglik + count * math.log(m), model=sol.law.name, samples=int(m),
                fixed=est.fixed, reasons=est.reasons, correlation=est.correlation, t=t,
                position=y, fitted=y + p.residual, iterations=p.iterations, starts=sol.starts,
+               at_optimum=sol.at_optimum,
                window=sol.window, segments=segments, driven=True)
 
 

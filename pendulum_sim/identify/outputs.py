@@ -7,7 +7,9 @@ deceleration f/I times that inertia; 0 but for ``power+coulomb``: the ``coulomb`
 dry law n = 0 itself) and the state at the first sample.
 ``campaign_parameters.yaml`` is a ``parameters:`` block for ``pendulum_campaign``: each fitted
 parameter a ``normal`` space from its estimate and standard error, ω0's as g (m, l and I of the
-scene held).
+scene held); a driven fit's inertia a space of its own, m g l carried by g, and where l is the
+equivalent simple pendulum's, m and l of a body with the same m g l and room below m l² for
+the drawn inertia (:meth:`Body.roomy`).
 """
 from __future__ import annotations
 
@@ -28,6 +30,8 @@ COLUMNS = ('omega0', 'gamma', 'n', 'friction', 'friction_accel', 'phi_offset', '
 ``friction`` in N m (where the inertia is known), ``friction_accel`` its deceleration f/I;
 ``inertia`` (kg m²), ``mgl`` (N m), ``effort_offset`` (N m) and ``command_delay`` (s) of a
 driven fit (empty for a free swing)."""
+ROOM = 6.0
+"""Standard errors of the fitted inertia a campaign's body leaves below it (``Body.roomy``)."""
 CORRELATED = 0.5
 """Correlations beyond ± this are noted in campaign_parameters.yaml."""
 
@@ -57,6 +61,19 @@ class Body:
         while m * length ** 2 > self.inertia:   # the last bit of a point mass
             m = math.nextafter(m, 0.0)
         return m
+
+    def roomy(self, omega0: float, inertia_stderr: float) -> tuple[float, float]:
+        """Return (m, l) of a body with the scene's m g l whose m l² leaves room for I's spread.
+
+        The equivalent simple pendulum is a point mass, I = m l² exactly: a campaign that draws
+        the inertia below its estimate would draw bodies no rigid pendulum has (I >= m l²).
+        The dynamics depend on I and m g l alone, so the campaign holds a body with the same
+        m g l whose arm is shorter, l = L max(1 − ROOM σ_I / I, 1/2) with L = g / ω0²: its
+        m l² = I l / L lies ROOM standard errors below the estimate (at most half of it).
+        """
+        full = self.arm(omega0)
+        length = full * max(1.0 - ROOM * inertia_stderr / self.inertia, 0.5)
+        return self.mass(omega0) * full / length, length
 
     def gravity(self, omega0: float) -> tuple[float, float]:
         """Return g and dg/dω0 with m, l and I of the scene held (g = ω0² I / (m l)).
@@ -157,6 +174,10 @@ def write_campaign(path: Path, f: Fit, body: Body) -> None:
         # g carries m g l (m and l held): g = m g l / (m l); the inertia is its own.
         m, length = body.mass(p['omega0']), body.arm(p['omega0'])
         std_g = se['mgl'] / (m * length)   # type: ignore[operator]
+        if body.length is None:
+            m, length = body.roomy(p['omega0'], se['inertia'])   # type: ignore[arg-type]
+            lines += [f'  m: {_num(m)}   # m g l as fitted; l with room for the drawn inertia',
+                      f'  l: {_num(length)}']
         lines.append(f'  inertia: {{distribution: normal, mean: {_num(body.inertia)}, std: '
                      f'{_num(se["inertia"])}}}')   # type: ignore[arg-type]
     lines.append(f'  g: {{distribution: normal, mean: {_num(g)}, std: {_num(std_g)}}}')

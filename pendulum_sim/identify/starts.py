@@ -162,11 +162,23 @@ def reached(runs: Sequence[Run]) -> int:
     ok = [r for r in runs if r.problem.jac is not None and math.isfinite(r.problem.cost)]
     if not ok:
         return 0
-    best = min(r.problem.cost for r in ok)
-    m = ok[0].problem.y.size
+    return count_reached([r.problem.cost for r in ok], [r.starts for r in ok],
+                         ok[0].problem.y.size)
+
+
+def count_reached(costs: Sequence[float], weights: Sequence[int], samples: int) -> int:
+    """Return the weight of the finite ``costs`` within :data:`REACHED` of the best on BIC.
+
+    A cost is a residual sum of squares over ``samples`` residuals; on the BIC scale two fits
+    differ by ``samples`` log(cost / best). ``weights`` counts the starts each cost stands for.
+    """
+    ok = [(c, w) for c, w in zip(costs, weights, strict=True) if math.isfinite(c)]
+    if not ok:
+        return 0
+    best = min(c for c, _ in ok)
     if best <= 0.0:
-        return sum(r.starts for r in ok if r.problem.cost <= best)
-    return sum(r.starts for r in ok if m * math.log(r.problem.cost / best) <= REACHED)
+        return sum(w for c, w in ok if c <= best)
+    return sum(w for c, w in ok if samples * math.log(c / best) <= REACHED)
 
 
 def seed(params: Mapping[str, float | None]) -> dict[str, float] | None:
@@ -186,4 +198,4 @@ def seed(params: Mapping[str, float | None]) -> dict[str, float] | None:
 
 
 __all__ = ['EXPONENTS', 'FIRST_TURNS', 'FRICTION_EXPONENTS', 'GROWTH', 'NESTED', 'REACHED',
-           'Run', 'reached', 'search', 'seed', 'windows']
+           'Run', 'count_reached', 'reached', 'search', 'seed', 'windows']

@@ -7,6 +7,7 @@ swing's fit to the bit where the effort is zero.
 """
 from __future__ import annotations
 
+import csv
 import math
 import subprocess
 import sys
@@ -28,7 +29,7 @@ from pendulum_sim.identify import (
 )
 from pendulum_sim.identify.inputs import read_record
 from pendulum_sim.identify.validate import autocorrelation, cross_correlation, fit_percent
-from pendulum_sim.testing import closed_loop
+from pendulum_sim.testing import closed_loop, twin
 from pendulum_sim.testing.examples import pd
 
 SCRIPT = Path(sys.executable).parent / 'pendulum_identify'
@@ -118,6 +119,45 @@ def test_the_command_line_fits_several_records_and_validates_on_another(
     assert float(figures['fit_prediction_percent']) > 90.0
     assert int(figures['prediction_steps']) == round(0.1 * 2 * math.pi / 3.13 / 0.01)
     assert 'validated on' in res.stdout
+    with (out / 'models.csv').open() as fh:
+        row = next(csv.DictReader(fh))
+    assert 1 <= int(row['starts_at_optimum']) <= int(row['starts'])   # the best start counts
+
+
+def test_the_twin_of_a_driven_fit_predicts_a_held_out_step_within_its_spread(
+        runs: dict[str, Path], tmp_path: Path) -> None:
+    # Done when of issue 37: the recording identified with effort, then pendulum_twin on a
+    # run of the same joint under the same controller (a step, not fitted) lies in the spread.
+    out = tmp_path / 'fit'
+    res = subprocess.run([str(SCRIPT), str(runs['a']), '--models', 'power+coulomb', '--out',
+                          str(out), '--no-progress'], capture_output=True, text=True,
+                         timeout=600, check=False)
+    assert res.returncode == 0, res.stderr
+    spaces = yaml.safe_load((out / 'campaign_parameters.yaml').read_text())['parameters']
+    scene = yaml.safe_load((out / 'fit.yaml').read_text())['/**']['ros__parameters']
+    # The campaign's body: the fitted m g l, and room below m l² for six standard errors of
+    # the drawn inertia (the scene's point mass has none: I = m l²).
+    inertia = spaces['inertia']
+    assert spaces['m'] * spaces['l'] == pytest.approx(scene['m'] * scene['l'], rel=1e-12)
+    assert spaces['m'] * spaces['l'] ** 2 == pytest.approx(
+        inertia['mean'] - 6.0 * inertia['std'], rel=1e-9)
+    assert scene['m'] * scene['l'] ** 2 <= scene['inertia']
+    step = tmp_path / 'step.mcap'
+    closed_loop(pd, scene='controller_test', periods=400, target=1.0, record=step,
+                overrides={**JOINT, **NOISE, 'phi0': 0.0, 'sensor.seed': 5})
+    # The fit does not know the encoder: the twin's scene gets it, the campaign its seeds.
+    twin_scene = tmp_path / 'twin_scene.yaml'
+    twin_scene.write_text((out / 'fit.yaml').read_text() + ''.join(
+        f'    {k}: {v}\n' for k, v in NOISE.items()))
+    twin_spaces = tmp_path / 'twin_spaces.yaml'
+    twin_spaces.write_text((out / 'campaign_parameters.yaml').read_text()
+                           + f'  sensor.seed: {list(range(1, 41))}\n')
+    report = twin(step, str(twin_scene), 'pendulum_sim.testing.examples:pd', target=1.0,
+                  campaign=twin_spaces, episodes=40)
+    assert report.episodes_failed == 0
+    assert report.fit_percent > 95.0
+    assert {m.name: m.inside for m in report.metrics} == dict.fromkeys(
+        ('rise_time', 'settling_time', 'overshoot', 'iae', 'max_effort'), True), report.text()
 
 
 def test_a_balancing_loop_is_fitted_over_windows_where_one_simulation_diverges(
