@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core.analysis import fit_percent
 from .checks import as_array, jit_choice
 from .driven import SHARED, DrivenRecord, anchors, grid_step, inputs_for, prepare_driven
 from .errors import IdentifyError
@@ -108,12 +109,14 @@ class Validation:
         return bool(np.count_nonzero(np.abs(self.cross_correlation) > self.band) <= 1)
 
 
-def fit_percent(y: FloatArray, yhat: FloatArray) -> float:
-    """Return MATLAB ``compare``'s fit in %: 100 (1 − ‖y − ŷ‖ / ‖y − mean(y)‖)."""
-    spread = float(np.linalg.norm(y - np.mean(y)))
-    if spread == 0.0:
+def _fit(y: FloatArray, yhat: FloatArray) -> float:
+    """Return the fit in % (``core.analysis.fit_percent``, MATLAB ``compare``'s NRMSE).
+
+    −inf where the prediction is not finite throughout (a simulation that left the record).
+    """
+    if not np.all(np.isfinite(yhat)):
         return -math.inf
-    return 100.0 * (1.0 - float(np.linalg.norm(y - yhat)) / spread)
+    return fit_percent(y, yhat)
 
 
 def autocorrelation(e: FloatArray, lags: int) -> FloatArray:
@@ -274,8 +277,8 @@ def validate(fit: Fit, record: Any, *, k: int | None = None, jit: bool | None = 
     return Validation(
         t=rec.t + rec.t0, measured=rec.y, simulated=simulated, predicted=predicted,
         residual=residual, k=k,
-        fit_simulation=fit_percent(rec.y, simulated) if sim is not None else -math.inf,
-        fit_prediction=fit_percent(rec.y[k:], predicted[k:]),
+        fit_simulation=_fit(rec.y, simulated) if sim is not None else -math.inf,
+        fit_prediction=_fit(rec.y[k:], predicted[k:]),
         lags=np.arange(lags + 1), autocorrelation=autocorrelation(residual, lags),
         cross_lags=cross_lags, cross_correlation=cross, band=BAND / math.sqrt(m))
 
@@ -373,5 +376,5 @@ def write_validation_figure(path: Path, v: Validation, title: str = '') -> None:
     plt.close(fig)
 
 
-__all__ = ['BAND', 'LAGS', 'Validation', 'autocorrelation', 'cross_correlation', 'fit_percent',
+__all__ = ['BAND', 'LAGS', 'Validation', 'autocorrelation', 'cross_correlation',
            'validate', 'write_validation', 'write_validation_figure']

@@ -18,6 +18,7 @@ import pytest
 import yaml
 from synthetic_driven import records
 
+from pendulum_sim.core.analysis import fit_percent
 from pendulum_sim.identify import (
     IdentifyError,
     compare,
@@ -28,7 +29,7 @@ from pendulum_sim.identify import (
     validate,
 )
 from pendulum_sim.identify.inputs import read_record
-from pendulum_sim.identify.validate import autocorrelation, cross_correlation, fit_percent
+from pendulum_sim.identify.validate import autocorrelation, cross_correlation
 from pendulum_sim.testing import closed_loop, twin
 from pendulum_sim.testing.examples import pd
 
