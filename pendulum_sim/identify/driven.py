@@ -601,5 +601,5 @@ def check_same_joint(recs: Sequence[DrivenRecord]) -> None:
 
 
 __all__ = ['BOUNDS', 'KNOWN_DRIVEN', 'SHARED', 'DrivenRecord', 'DrivenSolution', 'Estimates',
-           'check_known', 'check_same_joint', 'check_window', 'estimates', 'first_guesses',
-           'inverse_dynamics', 'prepare_driven', 'solve_law']
+           'Smoothed', 'check_known', 'check_same_joint', 'check_window', 'estimates',
+           'first_guesses', 'inverse_dynamics', 'prepare_driven', 'smoothed', 'solve_law']
