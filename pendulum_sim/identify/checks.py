@@ -1,7 +1,8 @@
 """The checks every fit makes where its inputs enter: arrays of numbers, the jit switch."""
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -44,8 +45,44 @@ def jit_choice(jit: bool | None) -> bool:
     return jit
 
 
+def increasing(t: FloatArray) -> None:
+    """Refuse sample times that do not increase strictly, naming the first pair."""
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        i = int(bad[0])
+        raise IdentifyError(f't must increase strictly: t[{i + 1}] = {float(t[i + 1])!r} s '
+                            f'follows t[{i}] = {float(t[i])!r} s; sort the samples and drop '
+                            'repeated stamps')
+
+
+def known_values(known: Mapping[str, float] | None, allowed: Sequence[str], prefix: str,
+                 limit: Callable[[str, float], str | None]) -> dict[str, float]:
+    """Return ``known`` (parameters a fit holds) as floats, or refuse it.
+
+    Each key must be one of ``allowed`` (the message starts with ``prefix``), each value a
+    finite number that ``limit(key, value)`` accepts (it returns what the value must be, or
+    None).
+    """
+    if known is None:
+        return {}
+    if not isinstance(known, Mapping):
+        raise IdentifyError(f'known must be a dict of parameter values, got {known!r}')
+    out = {}
+    for key, value in known.items():
+        if key not in allowed:
+            raise IdentifyError(f'{prefix}known may fix {", ".join(allowed)}; got {key!r}')
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
+                value):
+            raise IdentifyError(f'known[{key!r}] must be a finite number, got {value!r}')
+        must = limit(key, value)
+        if must is not None:
+            raise IdentifyError(f'known[{key!r}] must be {must}, got {value!r}')
+        out[key] = float(value)
+    return out
+
+
 Progress = Callable[[int, int], None]
 """``progress(iteration, starts_done)`` after each iteration of a fit."""
 
 
-__all__ = ['MIN_SAMPLES', 'Progress', 'as_array', 'jit_choice']
+__all__ = ['MIN_SAMPLES', 'Progress', 'as_array', 'increasing', 'jit_choice', 'known_values']

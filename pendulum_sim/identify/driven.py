@@ -34,6 +34,7 @@ from scipy.optimize import lsq_linear  # type: ignore[import-untyped]
 from scipy.signal import savgol_filter  # type: ignore[import-untyped]
 from scipy.stats import t as student_t  # type: ignore[import-untyped]
 
+from .checks import known_values
 from .effort import Effort, from_samples
 from .errors import IdentifyError
 from .guess import noise_level
@@ -570,24 +571,11 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
 
 
 def check_known(known: Mapping[str, float] | None) -> dict[str, float]:
-    """Return ``known`` checked for a driven fit (finite numbers of KNOWN_DRIVEN)."""
-    if known is None:
-        return {}
-    if not isinstance(known, Mapping):
-        raise IdentifyError(f'known must be a dict of parameter values, got {known!r}')
-    out = {}
-    for key, value in known.items():
-        if key not in KNOWN_DRIVEN:
-            raise IdentifyError(f'with effort, known may fix {", ".join(KNOWN_DRIVEN)}; got '
-                                f'{key!r}')
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
-                value):
-            raise IdentifyError(f'known[{key!r}] must be a finite number, got {value!r}')
+    """Return ``known`` checked for a driven fit (finite numbers of KNOWN_DRIVEN in BOUNDS)."""
+    def limit(key: str, value: float) -> str | None:
         lo, hi = BOUNDS[key]
-        if not lo <= value <= hi:
-            raise IdentifyError(f'known[{key!r}] must be in [{lo:g}, {hi:g}], got {value!r}')
-        out[key] = float(value)
-    return out
+        return None if lo <= value <= hi else f'in [{lo:g}, {hi:g}]'
+    return known_values(known, KNOWN_DRIVEN, 'with effort, ', limit)
 
 
 def check_same_joint(recs: Sequence[DrivenRecord]) -> None:

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import MIN_SAMPLES, Progress, as_array, jit_choice
+from .checks import MIN_SAMPLES, Progress, as_array, increasing, jit_choice
 from .driven import (
     DrivenRecord,
     DrivenSolution,
@@ -59,13 +59,7 @@ def driven_record(t: Any, position: Any, effort: Any, *, velocity: Any = None,
         raise IdentifyError(f'a record needs at least {MIN_SAMPLES} samples, got {tt.size}')
     y = as_array('position', position, tt.size)
     v = None if velocity is None else as_array('velocity', velocity, tt.size)
-    steps = np.diff(tt)
-    bad = np.flatnonzero(steps <= 0)
-    if bad.size:
-        i = int(bad[0])
-        raise IdentifyError(f't must increase strictly: t[{i + 1}] = {float(tt[i + 1])!r} s '
-                            f'follows t[{i}] = {float(tt[i])!r} s; sort the samples and drop '
-                            'repeated stamps')
+    increasing(tt)
     if not isinstance(effort, Effort):
         effort = _effort_array(effort, tt)
     y = np.unwrap(y)

@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import t as student_t  # type: ignore[import-untyped]
 
-from .checks import MIN_SAMPLES, Progress, as_array, jit_choice
+from .checks import MIN_SAMPLES, Progress, as_array, increasing, jit_choice, known_values
 from .errors import IdentifyError
 from .guess import Guess, best_exponent, envelope_gamma, first_look
 from .laws import COMPARED, MODELS, Law, get_law
@@ -53,13 +53,7 @@ def prepare(t: Any, position: Any, velocity: Any = None, effort: Any = None) -> 
                 f'effort is not zero (up to {np.abs(e).max():.3g} N m): a driven record is '
                 'fitted with its effort (fit(..., effort=...), prepare_driven); prepare '
                 'takes a free swing')
-    steps = np.diff(tt)
-    bad = np.flatnonzero(steps <= 0)
-    if bad.size:
-        i = int(bad[0])
-        raise IdentifyError(f't must increase strictly: t[{i + 1}] = {float(tt[i + 1])!r} s '
-                            f'follows t[{i}] = {float(tt[i])!r} s; sort the samples and drop '
-                            'repeated stamps')
+    increasing(tt)
     y = np.unwrap(y)   # an encoder's wrap at ±π: a jump of more than π between samples
     guess = first_look(tt - tt[0], y)
     span = float(np.ptp(y))
@@ -71,23 +65,13 @@ def prepare(t: Any, position: Any, velocity: Any = None, effort: Any = None) -> 
 
 
 def _check_known(known: Mapping[str, float] | None) -> dict[str, float]:
-    if known is None:
-        return {}
-    if not isinstance(known, Mapping):
-        raise IdentifyError(f'known must be a dict of parameter values, got {known!r}')
-    out = {}
-    for key, value in known.items():
-        if key not in KNOWN:
-            raise IdentifyError(f'known may fix {", ".join(KNOWN)}; got {key!r}')
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
-                value):
-            raise IdentifyError(f'known[{key!r}] must be a finite number, got {value!r}')
+    def limit(key: str, value: float) -> str | None:
         if key in ('omega0', 'inertia') and value <= 0:
-            raise IdentifyError(f'known[{key!r}] must be > 0, got {value!r}')
+            return '> 0'
         if key in ('gamma', 'n') and value < 0:
-            raise IdentifyError(f'known[{key!r}] must be >= 0, got {value!r}')
-        out[key] = float(value)
-    return out
+            return '>= 0'
+        return None
+    return known_values(known, KNOWN, '', limit)
 
 
 def _starts(law: Law, rec: Record, known: dict[str, float]) -> list[Mapping[str, float]]:
