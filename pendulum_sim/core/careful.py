@@ -335,7 +335,8 @@ def careful_step(steps: StepsArg, pend: PendulumArg, p: float, v: float, h: floa
     """Take the careful step of h from (φ, φ'): its path, then :func:`careful_settle`.
 
     In this order: where friction holds the pendulum, ``coulomb.friction_step`` (beside a
-    friction c_f > 0 the guard's substeps take the rest, and nothing creeps); a step in a
+    friction c_f > 0 the guard's substeps take the rest, and a near-Coulomb law creeps under
+    the moving friction, ``coulomb.creep_state``); a step in a
     damping-dominated transient (``decisions.stiff_transient``) by ``stiff.stiff_cover`` (the
     guard takes it from its start where the cover cannot); every other step by
     :func:`guarded` (without the guard, one micro step). ``e0`` is E/I at the start where known
@@ -351,7 +352,7 @@ def careful_step(steps: StepsArg, pend: PendulumArg, p: float, v: float, h: floa
     bare = cf == 0.0
     _, branch, laws, pair_plain, pair_branch = steps
     held, p1, v1, w = friction_step(branch, laws, p, v, h, ain, w2, gamma, n,
-                                    coulomb and bare, bare and with_guard, cf)
+                                    coulomb and bare, with_guard, cf)
     if held:
         return careful_settle(pend, p, v, h, ain, p1, v1, w, e0, counts)
     speed = abs(v)

@@ -182,8 +182,38 @@ def _rate_at(x: float, ain: float, w2: float, gamma: float, n: float) -> tuple[f
 
 
 def creep_state(laws: Any, n: float, gamma: float, w2: float, p: float, v: float, h: float,
-                ain: float) -> tuple[bool, float, float, float]:
-    """Advance a near-Coulomb creep by h; return (crept, φ₁, φ'₁, w).
+                ain: float, cf: float = 0.0) -> tuple[bool, float, float, float]:
+    """Advance a near-Coulomb creep by h, beside a friction c_f = ``cf``; return (crept, …).
+
+    Without friction, :func:`bare_creep`. Beside a friction c_f > 0 the pendulum creeps in one
+    direction s: that of φ' or, at rest, the rest rule's (:func:`rest_direction`; where it
+    sticks nothing creeps). Moving in the direction s the friction is the input
+    a_in − s c_f (:func:`moving_input`), so the creep is :func:`bare_creep` under it, where the
+    force under it, F − s c_f, drives the motion on (s (F − s c_f) > 0, the creep speed
+    (|F − s c_f|/γ)^(1/n) of the force balance γ |φ'|^n + c_f = |F|) and the creep does not turn
+    round within the step; its work adds the friction's (:func:`friction_work`). A motion the
+    friction decelerates towards a reversal is no creep (the guard's substeps take it).
+    """
+    if cf == 0.0:
+        return bare_creep(laws, n, gamma, w2, p, v, h, ain)
+    if v == 0.0:
+        s = rest_direction(p, ain, w2, gamma, n, cf)
+        if s == 0.0:
+            return False, p, v, 0.0
+    else:
+        s = 1.0 if v > 0.0 else -1.0
+    a = moving_input(ain, s, cf)
+    if not s * (a - w2 * math.sin(p)) > 0.0:
+        return False, p, v, 0.0
+    crept, p1, v1, w = bare_creep(laws, n, gamma, w2, p, v, h, a)
+    if not crept or v1 * s < 0.0:
+        return False, p, v, 0.0
+    return True, p1, v1, w + friction_work(cf, s, p, p1)
+
+
+def bare_creep(laws: Any, n: float, gamma: float, w2: float, p: float, v: float, h: float,
+               ain: float) -> tuple[bool, float, float, float]:
+    """Advance a near-Coulomb creep by h without friction beside it; return (crept, φ₁, φ'₁, w).
 
     ``crept`` is False (and the state unchanged) where the pendulum does not creep. It creeps
     for 0 < n < 1 and γ > 0 where the creep speed is below 1 rad/s (the damping dominates the
@@ -240,7 +270,8 @@ def friction_step(branch: Any, laws: Any, p: float, v: float, h: float, ain: flo
     """Take the careful path's step where friction holds the pendulum: (taken, φ₁, φ'₁, w).
 
     Under Coulomb friction at rest, :func:`rest_step` (stick or break away); where a
-    near-Coulomb law may creep (``creeps``: guarded explicit steps), :func:`creep_state`.
+    near-Coulomb law may creep (``creeps``: guarded explicit steps), :func:`creep_state` (beside
+    the friction ``cf`` too).
     ``taken`` is False (the state unchanged) where neither applies: the step is then the
     guard's. ``Engine.careful`` calls it first, in Python, and the compiled sweep's careful
     step (``careful.py``) compiled. ``cf`` is the friction c_f beside the law.
@@ -249,17 +280,17 @@ def friction_step(branch: Any, laws: Any, p: float, v: float, h: float, ain: flo
         p1, v1, w = rest_step(branch, p, 0.0, h, ain, w2, gamma, n, cf)
         return True, p1, v1, w
     if creeps:
-        return creep_state(laws, n, gamma, w2, p, v, h, ain)
+        return creep_state(laws, n, gamma, w2, p, v, h, ain, cf)
     return False, p, v, 0.0
 
 
 def creep(prob: Problem, p: float, v: float, h: float, ain: float) -> StepResult | None:
     """Return :func:`creep_state`'s (φ₁, φ'₁, w) for ``prob``, or None where it does not creep."""
     crept, p1, v1, w = creep_state(compile_laws(prob.n), prob.n, prob.gamma, prob.w2, p, v, h,
-                                   ain)
+                                   ain, prob.friction)
     return (p1, v1, w) if crept else None
 
 
-__all__ = ['CREEP_RELAX', 'TINY', 'creep', 'creep_rate', 'creep_speed', 'creep_state',
+__all__ = ['CREEP_RELAX', 'TINY', 'bare_creep', 'creep', 'creep_rate', 'creep_speed', 'creep_state',
            'friction_step', 'friction_work', 'moving_input', 'moving_inputs', 'rest_direction',
            'rest_step', 'settle_shift', 'stuck']
