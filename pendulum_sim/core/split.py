@@ -74,7 +74,7 @@ def split_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
     if coulomb:
         p2, v2, w2_ = rest_step(branch, pm, vm, rest, ain, w2, gamma, n, cf)
         return True, p2, v2, wm + w2_, 1, pm, vm, wm, rest
-    crept, p2, v2, w2_ = creep_state(laws, n, gamma, w2, pm, vm, rest, ain)
+    crept, p2, v2, w2_ = creep_state(laws, n, gamma, w2, pm, vm, rest, ain, 0.0)
     if crept:
         return True, p2, v2, wm + w2_, 1, pm, vm, wm, rest
     after = ain - w2 * math.sin(pm)
