@@ -291,6 +291,6 @@ def creep(prob: Problem, p: float, v: float, h: float, ain: float) -> StepResult
     return (p1, v1, w) if crept else None
 
 
-__all__ = ['CREEP_RELAX', 'TINY', 'bare_creep', 'creep', 'creep_rate', 'creep_speed', 'creep_state',
-           'friction_step', 'friction_work', 'moving_input', 'moving_inputs', 'rest_direction',
-           'rest_step', 'settle_shift', 'stuck']
+__all__ = ['CREEP_RELAX', 'TINY', 'bare_creep', 'creep', 'creep_rate', 'creep_speed',
+           'creep_state', 'friction_step', 'friction_work', 'moving_input', 'moving_inputs',
+           'rest_direction', 'rest_step', 'settle_shift', 'stuck']
