@@ -27,6 +27,7 @@ from std_srvs.srv import SetBool, Trigger
 
 from pendulum_sim import __version__
 from pendulum_sim.joint import commands, replies
+from pendulum_sim.joint.cost import cost_line, estimate_real_time_factor
 from pendulum_sim.joint.drivers import WAKE_BUDGET_NS, make_driver, wake_period
 from pendulum_sim.joint.exchange import Gate, StepError
 from pendulum_sim.joint.foxglove import LiveView
@@ -117,6 +118,11 @@ class PendulumNode(Node):
                                  {'scene': {k: str(x) for k, x in v.items()},
                                   'pendulum_sim': {'version': __version__}}, channels)
 
+        # What the configured law's steps cost, by a trial of a joint of the same config
+        # (before the joint's epoch and schedule start: the trial delays no wake).
+        rtf = float(v['real_time_factor'])
+        cost = cost_line(estimate_real_time_factor(joint_config(v)), rtf,
+                         not self._sync and rtf > 0.0)
         # The joint and its driver start after every entity (and the recorder) exists, so the
         # first wake has no set-up time to catch up; a wall-anchored epoch is read now.
         self._joint = joint = SimulatedJoint(joint_config(v, start_epoch_ns(v, time.time_ns())))
@@ -142,6 +148,7 @@ class PendulumNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self._log('info', self._telemetry.start_text(v))
+        self._log(*cost)
         if self._live is not None:
             self._log('info', f'foxglove: serving the joint on {self._live.url}')
 
