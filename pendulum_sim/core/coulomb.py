@@ -20,7 +20,9 @@ reached from near rest within the relaxation time 1/D'(v_c) = v_c / (n |F|) (the
 of the law there). Where that time is far below the step, the velocity is slaved to the angle
 (a singular perturbation: Hairer and Wanner, *Solving ODEs II*, VI.1, the reduced problem) and
 :func:`creep` integrates the reduced equation φ' = sgn(F) v_c(φ) instead of the stiff one, whose
-slope γ n |φ'|^(n−1) is unbounded at rest and beyond any explicit step.
+slope γ n |φ'|^(n−1) is unbounded at rest and beyond any explicit step. Beside a friction c_f
+the creep is that of the force under the moving friction, F − s c_f in the direction s of the
+motion (γ v_c^n + c_f = |F|), where the friction does not hold the pendulum (|F| > c_f).
 
 Each decision is one function written to compile (floats and the generated steps and laws in, a
 tuple out, no exception on its path: :func:`rest_direction`, :func:`rest_step`,
