@@ -33,7 +33,6 @@ from numpy.typing import NDArray
 
 from pendulum_sim.joint.joint import JointConfig, stamp_ns
 from pendulum_sim.joint.lockstep import Lockstep, batchable_config, common, common_text
-
 from pendulum_sim.testing.errors import TestingError
 from pendulum_sim.testing.swing_up.metrics import swing_up_metrics_batch
 

@@ -60,7 +60,7 @@ def test_an_episode_ends_with_its_swing_up_metrics_in_info_and_no_step_before() 
 
 def test_the_vector_envs_metrics_are_each_scalar_envs_in_gymnasiums_vector_info() -> None:
     n, length = 3, 120
-    vec = gymnasium.make_vec(SWING, num_envs=n, vectorization_mode='vector_entry_point',
+    vec: Any = gymnasium.make_vec(SWING, num_envs=n, vectorization_mode='vector_entry_point',
                              parameters=NEAR_UP, max_episode_steps=length)
     obs, _ = vec.reset(seed=7)
     p = vec.unwrapped.runner.pendulums
@@ -108,5 +108,5 @@ def test_no_metrics_without_a_goal_or_when_turned_off() -> None:
         pg.DampedPendulumEnv(episode_metrics=1)  # type: ignore[arg-type]
     # gymnasium.make gives the environment the registered length: its episodes end with the
     # metrics at the step the TimeLimit wrapper truncates them.
-    env = gymnasium.make(SWING)
-    assert env.unwrapped.runner.max_episode_steps == env.spec.max_episode_steps == 1000
+    made: Any = gymnasium.make(SWING)
+    assert made.unwrapped.runner.max_episode_steps == made.spec.max_episode_steps == 1000
