@@ -6,6 +6,7 @@ an episode is drawn and ends) over the simulated joint of a scene; the vector en
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -82,8 +83,9 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
     target : number, list or mapping, optional
         ``StepResponse``: the target's space (rad), as a campaign file's ``target``.
     episode_metrics : bool
-        ``DampedPendulum``: keep each episode's samples and put its swing-up metrics in
-        ``info`` at the step it terminates or truncates (default True).
+        ``DampedPendulum``: keep each episode's samples (24 bytes an environment a step)
+        and put its swing-up metrics in ``info`` at the step it terminates or truncates
+        (default True).
 
     Observations are float64, the joint's state unrounded (Pendulum-v1's are float32).
 
@@ -143,7 +145,11 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
         if failed:
             info['failed'] = failed[0]
         if terminated[0] or truncated[0]:
-            info.update(r.end_info(_ONE)[0])
+            columns, measured = r.end_info(_ONE)
+            if measured[0]:   # as SwingUpMetrics holds them: Python values, NaN math.nan
+                for name, values in columns.items():
+                    value = values[0].item()
+                    info[name] = math.nan if value != value else value
         return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), info
 
     def render(self) -> NDArray[np.uint8] | None:

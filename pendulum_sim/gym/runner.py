@@ -19,7 +19,7 @@ of each period (``K + 1`` samples after ``K`` steps, the first the reset's), sta
 epoch + k T`` on the joint's nanosecond grid, with the torque the joint applied in the period
 before it (0 at the reset). At the step an episode terminates or truncates,
 :meth:`Runner.end_info` measures them with
-:func:`~pendulum_sim.testing.swing_up.metrics.swing_up_metrics_batch` (goal π, the default
+:func:`~pendulum_sim.testing.swing_up.metrics.swing_up_metrics_columns` (goal π, the default
 goal box, the joint's ``max_effort`` as the torque limit): the same numbers
 ``closed_loop(policy_law(policy), periods=K + 1, ...).swing_up_metrics()`` gives the same run.
 """
@@ -33,8 +33,7 @@ from numpy.typing import NDArray
 
 from pendulum_sim.joint.joint import JointConfig, stamp_ns
 from pendulum_sim.joint.lockstep import Lockstep, batchable_config, common, common_text
-from pendulum_sim.testing.errors import TestingError
-from pendulum_sim.testing.swing_up.metrics import swing_up_metrics_batch
+from pendulum_sim.testing.swing_up.metrics import swing_up_metrics_columns
 
 from .errors import GymError
 from .scenario import Drawn, Episode, Scenarios
@@ -222,18 +221,6 @@ class Runner:
         self._samples[1, at, ids] = p.vel[ids]
         self._samples[2, at, ids] = p.effort[ids]
 
-    def samples(self, i: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """Return environment ``i``'s episode so far: ``t`` (s), angle, rate and effort."""
-        if not self.keeps_samples:
-            raise GymError('this environment keeps no samples (episode_metrics=False, or a '
-                           'task without a swing-up goal)')
-        count = int(self.steps[i]) + 1
-        config = self.pendulums.configs[i]
-        if config is None:
-            raise GymError('no episode before reset(): call reset() first')
-        kept = self._samples[:, :count, i]
-        return (self._times(config, count), kept[0].copy(), kept[1].copy(), kept[2].copy())
-
     @staticmethod
     def _times(config: JointConfig, count: int) -> FloatArray:
         """Return the stamps of ``count`` period starts from the joint's epoch (s)."""
@@ -241,25 +228,26 @@ class Runner:
         return np.array([stamp_ns(config.epoch_ns, j * k, config.h) / 1e9
                          for j in range(count)])
 
-    def end_info(self, ended: IntArray) -> list[dict[str, Any]]:
+    def end_info(self, ended: IntArray) -> tuple[dict[str, NDArray[Any]], NDArray[np.bool_]]:
         """Return what ``info`` carries for the environments whose episodes ``ended`` this step.
 
-        One dict per environment of ``ended``: the fields of its episode's
-        :class:`~pendulum_sim.testing.swing_up.metrics.SwingUpMetrics` (the module's
-        definitions, over the samples the module docstring names); empty for a task without
-        a goal, with ``episode_metrics=False``, or where the samples cannot be measured (a
-        joint that failed with a state that is not finite).
+        Per field of :class:`~pendulum_sim.testing.swing_up.metrics.SwingUpMetrics` an array
+        over ``ended`` (the module's definitions, over the samples the module docstring
+        names), and which of them were measured: none for a task without a goal or with
+        ``episode_metrics=False`` (no fields then), nor where the samples cannot be measured
+        (a joint that failed with a state that is not finite).
         """
-        out: list[dict[str, Any]] = [{} for _ in range(ended.size)]
         goal = self.task.goal
         if not self.keeps_samples or goal is None or ended.size == 0:
-            return out
+            return {}, np.zeros(ended.size, dtype=bool)
         groups: dict[tuple[int, int, float, int], list[int]] = {}
         for n, i in enumerate(ended.tolist()):
             c = self.pendulums.configs[i]
             assert c is not None   # an episode ran in it
             groups.setdefault((int(self.steps[i]) + 1, c.epoch_ns, c.h, c.period_steps),
                               []).append(n)
+        columns: dict[str, NDArray[Any]] = {}
+        measured = np.zeros(ended.size, dtype=bool)
         for (count, _, _, _), rows in groups.items():
             ids = ended[rows]
             config = self.pendulums.configs[int(ids[0])]
@@ -267,12 +255,15 @@ class Runner:
             # One contiguous row per episode, as a run alone is measured (the same sums).
             phi, vel, effort = (np.ascontiguousarray(self._samples[r, :count][:, ids].T)
                                 for r in range(3))
-            measured = swing_up_metrics_batch(self._times(config, count), phi, vel, effort,
-                                              goal=goal, effort_limit=self.pendulums.limit[ids])
-            for n, m in zip(rows, measured, strict=True):
-                if not isinstance(m, TestingError):
-                    out[n] = m.as_dict()
-        return out
+            found, ok = swing_up_metrics_columns(self._times(config, count), phi, vel, effort,
+                                                 goal=goal,
+                                                 effort_limit=self.pendulums.limit[ids])
+            for name, values in found.items():
+                if name not in columns:
+                    columns[name] = np.zeros(ended.size, dtype=values.dtype)
+                columns[name][rows] = values
+            measured[rows] = ok
+        return columns, measured
 
     def check_running(self, i: int) -> None:
         """Refuse to step environment ``i`` before its first reset or after its episode."""

@@ -122,23 +122,16 @@ class JointVectorEnv(VectorEnv[FloatArray, FloatArray, FloatArray]):
                                        dtype=object)
             infos['_failed'] = np.array([i in failed for i in range(self.num_envs)])
         ended = np.flatnonzero(self._autoreset)
-        if ended.size:
-            infos.update(self._columns(ended, r.end_info(ended)))
+        if ended.size:   # Gymnasium's vector info: per key an array and its mask '_key'
+            columns, measured = r.end_info(ended)
+            if measured.any():
+                mask = np.zeros(self.num_envs, dtype=bool)
+                mask[ended[measured]] = True
+                for name, values in columns.items():
+                    infos[name] = np.zeros(self.num_envs, dtype=values.dtype)
+                    infos[name][ended[measured]] = values[measured]
+                    infos[f'_{name}'] = mask.copy()
         return obs, reward, terminated, truncated, infos
-
-    def _columns(self, ended: NDArray[np.int64], found: list[dict[str, Any]]
-                 ) -> dict[str, Any]:
-        """Return the ended environments' infos as Gymnasium's vector info: per key an array
-        over the N environments (dtype of the value, 0 elsewhere) and its mask ``_key``."""
-        out: dict[str, Any] = {}
-        for n, i in enumerate(ended.tolist()):
-            for key, value in found[n].items():
-                if key not in out:
-                    out[key] = np.zeros(self.num_envs, dtype=type(value))
-                    out[f'_{key}'] = np.zeros(self.num_envs, dtype=bool)
-                out[key][i] = value
-                out[f'_{key}'][i] = True
-        return out
 
     def render(self) -> tuple[NDArray[np.uint8], ...] | None:
         """Return one frame per environment (``rgb_array``), or None without a render mode."""
