@@ -6,6 +6,7 @@ an episode is drawn and ends) over the simulated joint of a scene; the vector en
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -29,7 +30,8 @@ _ONE = np.zeros(1, dtype=np.int64)
 def make_runner(task: Task, size: int, scene: str | None,
                 parameters: Mapping[str, Any] | str | Path | None, integrator: str | None,
                 h: float | None, control_period: float | None, render_mode: str | None,
-                max_episode_steps: int | None, target: Any) -> Runner:
+                max_episode_steps: int | None, target: Any,
+                episode_metrics: bool = True) -> Runner:
     """Return the runner of ``size`` environments of ``task`` made from the keywords."""
     if render_mode is not None and render_mode not in RENDER_MODES:
         raise GymError(f'render_mode must be one of {", ".join(RENDER_MODES)} or None, got '
@@ -37,7 +39,9 @@ def make_runner(task: Task, size: int, scene: str | None,
     scenarios = Scenarios(scene, parameters, integrator, h, control_period,
                           default_scene=task.scene, defaults=task.defaults,
                           target=task.target if target is None else target)
-    return Runner(task, scenarios, size, max_episode_steps)
+    if not isinstance(episode_metrics, bool):
+        raise GymError(f'episode_metrics must be True or False, got {episode_metrics!r}')
+    return Runner(task, scenarios, size, max_episode_steps, episode_metrics)
 
 
 def spaces_of(runner: Runner) -> tuple[spaces.Box, spaces.Box]:
@@ -78,8 +82,22 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
         ``TimeLimit`` wrapper instead, at the registered 1000 or 500).
     target : number, list or mapping, optional
         ``StepResponse``: the target's space (rad), as a campaign file's ``target``.
+    episode_metrics : bool
+        ``DampedPendulum``: keep each episode's samples (24 bytes an environment a step)
+        and put its swing-up metrics in ``info`` at the step it terminates or truncates
+        (default True).
 
     Observations are float64, the joint's state unrounded (Pendulum-v1's are float32).
+
+    At the step a ``DampedPendulum`` episode ends (terminated, or truncated by the
+    environment's own ``max_episode_steps``), ``info`` also holds the fields of its
+    :class:`~pendulum_sim.testing.swing_up.metrics.SwingUpMetrics` (``success``,
+    ``swing_up_time``, ``stays``, ``settle_time``, ``energy``, ...; the runner's module says
+    over which samples); no other step carries them. ``gymnasium.make`` gives the environment
+    the registered length (1000), so its episodes end there with them; a ``TimeLimit`` of
+    another length (``gymnasium.make(id, max_episode_steps=N)``) truncates outside the
+    environment, which does not see it: give the length to the environment itself
+    (``DampedPendulumEnv(max_episode_steps=N)``, or ``gymnasium.make_vec``, which passes it).
     """
 
     metadata: dict[str, Any] = {'render_modes': RENDER_MODES, 'render_fps': 100}  # noqa: RUF012
@@ -89,9 +107,11 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
                  parameters: Mapping[str, Any] | str | Path | None = None,
                  integrator: str | None = None, h: float | None = None,
                  control_period: float | None = None, render_mode: str | None = None,
-                 max_episode_steps: int | None = None, target: Any = None) -> None:
+                 max_episode_steps: int | None = None, target: Any = None,
+                 episode_metrics: bool = True) -> None:
         self._runner = make_runner(self.TASK, 1, scene, parameters, integrator, h,
-                                   control_period, render_mode, max_episode_steps, target)
+                                   control_period, render_mode, max_episode_steps, target,
+                                   episode_metrics)
         self.observation_space, self.action_space = spaces_of(  # type: ignore[assignment]
             self._runner)
         self.metadata = {'render_modes': RENDER_MODES, 'render_fps': fps(self._runner)}
@@ -125,7 +145,11 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
         if failed:
             info['failed'] = failed[0]
         if terminated[0] or truncated[0]:
-            info.update({key: values[0] for key, values in r.end_info(_ONE).items()})
+            columns, measured = r.end_info(_ONE)
+            if measured[0]:   # as SwingUpMetrics holds them: Python values, NaN math.nan
+                for name, values in columns.items():
+                    value = values[0].item()
+                    info[name] = math.nan if value != value else value
         return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), info
 
     def render(self) -> NDArray[np.uint8] | None:
@@ -153,10 +177,10 @@ class DampedPendulumEnv(JointEnv):
                  parameters: Mapping[str, Any] | str | Path | None = None,
                  integrator: str | None = None, h: float | None = None,
                  control_period: float | None = None, render_mode: str | None = None,
-                 max_episode_steps: int | None = None) -> None:
+                 max_episode_steps: int | None = None, episode_metrics: bool = True) -> None:
         super().__init__(scene=scene, parameters=parameters, integrator=integrator, h=h,
                          control_period=control_period, render_mode=render_mode,
-                         max_episode_steps=max_episode_steps)
+                         max_episode_steps=max_episode_steps, episode_metrics=episode_metrics)
 
 
 class StepResponseEnv(JointEnv):

@@ -7,6 +7,9 @@ I = 0.2002 kg m², 1 N m of torque) up by energy shaping and catches it upright 
 in a campaign file as ``pendulum_sim.gym.examples:tracking_law``; ``tracking_batch`` is the
 same law on a batch of observations (numpy's sin and arctan2: the same to round-off) and
 ``tracking_batch_law`` its ``@vectorised`` law, which a campaign runs N episodes at a time.
+``energy_swing_up_batch`` is ``energy_swing_up`` on a batch (numpy's arctan2), and
+``energy_swing_up_law`` / ``energy_swing_up_batch_law`` their laws, for ``pendulum_benchmark``
+(``pendulum_sim.gym.examples:energy_swing_up_batch_law``).
 """
 from __future__ import annotations
 
@@ -62,3 +65,18 @@ def tracking_batch(obs: FloatArray) -> FloatArray:
 
 
 tracking_batch_law = policy_law(tracking_batch, task='StepResponse', batched=True)
+
+
+def energy_swing_up_batch(obs: FloatArray) -> FloatArray:
+    """Return :func:`energy_swing_up`'s torques for a batch of observations, shape (N, 1)."""
+    cos_phi, sin_phi, velocity = obs[:, 0], obs[:, 1], obs[:, 2]
+    theta = np.arctan2(-sin_phi, -cos_phi)
+    energy = 0.5 * INERTIA * velocity * velocity + MGL * (1.0 - cos_phi)
+    push = np.where(velocity >= 0.0, 1.0, -1.0)
+    pump = LIMIT * push * np.where(energy < 2.0 * MGL, 1.0, -1.0)
+    tau = np.where(np.abs(theta) < CATCH, -KP * theta - KD * velocity, pump)
+    return np.clip(tau, -LIMIT, LIMIT)[:, np.newaxis]
+
+
+energy_swing_up_law = policy_law(energy_swing_up)
+energy_swing_up_batch_law = policy_law(energy_swing_up_batch, batched=True)

@@ -17,4 +17,7 @@ def register_envs() -> None:
         name = _CLASSES[env_id]
         register(id=env_id, entry_point=f'pendulum_sim.gym.envs:{name}Env',
                  vector_entry_point=f'pendulum_sim.gym.vector:{name}VectorEnv',
-                 max_episode_steps=EPISODE_STEPS[env_id])
+                 max_episode_steps=EPISODE_STEPS[env_id],
+                 # The environment truncates there itself as well, so that the step its
+                 # episode ends (and the TimeLimit's) carries the episode's metrics.
+                 kwargs={'max_episode_steps': EPISODE_STEPS[env_id]})

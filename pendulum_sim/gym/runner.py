@@ -12,6 +12,16 @@ An action is a torque in N m, shape ``(1,)`` per environment. A non-finite torqu
 array of another shape is refused with :class:`GymError`; a finite torque outside
 ``[−max_effort, max_effort]`` is saturated at the limit, as the joint saturates an effort
 command (and as ``Pendulum-v1`` clips its action).
+
+Episode metrics: for a task with a swing-up goal (``DampedPendulum``) each environment keeps
+its episode's samples, as the test bench's closed loop keeps a run's: the state at the start
+of each period (``K + 1`` samples after ``K`` steps, the first the reset's), stamped ``t_k =
+epoch + k T`` on the joint's nanosecond grid, with the torque the joint applied in the period
+before it (0 at the reset). At the step an episode terminates or truncates,
+:meth:`Runner.end_info` measures them with
+:func:`~pendulum_sim.testing.swing_up.metrics.swing_up_metrics_columns` (goal π, the default
+goal box, the joint's ``max_effort`` as the torque limit): the same numbers
+``closed_loop(policy_law(policy), periods=K + 1, ...).swing_up_metrics()`` gives the same run.
 """
 from __future__ import annotations
 
@@ -21,8 +31,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from pendulum_sim.joint.joint import JointConfig
+from pendulum_sim.joint.joint import JointConfig, stamp_ns
 from pendulum_sim.joint.lockstep import Lockstep, batchable_config, common, common_text
+from pendulum_sim.testing.swing_up.metrics import swing_up_metrics_columns
 
 from .errors import GymError
 from .scenario import Drawn, Episode, Scenarios
@@ -68,11 +79,12 @@ class Runner:
 
     The N joints are one :class:`~pendulum_sim.joint.lockstep.Lockstep` (``pendulums``):
     a period of any of them is one batched core call, a reset of any of them one draw over
-    arrays and one start.
+    arrays and one start. With ``episode_metrics`` (and a task with a goal) each keeps its
+    episode's samples for :meth:`end_info`.
     """
 
     def __init__(self, task: Task, scenarios: Scenarios, size: int,
-                 max_episode_steps: int | None) -> None:
+                 max_episode_steps: int | None, episode_metrics: bool = True) -> None:
         if max_episode_steps is not None and (
                 isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, int)
                 or max_episode_steps < 1):
@@ -97,6 +109,9 @@ class Runner:
         self.target = np.zeros(size)
         self.ended = [''] * size     # why the episode ended ('' while it runs)
         self._drawn: list[tuple[Drawn, int] | None] = [None] * size
+        self.keeps_samples = bool(episode_metrics) and task.goal is not None
+        # The episodes' samples: angle, rate, effort (rows), sample k (axis 1), environment.
+        self._samples = np.zeros((3, 0, size))
 
     def episode(self, i: int) -> Episode:
         """Return the episode environment ``i`` runs (its parameters, configuration, target)."""
@@ -143,6 +158,7 @@ class Runner:
             self.ended[i] = ''
         self.target[ids] = drawn.target
         self.steps[ids] = 0
+        self._keep(ids)
 
     def _check_common(self, ids: IntArray, drawn: Drawn) -> None:
         """Refuse episodes that would not step with the others (one h, period, method, guard)."""
@@ -175,6 +191,7 @@ class Runner:
         phi0, vel0 = p.phi[live].copy(), p.vel[live].copy()
         failed = p.advance(torque, live)
         self.steps[live] += 1
+        self._keep(live)
         reward = np.asarray(self.task.reward(phi0, vel0, p.phi[live], p.vel[live],
                                              p.effort[live], self.target[live], p.period))
         terminated = np.zeros(live.size, dtype=bool)
@@ -189,14 +206,64 @@ class Runner:
             self.ended[j] = f'truncated after {limit} steps'
         return self.observe(live), reward, terminated, truncated, failed
 
-    def end_info(self, ended: IntArray) -> dict[str, list[Any]]:
+    def _keep(self, ids: IntArray) -> None:
+        """Keep the state and effort of the environments ``ids`` as their sample ``steps``."""
+        if not self.keeps_samples:
+            return
+        at = self.steps[ids]
+        need = int(at.max()) + 1
+        if need > self._samples.shape[1]:   # grow by doubling: a copy per doubling
+            grown = np.zeros((3, max(need, 2 * self._samples.shape[1], 16), self.size))
+            grown[:, :self._samples.shape[1]] = self._samples
+            self._samples = grown
+        p = self.pendulums
+        self._samples[0, at, ids] = p.phi[ids]
+        self._samples[1, at, ids] = p.vel[ids]
+        self._samples[2, at, ids] = p.effort[ids]
+
+    @staticmethod
+    def _times(config: JointConfig, count: int) -> FloatArray:
+        """Return the stamps of ``count`` period starts from the joint's epoch (s)."""
+        k = config.period_steps
+        return np.array([stamp_ns(config.epoch_ns, j * k, config.h) / 1e9
+                         for j in range(count)])
+
+    def end_info(self, ended: IntArray) -> tuple[dict[str, NDArray[Any]], NDArray[np.bool_]]:
         """Return what ``info`` carries for the environments whose episodes ``ended`` this step.
 
-        Each key holds one entry per environment of ``ended``; both environments call it at
-        the step an episode ends (the place for an episode's own metrics, such as issue 38's
-        swing-up metrics). Nothing yet.
+        Per field of :class:`~pendulum_sim.testing.swing_up.metrics.SwingUpMetrics` an array
+        over ``ended`` (the module's definitions, over the samples the module docstring
+        names), and which of them were measured: none for a task without a goal or with
+        ``episode_metrics=False`` (no fields then), nor where the samples cannot be measured
+        (a joint that failed with a state that is not finite).
         """
-        return {}
+        goal = self.task.goal
+        if not self.keeps_samples or goal is None or ended.size == 0:
+            return {}, np.zeros(ended.size, dtype=bool)
+        groups: dict[tuple[int, int, float, int], list[int]] = {}
+        for n, i in enumerate(ended.tolist()):
+            c = self.pendulums.configs[i]
+            assert c is not None   # an episode ran in it
+            groups.setdefault((int(self.steps[i]) + 1, c.epoch_ns, c.h, c.period_steps),
+                              []).append(n)
+        columns: dict[str, NDArray[Any]] = {}
+        measured = np.zeros(ended.size, dtype=bool)
+        for (count, _, _, _), rows in groups.items():
+            ids = ended[rows]
+            config = self.pendulums.configs[int(ids[0])]
+            assert config is not None
+            # One contiguous row per episode, as a run alone is measured (the same sums).
+            phi, vel, effort = (np.ascontiguousarray(self._samples[r, :count][:, ids].T)
+                                for r in range(3))
+            found, ok = swing_up_metrics_columns(self._times(config, count), phi, vel, effort,
+                                                 goal=goal,
+                                                 effort_limit=self.pendulums.limit[ids])
+            for name, values in found.items():
+                if name not in columns:
+                    columns[name] = np.zeros(ended.size, dtype=values.dtype)
+                columns[name][rows] = values
+            measured[rows] = ok
+        return columns, measured
 
     def check_running(self, i: int) -> None:
         """Refuse to step environment ``i`` before its first reset or after its episode."""

@@ -66,7 +66,12 @@ def step_reward(phi: FloatArray, vel: FloatArray, phi1: FloatArray, vel1: FloatA
 
 @dataclass(frozen=True)
 class Task:
-    """A task: its observation, reward, default scene and spaces, and episode length."""
+    """A task: its observation, reward, default scene and spaces, and episode length.
+
+    ``goal`` is the angle a swing-up task's episodes are measured towards at their end
+    (:func:`~pendulum_sim.testing.swing_up.metrics.swing_up_metrics`; rad), None for a task
+    without one.
+    """
 
     name: str
     observe: Any
@@ -76,6 +81,7 @@ class Task:
     defaults: dict[str, Any]
     target: Any
     max_episode_steps: int
+    goal: float | None = None
 
     def observation_bounds(self) -> tuple[FloatArray, FloatArray]:
         """Return the observation space's bounds (finite: the state bound lies within)."""
@@ -90,7 +96,7 @@ SWING_UP = Task(
     {'phi0': {'distribution': 'uniform', 'low': -math.pi, 'high': math.pi},
      'dphi0': {'distribution': 'uniform', 'low': -1.0, 'high': 1.0},
      'max_effort': 1.0},
-    0.0, 1000)
+    0.0, 1000, math.pi)
 STEP = Task(
     'StepResponse', step_observation, step_reward, 4, 'controller_test',
     # From rest at 0 to a target that 1 N m can hold (m g l sin φ* ≤ 1 N m).

@@ -12,6 +12,13 @@ Autoreset is Gymnasium 1.x's default, next-step (``AutoresetMode.NEXT_STEP``): t
 an environment's episode ended ignores its action, resets it (the next episode of its seed)
 and returns its first observation with reward 0 and neither terminated nor truncated. The
 environments that reset in a step are drawn and started together, over arrays (issue 38).
+
+At the step ``DampedPendulum`` episodes end, ``info`` holds their swing-up metrics as
+Gymnasium's vector environments hold a key some environments have (``VectorEnv._add_info``):
+per field an array over the N environments (bool, float or int as the field; 0 where an
+environment's episode did not end) and its mask ``_field``, True for the environments whose
+episode ended and was measured; each environment's entries are those the scalar environment
+gives the same episode.
 """
 from __future__ import annotations
 
@@ -42,11 +49,13 @@ class JointVectorEnv(VectorEnv[FloatArray, FloatArray, FloatArray]):
                  parameters: Mapping[str, Any] | str | Path | None = None,
                  integrator: str | None = None, h: float | None = None,
                  control_period: float | None = None, render_mode: str | None = None,
-                 max_episode_steps: int | None = None, target: Any = None) -> None:
+                 max_episode_steps: int | None = None, target: Any = None,
+                 episode_metrics: bool = True) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise GymError(f'num_envs must be a positive integer, got {num_envs!r}')
         self._runner = make_runner(self.TASK, num_envs, scene, parameters, integrator, h,
-                                   control_period, render_mode, max_episode_steps, target)
+                                   control_period, render_mode, max_episode_steps, target,
+                                   episode_metrics)
         self.num_envs = num_envs
         self.single_observation_space, self.single_action_space = spaces_of(self._runner)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
@@ -113,11 +122,15 @@ class JointVectorEnv(VectorEnv[FloatArray, FloatArray, FloatArray]):
                                        dtype=object)
             infos['_failed'] = np.array([i in failed for i in range(self.num_envs)])
         ended = np.flatnonzero(self._autoreset)
-        if ended.size:   # Gymnasium's vector info: an array per key and its mask '_key'
-            for key, values in r.end_info(ended).items():
-                infos[key] = np.empty(self.num_envs, dtype=object)
-                infos[key][ended] = values
-                infos[f'_{key}'] = self._autoreset.copy()
+        if ended.size:   # Gymnasium's vector info: per key an array and its mask '_key'
+            columns, measured = r.end_info(ended)
+            if measured.any():
+                mask = np.zeros(self.num_envs, dtype=bool)
+                mask[ended[measured]] = True
+                for name, values in columns.items():
+                    infos[name] = np.zeros(self.num_envs, dtype=values.dtype)
+                    infos[name][ended[measured]] = values[measured]
+                    infos[f'_{name}'] = mask.copy()
         return obs, reward, terminated, truncated, infos
 
     def render(self) -> tuple[NDArray[np.uint8], ...] | None:
@@ -140,10 +153,10 @@ class DampedPendulumVectorEnv(JointVectorEnv):
                  parameters: Mapping[str, Any] | str | Path | None = None,
                  integrator: str | None = None, h: float | None = None,
                  control_period: float | None = None, render_mode: str | None = None,
-                 max_episode_steps: int | None = None) -> None:
+                 max_episode_steps: int | None = None, episode_metrics: bool = True) -> None:
         super().__init__(num_envs, scene=scene, parameters=parameters, integrator=integrator,
                          h=h, control_period=control_period, render_mode=render_mode,
-                         max_episode_steps=max_episode_steps)
+                         max_episode_steps=max_episode_steps, episode_metrics=episode_metrics)
 
 
 class StepResponseVectorEnv(JointVectorEnv):

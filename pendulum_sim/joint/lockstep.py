@@ -42,6 +42,7 @@ from .joint import JointConfig, SimulatedJoint, speed_bound
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 Common = tuple[float, int, str, bool]
+_NEVER = np.iinfo(np.int64).max   # a period no joint reaches
 
 
 def batchable_config(c: JointConfig) -> str:
@@ -155,6 +156,10 @@ class Lockstep:
         self._joints: dict[int, SimulatedJoint] = {}   # joints taken by a SimulatedJoint
         self._periods = np.zeros(size, dtype=np.int64)   # periods since each joint's start
         self._pushed: set[int] = set()   # joints with a disturbance pulse
+        # Each joint's disturbance torque now, and the period from which it may change (a
+        # pulse's start or end): between them ``disturbance_at`` is not asked again.
+        self._push_now = np.zeros(size)
+        self._push_next = np.full(size, _NEVER, dtype=np.int64)
         self.stats = LockstepStats()
 
     @property
@@ -197,6 +202,8 @@ class Lockstep:
             else:
                 self._pushed.discard(j)
         self._periods[ids] = 0
+        self._push_now[ids] = 0.0
+        self._push_next[ids] = 0 if config.has_disturbance else _NEVER
         self.phi[ids] = config.phi0 if phi0 is None else phi0
         self.vel[ids] = config.dphi0 if dphi0 is None else dphi0
         self.effort[ids] = 0.0
@@ -269,16 +276,23 @@ class Lockstep:
         return failed
 
     def _push(self, ids: IntArray, k: int) -> FloatArray | float:
-        """Return the disturbance torque of the joints ``ids`` in their current period (N m)."""
+        """Return the disturbance torque of the joints ``ids`` in their current period (N m).
+
+        ``JointConfig.disturbance_at`` at the period's first step, asked again only in the
+        period where one of the joint's pulses starts or ends (the torque is the same between).
+        """
         if not self._pushed:
             return 0.0
-        push = np.zeros(ids.size)
-        where = np.flatnonzero(np.isin(ids, np.fromiter(self._pushed, dtype=np.int64)))
-        for n, j in zip(where.tolist(), ids[where].tolist(), strict=True):
+        periods = self._periods[ids]
+        for j in ids[self._push_next[ids] <= periods].tolist():
             c = self.configs[j]
             assert c is not None
-            push[n] = c.disturbance_at(int(self._periods[j]) * k)
-        return push
+            step = int(self._periods[j]) * k
+            self._push_now[j] = c.disturbance_at(step)
+            edges = [e for p in c.all_pulses for e in (p.start_step, p.start_step + p.steps)
+                     if e > step]
+            self._push_next[j] = -(-min(edges) // k) if edges else _NEVER
+        return self._push_now[ids]
 
     def _by_joint(self, j: int, command: float) -> str | None:
         """Take joint ``j``'s period in a SimulatedJoint from its state; its failure or None.

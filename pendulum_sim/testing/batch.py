@@ -173,7 +173,9 @@ def _lockstep(law: BatchLaw, configs: list[JointConfig], values: list[Mapping[st
     for j, c in enumerate(configs):
         lock.start(np.array([j]), c)
     outcome = _Outcome({}, [None] * n_ep)
-    out = np.full((5, n_ep, periods), np.nan)
+    # Each period's samples in one contiguous row per quantity (every live episode's entry
+    # is written; an episode's samples are read up to its last live period only).
+    out = np.empty((5, periods, n_ep))
     active = np.ones(n_ep, dtype=bool)
     for step in range(periods):
         live = np.flatnonzero(active)
@@ -197,26 +199,31 @@ def _lockstep(law: BatchLaw, configs: list[JointConfig], values: list[Mapping[st
         bad = ~np.isfinite(cmd)
         for j, value in zip(live[bad].tolist(), cmd[bad].tolist(), strict=True):
             failure = answer_reason(value, t)
-            upto = [np.ascontiguousarray(out[r, j, :step]) for r in range(5)]
+            upto = [np.ascontiguousarray(out[r, :step, j]) for r in range(5)]
             failure.run = ClosedLoopRun(upto[0], upto[1], upto[2], upto[3], upto[4],
                                         parameters=dict(values[j]))
             outcome.results[j] = failure
             active[j] = False
         live, cmd = live[~bad], cmd[~bad]
-        out[0, live, step] = t
-        out[1, live, step] = lock.phi[live]
-        out[2, live, step] = lock.vel[live]
-        out[3, live, step] = lock.effort[live]
-        out[4, live, step] = cmd
+        row = out[:, step]
+        row[0, live] = t
+        row[1, live] = lock.phi[live]
+        row[2, live] = lock.vel[live]
+        row[3, live] = lock.effort[live]
+        row[4, live] = cmd
         if live.size:
             for j, reason in lock.advance(cmd, live).items():
                 # The joint's reason names the time of its own run: the scalar joint's says it.
                 outcome.redo[j] = f'the joint stopped in the batch: {reason}'
                 active[j] = False
-    for j in np.flatnonzero(active).tolist():
-        t_j, p_j, v_j, e_j, c_j = (np.ascontiguousarray(out[r, j]) for r in range(5))
-        outcome.results[j] = ClosedLoopRun(t_j, p_j, v_j, e_j, c_j,
-                                           parameters=dict(values[j]), failed=None)
+    done = np.flatnonzero(active)
+    if done.size:   # one transposing copy: each episode's samples a contiguous row
+        kept = out if done.size == n_ep else out[:, :, done]
+        rows = np.ascontiguousarray(kept.transpose(0, 2, 1))
+        for n, j in enumerate(done.tolist()):
+            outcome.results[j] = ClosedLoopRun(rows[0, n], rows[1, n], rows[2, n], rows[3, n],
+                                               rows[4, n], parameters=dict(values[j]),
+                                               failed=None)
     counted.swept += lock.stats.swept
     counted.by_joint += lock.stats.by_joint
     counted.prepared += lock.stats.prepared

@@ -372,3 +372,29 @@ def test_an_interrupted_benchmark_resumes_with_the_same_results(tmp_path: Path,
     assert again.criteria == first.criteria
     with sqlite3.connect(store) as db:
         assert db.execute('SELECT COUNT(*) FROM episodes').fetchone() == (4,)
+
+
+def test_a_gymnasium_policy_is_benchmarked_through_policy_law(tmp_path: Path,
+                                                              cluster: str) -> None:
+    """policy_law's law of a batched policy runs in the benchmark, batched; its nominal
+    figures are the metrics DampedPendulum-v0's info gives the same episode at its end."""
+    from pendulum_sim.gym import DampedPendulumEnv
+    from pendulum_sim.gym.examples import energy_swing_up_batch
+
+    result = benchmark('pendulum_sim.gym.examples:energy_swing_up_batch_law',
+                       out=tmp_path / 'out', criteria=('nominal', 'consistency'), episodes=6,
+                       duration=5.0, scheduler=cluster, figures=False, gif=False)
+    assert result.criteria['nominal']['swung_up'] == 1
+    table = episodes(tmp_path / 'out' / 'campaigns' / 'consistency')
+    assert result.values['consistency'] == pytest.approx(
+        100.0 * np.mean(table['passed'] == 'true'), rel=1e-12)
+    periods = 1000   # 5 s at 200 Hz
+    env = DampedPendulumEnv(scene='swing_up', max_episode_steps=periods - 1,
+                            parameters={'phi0': 0.0, 'dphi0': 0.0, 'max_effort': 0.98})
+    obs, _ = env.reset(seed=0)
+    truncated = False
+    while not truncated:
+        obs, _, _, truncated, info = env.step(energy_swing_up_batch(obs[np.newaxis])[0])
+    assert info['stays'] and 2.0 < info['swing_up_time'] < 4.0
+    for key in ('swing_up_time', 'energy', 'smoothness'):
+        assert result.values[key] == info[key], key

@@ -15,6 +15,7 @@ from pendulum_sim.testing import (
     swing_up_metrics,
     swing_up_metrics_batch,
 )
+from pendulum_sim.testing.swing_up.metrics import SWING_UP_NAMES, swing_up_metrics_columns
 
 PI = math.pi
 
@@ -151,6 +152,14 @@ def test_the_batch_gives_each_row_the_numbers_it_gets_alone() -> None:
     assert kinds == {'refused', (False, False), (True, False), (True, True)}
     assert all(type(m.success) is bool and type(m.swings) is int
                for m in got if isinstance(m, SwingUpMetrics))
+    # The same numbers as arrays, a refused row masked out and 0.
+    columns, measured = swing_up_metrics_columns(t, position, velocity, effort, goal=goals,
+                                                 box=(0.2, 0.5), effort_limit=limits)
+    assert measured.tolist() == [isinstance(m, SwingUpMetrics) for m in got]
+    for name in SWING_UP_NAMES:
+        want = np.array([getattr(m, name) if isinstance(m, SwingUpMetrics) else 0
+                         for m in got], dtype=columns[name].dtype)
+        assert columns[name].tobytes() == want.tobytes(), name
 
 
 def test_the_batch_refuses_a_bad_box_once() -> None:

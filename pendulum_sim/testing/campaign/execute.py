@@ -193,13 +193,17 @@ def run_pending_all(jobs: list[Job], client: Any, progress: bool = True,
                 min(MAX_BATCH, -(-len(flat) // max(workers, 1))))
         tag = hashlib.sha1(''.join(jobs[j][0].text + str(jobs[j][1].out.resolve())
                                    for j in members).encode()).hexdigest()[:12]
-        for a in range(0, len(flat), size):
+        count = -(-len(flat) // size)
+        for b in range(count):
+            # Every count-th episode: each batch holds the same share of each campaign, so
+            # the batches take about as long (an episode of one campaign can cost more than
+            # another's: pulses, friction), and the last to end is not the slowest one's.
             parts: list[tuple[int, list[int]]] = []
-            for j, i in flat[a:a + size]:
+            for j, i in flat[b::count]:
                 if not parts or parts[-1][0] != j:
                     parts.append((j, []))
                 parts[-1][1].append(i)
-            tasks[f'batch-{a}-{a + size - 1}-{tag}'] = parts
+            tasks[f'batch-{b}-of-{count}-{tag}'] = parts
     bar = ProgressBar(total, done_before, passed_before, enabled=progress)
     if not tasks:
         bar.close()

@@ -232,36 +232,85 @@ def swing_up_metrics_batch(t: ArrayLike, position: ArrayLike, velocity: ArrayLik
     TestingError
         If the box is unusable (every row would refuse it) or the arrays are not 2-D.
     """
-    _, width, rate = check_box(0.0, box)
-    tt = np.asarray(t, dtype=np.float64)
-    pos, vel, tau = (np.asarray(a, dtype=np.float64) for a in (position, velocity, effort))
-    if pos.ndim != 2:
-        raise TestingError(f'position must be a 2-D array of one run per row, got shape '
-                           f'{pos.shape}')
-    n = pos.shape[0]
-    goals = np.broadcast_to(np.asarray(goal, dtype=np.float64), (n,))
-    limit = np.broadcast_to(np.asarray(effort_limit, dtype=np.float64), (n,))
-    ok = np.zeros(n, dtype=bool)
-    if (tt.ndim == 1 and tt.size >= 2 and pos.shape[1] == tt.size and
-            vel.shape == pos.shape and tau.shape == pos.shape and
-            bool(np.all(np.isfinite(tt))) and bool(np.all(np.diff(tt) > 0))):
-        ok = (np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)
-              & np.isfinite(tau).all(axis=1) & np.isfinite(goals))
-    out: list[SwingUpMetrics | TestingError | None] = [None] * n
-    good = np.flatnonzero(ok)
-    if good.size:
-        take = slice(None) if good.size == n else good
-        columns = _columns(tt, pos[take], vel[take], tau[take], goals[take], (width, rate),
-                           limit[take])
-        for i, m in zip(good.tolist(), _measured(columns), strict=True):
+    rows = _Rows(t, position, velocity, effort, goal, box, effort_limit)
+    out: list[SwingUpMetrics | TestingError | None] = [None] * rows.n
+    if rows.columns is not None:
+        for i, m in zip(rows.good.tolist(), _measured(rows.columns), strict=True):
             out[i] = m
-    for i in np.flatnonzero(~ok).tolist():   # swing_up_metrics says why it refuses the row
+    for i in np.flatnonzero(~rows.ok).tolist():   # swing_up_metrics says why it refuses the row
         try:
-            out[i] = swing_up_metrics(tt, pos[i] if pos.ndim == 2 else pos,
-                                      vel[i] if vel.ndim == 2 and i < vel.shape[0] else vel,
-                                      tau[i] if tau.ndim == 2 and i < tau.shape[0] else tau,
-                                      goal=float(goals[i]), box=(width, rate),
-                                      effort_limit=float(limit[i]))
+            out[i] = rows.alone(i)
         except TestingError as exc:
             out[i] = exc
     return [m for m in out if m is not None]
+
+
+def swing_up_metrics_columns(t: ArrayLike, position: ArrayLike, velocity: ArrayLike,
+                             effort: ArrayLike, *, goal: ArrayLike = GOAL,
+                             box: Sequence[float] = BOX, effort_limit: ArrayLike = math.inf
+                             ) -> tuple[dict[str, NDArray[np.generic]], NDArray[np.bool_]]:
+    """Return each metric of each row as one array per field, and which rows were measured.
+
+    The numbers :func:`swing_up_metrics_batch` gives (the same arrays, before they become
+    :class:`SwingUpMetrics`), for callers that keep them as arrays (the Gymnasium vector
+    environment's ``info``): per field an array of N (``success`` and ``stays`` bool,
+    ``swings`` int, the others float); a row that :func:`swing_up_metrics` would refuse is
+    False in the mask and 0 in every array. Arguments as :func:`swing_up_metrics_batch`.
+    """
+    rows = _Rows(t, position, velocity, effort, goal, box, effort_limit)
+    mask = rows.ok.copy()
+    if rows.columns is None:
+        full = {name: np.zeros(rows.n, dtype=_DTYPES[name]) for name in SWING_UP_NAMES}
+        return full, mask
+    if rows.good.size == rows.n:
+        return rows.columns, mask
+    out = {}
+    for name, values in rows.columns.items():
+        out[name] = np.zeros(rows.n, dtype=values.dtype)
+        out[name][rows.good] = values
+    return out, mask
+
+
+_DTYPES = {name: (bool if name in ('success', 'stays') else np.int64 if name == 'swings'
+                  else np.float64) for name in SWING_UP_NAMES}
+
+
+class _Rows:
+    """The rows of a batch, checked: which can be measured, and their columns."""
+
+    def __init__(self, t: ArrayLike, position: ArrayLike, velocity: ArrayLike,
+                 effort: ArrayLike, goal: ArrayLike, box: Sequence[float],
+                 effort_limit: ArrayLike) -> None:
+        _, width, rate = check_box(0.0, box)
+        self.box = (width, rate)
+        self.t = tt = np.asarray(t, dtype=np.float64)
+        pos, vel, tau = (np.asarray(a, dtype=np.float64) for a in (position, velocity, effort))
+        self.pos, self.vel, self.tau = pos, vel, tau
+        if pos.ndim != 2:
+            raise TestingError(f'position must be a 2-D array of one run per row, got shape '
+                               f'{pos.shape}')
+        self.n = n = pos.shape[0]
+        self.goals = np.broadcast_to(np.asarray(goal, dtype=np.float64), (n,))
+        self.limit = np.broadcast_to(np.asarray(effort_limit, dtype=np.float64), (n,))
+        ok = np.zeros(n, dtype=bool)
+        if (tt.ndim == 1 and tt.size >= 2 and pos.shape[1] == tt.size and
+                vel.shape == pos.shape and tau.shape == pos.shape and
+                bool(np.all(np.isfinite(tt))) and bool(np.all(np.diff(tt) > 0))):
+            ok = (np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)
+                  & np.isfinite(tau).all(axis=1) & np.isfinite(self.goals))
+        self.ok = ok
+        self.good = good = np.flatnonzero(ok)
+        self.columns: dict[str, NDArray[np.generic]] | None = None
+        if good.size:
+            take = slice(None) if good.size == n else good
+            self.columns = _columns(tt, pos[take], vel[take], tau[take], self.goals[take],
+                                    self.box, self.limit[take])
+
+    def alone(self, i: int) -> SwingUpMetrics:
+        """Return :func:`swing_up_metrics` of row ``i`` (its TestingError says why not)."""
+        pos, vel, tau = self.pos, self.vel, self.tau
+        return swing_up_metrics(self.t, pos[i],
+                                vel[i] if vel.ndim == 2 and i < vel.shape[0] else vel,
+                                tau[i] if tau.ndim == 2 and i < tau.shape[0] else tau,
+                                goal=float(self.goals[i]), box=self.box,
+                                effort_limit=float(self.limit[i]))
