@@ -201,15 +201,16 @@ def figure(curves: Curves, png: Path, paths: tuple[str, ...], lever: list[str]) 
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.4), squeeze=False)
     for ax, panel in zip(axes[0], panels, strict=True):
         if panel == 'lever':
-            keys = [('jit', next(iter(CASES)))] + [('jit', c) for c in lever]
+            keys = [('jit', next(iter(CASES))), ('jit', LEVER_CASES[0])] + [
+                ('jit', c) for c in lever]
             title = 'jit: the grading window (n = 1.5)'
         else:
             keys = [(panel, c) for c in CASES]
             title = f'{panel} sweep' + (' (jit=True)' if panel == 'jit' else '')
-        for (path, case), marker in zip(keys, 'oDs^v<>p*h', strict=False):
+        for (path, case), marker in zip(keys, 'oDs^v<>p*hX', strict=False):
             rows = curves[(path, case)]
             ax.loglog([1e3 * r['cpu_s'] for r in rows], [r['err_max'] for r in rows],
-                      marker=marker, ms=4, label=case)
+                      marker=marker, ms=4, label=case.replace(f'{LEVER_CASES[0]}, ', ''))
         for level in LEVELS:
             ax.axhline(level, color='grey', lw=0.5, alpha=0.5)
         ax.set_title(title)
