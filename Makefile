@@ -66,6 +66,7 @@ bench: setup
 	$(PY) bench/record.py bench/bench_sync.py --seconds 10
 	$(PY) bench/record.py bench/bench_parameter_storm.py --count 10000 --rate 1000
 	$(PY) bench/record.py bench/bench_work_precision.py
+	$(PY) bench/record.py bench/bench_work_precision_real_n.py
 	$(PY) bench/record.py bench/bench_near_coulomb.py
 	$(PY) bench/record.py bench/bench_grade_window.py
 	$(PY) bench/record.py bench/bench_servo.py --png bench/results/servo_tracking.png

@@ -57,8 +57,11 @@ def split_step(plain: Any, branch: Any, laws: Any, p: float, v: float, h: float,
     if v1 * v > 0.0:
         # The branch step does not reach φ' = 0: no kink inside (graded if it is near).
         if reach > 0.0 and a0 != 0.0:
+            # The reversal ahead at about x = |φ'|/|φ''| (a split is tried for x <= h, so the
+            # reversal may lie beyond the step after all): the substeps cover the step's own
+            # length h, graded towards its end where x < h.
             x = abs(v) / abs(a0)
-            lens = graded_mesh(max(x - h, 0.0), x, h, n, reach)
+            lens = graded_mesh(max(x - h, 0.0), max(x, h), h, n, reach)
             p1, v1, w1 = branch_run(branch, p, v, lens, True, a, w2, gamma, sign, n)
         if cf != 0.0:
             w1 += friction_work(cf, sign, p, p1)

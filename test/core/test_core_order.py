@@ -77,3 +77,32 @@ def test_dop853_step_is_of_order_eight() -> None:
     assert min(errs) > 100.0 * ref.disagreement
     slope = float(np.polyfit(np.log(hs), np.log(errs), 1)[0])
     assert 7.5 <= slope <= 8.5, (errs, slope)
+
+
+def test_a_split_that_finds_no_reversal_covers_the_whole_step() -> None:
+    # n = 1.059, γ = 0.84 from (0.457 rad, 2.372 rad/s): the first reversal falls 12 µs after
+    # the end of a step of 8 ms that starts within |φ'|/|φ''| <= h of it, so the step is split
+    # but its branch step does not reach φ' = 0. Its graded substeps once covered only
+    # |φ'|/|φ''| = 7.988 ms of the 8 ms (an error of 4.5e-5 where 4 ms gives 8e-11); they cover
+    # h, and the error falls as h^4 through that step on every path.
+    pytest.importorskip('numba')
+    from pendulum_sim.core.sweep import sweep
+
+    n, gamma = 1.0594493917784233, 0.8389507055602972
+    p0, v0 = 0.45680574267181484, 2.3721725565586613
+    params = PendulumParams.from_omega0_sq(9.8, gamma, n)
+    t_end = 0.64
+    ref = reference(params, p0, v0, np.array([0.0, t_end]))
+    errs: dict[str, list[float]] = {'simulate': [], 'numpy': [], 'jit': []}
+    for h in (0.008, 0.004):
+        r = simulate(params, p0, v0, t_end, h)
+        assert r.stats.reversals == 1
+        ends = {'simulate': (r.phi[-1], r.dphi[-1])}
+        for path, jit in (('numpy', False), ('jit', True)):
+            s = sweep(9.8, gamma, n, p0, v0, t_end, h, jit=jit)
+            ends[path] = (s.phi[0], s.dphi[0])
+        for path, (p, v) in ends.items():
+            errs[path].append(float(np.hypot(p - ref.phi[-1], v - ref.dphi[-1])))
+    for path, (coarse, fine) in errs.items():
+        assert fine > 100.0 * ref.disagreement
+        assert coarse < 2.0 * 16.0 * fine, (path, coarse, fine)  # order 4: 16x, with margin

@@ -736,3 +736,28 @@ def test_warm_up_compiles_the_runs_a_sweep_then_finds() -> None:
             for size in (1, PARALLEL_MIN):
                 sweep(W2, np.full(size, 0.5), n, 1.0, 0.5, 5e-3, 1e-3, jit=True)
     assert rec.buffer == []
+
+
+def test_the_compiled_sweep_keeps_order_four_for_real_n_through_reversals() -> None:
+    # The paper's start (x0 = 2 rad, φ'0 = 0, ω0² = 9.8, γ = 1) over 6 s, five reversals for
+    # every n here, non-integer n in one compiled sweep (n = 1.5 and distinct n, graded at
+    # reversals, and 3.5, split only): against the independent reference (scipy's DOP853
+    # restarted at every reversal, ``reports.reference``) each pendulum's error falls as h^4.
+    pytest.importorskip('scipy')
+    from pendulum_sim.reports.reference import reference
+
+    ns = np.array([0.5, 1.5, 1.23, 2.5, 2.71, 3.5])
+    t_end, hs = 6.0, (0.02, 0.01, 0.005)
+    refs = [reference(PendulumParams(gamma=1.0, n=float(n)), 2.0, 0.0, np.array([0.0, t_end]))
+            for n in ns]
+    errs = []
+    for h in hs:
+        res = sweep(W2, 1.0, ns, 2.0, 0.0, t_end, h, jit=True)
+        assert res.handed_back == 0  # every careful step taken compiled
+        assert list(res.reversals) == [5] * ns.size
+        errs.append([math.hypot(res.phi[i] - r.phi[-1], res.dphi[i] - r.dphi[-1])
+                     for i, r in enumerate(refs)])
+    err = np.array(errs)
+    assert np.all(err[-1] > 100.0 * np.array([r.disagreement for r in refs]))  # above the ref
+    orders = np.polyfit(np.log(hs), np.log(err), 1)[0]
+    assert np.all(orders >= 3.8), dict(zip(ns.tolist(), orders.tolist(), strict=True))
