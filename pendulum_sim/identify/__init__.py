@@ -14,7 +14,7 @@ fit predicts a record it was not fitted to.
 """
 from __future__ import annotations
 
-from .driven_fit import driven_record, fit_sets
+from .driven_fit import driven_record, fit_sets, joint_fit
 from .effort import Effort, from_commands, from_samples
 from .errors import IdentifyError
 from .fit import Fit, Record, compare, compare_records, fit, fit_records, prepare
@@ -23,4 +23,4 @@ from .validate import Validation, validate
 
 __all__ = ['LAWS', 'MODELS', 'Effort', 'Fit', 'IdentifyError', 'Record', 'Validation',
            'compare', 'compare_records', 'driven_record', 'fit', 'fit_records', 'fit_sets',
-           'from_commands', 'from_samples', 'prepare', 'validate']
+           'from_commands', 'from_samples', 'joint_fit', 'prepare', 'validate']

@@ -92,8 +92,11 @@ RMS torque (at the RMS speed)."""
 EFFORT_MOTION = 10.0
 """The torque scale is reported as not determined where the effort moves the fitted model's
 angle (its simulation with the effort against without it, RMS over the samples) by less than
-this many times the residual's RMS: a fit that uses an effort which cannot move the joint (a
-sensor's noise, scaled up by a tiny inertia) to chase the noise moves it by about the noise."""
+this many times the angle's noise (the residual's RMS, or the records' noise where that is
+smaller): a fit that uses an effort which cannot move the joint (a sensor's noise, scaled up
+by a tiny inertia) to chase the noise moves it by about the noise. The noise, not the residual
+alone: on a measured run the model's own error can leave a residual of centiradians, and the
+effort that drives the joint by tenths of a radian is not the less determined for it."""
 TORQUE_SCALE = 0.5
 """The torque scale (the inertia, m g l, the friction and the offset in N m) is reported as not
 determined where the inertia's 95 % interval is wider than ± this fraction of it. An effort
@@ -364,6 +367,7 @@ class DrivenSolution:
     v_ref: float
     at_optimum: int = 0   # starts that ended within starts.REACHED of the best on BIC
     effort_motion: float = math.inf   # RMS of the angle the effort moves in the fitted model
+    noise: float = math.inf   # the records' angle noise (RMS over the records), rad
 
 
 RATIO = {'inertia': 4.0, 'mgl': 4.0}
@@ -441,6 +445,8 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
                                       starts=owner.count(i), window=made[i][2],
                                       v_ref=reference_speed(sets[i]),
                                       effort_motion=effort_motion(law, sets[i], best, jit),
+                                      noise=math.sqrt(float(np.mean(
+                                          [r.noise ** 2 for r in sets[i]]))),
                                       at_optimum=count_reached(
                                           [p.cost for p in ended], [1] * len(ended),
                                           best.win.y.size)))
@@ -464,9 +470,15 @@ def effort_motion(law: Law, recs: Sequence[DrivenRecord], p: Problem, jit: bool)
 
 
 def _delta(grad: dict[str, float], free: tuple[str, ...], cov: FloatArray) -> float | None:
-    """Return the standard error of a function of the parameters by its gradient (delta method)."""
-    g = np.array([grad.get(k, 0.0) for k in free])
-    var = float(g @ cov @ g)
+    """Return the standard error of a function of the parameters by its gradient (delta method).
+
+    Only the parameters the function depends on enter: one the record does not determine (its
+    row of ``cov`` NaN, e.g. n where the damping is 0) leaves undetermined only what moves
+    with it, not ω0 = √(m g l / I) or f / I.
+    """
+    use = [i for i, k in enumerate(free) if grad.get(k, 0.0) != 0.0]
+    g = np.array([grad[free[i]] for i in use])
+    var = float(g @ cov[np.ix_(use, use)] @ g) if use else 0.0
     return math.sqrt(var) if math.isfinite(var) and var >= 0.0 else None
 
 
@@ -536,7 +548,11 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
     first = np.sqrt(np.where(np.diag(cov.first_state) > 0, np.diag(cov.first_state), np.nan))
     for j, k in enumerate(('phi0', 'dphi0')):
         put(k, float(p.states[0, j]), float(first[j]), (-math.inf, math.inf))
-    if law.n is None and 'n' in p.free and stderr['n'] is not None and (
+    if law.n is None and 'n' in p.free and values['damping'] == 0.0:
+        params['n'], stderr['n'], ci['n'] = None, None, None
+        reasons['n'] = ('n is not determined: the damping is 0 (at its bound), where the '
+                        'exponent does not act; the law predicts without it')
+    elif law.n is None and 'n' in p.free and stderr['n'] is not None and (
             q * stderr['n'] > N_UNDETERMINED):
         why = (f'n is not determined: its 95 % interval is ±{q * stderr["n"]:.2g} wide; drive '
                f'the joint over a wider range of speeds, or fit a fixed law')
@@ -548,10 +564,10 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
     assert p.residual is not None
     rms = math.sqrt(float(p.residual @ p.residual) / p.residual.size)
     if 'inertia' in p.free and (se_i is None or q * se_i > TORQUE_SCALE * inertia
-                                or sol.effort_motion < EFFORT_MOTION * rms):
+                                or sol.effort_motion < EFFORT_MOTION * min(rms, sol.noise)):
         why = (f'the torque scale is not determined: the effort (up to {peak:.3g} N m) does not '
                f'move the joint measurably beside gravity and damping (in the fitted model it '
-               f'moves the angle by less than {EFFORT_MOTION:g} times the residual, or the '
+               f'moves the angle by less than {EFFORT_MOTION:g} times its noise, or the '
                f"inertia's 95 % interval is wider than ±{TORQUE_SCALE:.0%} of it); check the "
                f'effort and its unit, or drive the joint harder')
         for k in ('inertia', 'mgl', 'friction', 'effort_offset'):

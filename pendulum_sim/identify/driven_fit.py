@@ -15,6 +15,7 @@ import numpy as np
 
 from .checks import MIN_SAMPLES, Progress, as_array, increasing, jit_choice
 from .driven import (
+    BOUNDS,
     DrivenRecord,
     DrivenSolution,
     check_known,
@@ -143,6 +144,54 @@ def _result(sol: DrivenSolution, recs: Sequence[DrivenRecord]) -> Fit:
                window=sol.window, segments=segments, driven=True)
 
 
+def joint_fit(model: str, *, inertia: float, mgl: float, gamma: float, n: float,
+              friction: float = 0.0, effort_offset: float = 0.0, command_delay: float = 0.0,
+              phi_offset: float = 0.0, window: float | None = None) -> Fit:
+    """Return a joint given by its parameters as a :class:`Fit`, to validate like a fitted one.
+
+    A joint identified elsewhere (a lab's published parameters, a datasheet's) is validated on
+    a record with :func:`~pendulum_sim.identify.validate` as this package's own fits are. Every
+    value is held (standard error 0, interval (v, v), all in ``fixed``); the fit has no record
+    (``samples`` 0, an infinite BIC). ``window`` is the windows' length the validation's
+    residuals are taken over (None: one window of the whole record).
+
+    Parameters
+    ----------
+    model : str
+        The law (``viscous``, ``quadratic``, ``coulomb``, ``power``, ``power+coulomb``); ``n``
+        must be the law's where it fixes one.
+    inertia, mgl, gamma, n, friction, effort_offset, command_delay, phi_offset : float
+        The joint in the units of a driven fit (kg m², N m, s^(n−2), -, N m, N m, s, rad).
+    """
+    law = get_law(model)
+    values = {'inertia': inertia, 'mgl': mgl, 'gamma': gamma, 'n': n, 'friction': friction,
+              'effort_offset': effort_offset, 'command_delay': command_delay,
+              'phi_offset': phi_offset}
+    for key, value in values.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
+                value):
+            raise IdentifyError(f'{key} must be a finite number, got {value!r}')
+        lo, hi = BOUNDS[key]
+        if not lo <= value <= hi or (key == 'inertia' and value <= 0.0):
+            raise IdentifyError(f'{key} must be in [{lo:g}, {hi:g}], got {value!r}')
+    if law.n is not None and n != law.n:
+        raise IdentifyError(f'the {model} law has n = {law.n:g}, got n = {n!r}')
+    if not law.friction and law.n != 0.0 and friction != 0.0:
+        raise IdentifyError(f'the {model} law has no Coulomb friction, got friction = '
+                            f'{friction!r}')
+    span = check_window(window)
+    params: dict[str, float | None] = {k: float(v) for k, v in values.items()}
+    params['omega0'] = math.sqrt(mgl / inertia)
+    params['friction_accel'] = friction / inertia
+    names = tuple(params)
+    empty = np.zeros(0)
+    return Fit(params=params, stderr=dict.fromkeys(names, 0.0),
+               ci95={k: (v, v) for k, v in params.items() if v is not None},
+               rms_residual=math.nan, aic=math.inf, bic=math.inf, model=law.name, samples=0,
+               fixed=names, reasons={}, correlation={}, t=empty, position=empty,
+               fitted=empty, iterations=0, starts=0, window=span, driven=True)
+
+
 def fit_sets(sets: Sequence[Sequence[DrivenRecord]], *, model: str = 'power',
              known: Mapping[str, float] | None = None, window: float | None = None,
              jit: bool | None = None, progress: Progress | None = None) -> list[Fit]:
@@ -188,4 +237,5 @@ def compare_driven(records: Sequence[DrivenRecord], *, models: Sequence[str] | N
     return sorted(fits, key=lambda f: f.bic)
 
 
-__all__ = ['as_records', 'compare_driven', 'driven_record', 'fit_driven', 'fit_sets']
+__all__ = ['as_records', 'compare_driven', 'driven_record', 'fit_driven', 'fit_sets',
+           'joint_fit']

@@ -144,12 +144,15 @@ def _values(f: Fit) -> dict[str, float]:
     """Return the fit's joint as the shared parameters of a driven model (its ``damping`` γ
     itself, at a reference speed of 1 rad/s), or refuse it."""
     names = [k for k in SHARED if k != 'damping'] + ['gamma']
-    missing = [k for k in names if f.params.get(k) is None]
+    params = dict(f.params)
+    if params.get('gamma') == 0.0 and params.get('n') is None:
+        params['n'] = 1.0   # no damping: the exponent does not act (any n predicts the same)
+    missing = [k for k in names if params.get(k) is None]
     if missing:
         why = f.reasons.get(missing[0], 'not determined')
         raise IdentifyError(f'the fit does not determine {", ".join(missing)} ({why}): it '
                             f'cannot predict a driven record')
-    values = {k: float(f.params[k]) for k in names}   # type: ignore[arg-type]
+    values = {k: float(params[k]) for k in names}   # type: ignore[arg-type]
     values['damping'] = values.pop('gamma')
     return values
 
@@ -227,7 +230,7 @@ def validate(fit: Fit, record: Any, *, k: int | None = None, jit: bool | None = 
     omega0 = fit.params.get('omega0')
     if omega0 is None:
         raise IdentifyError('the fit does not determine omega0: it cannot predict a record')
-    driven = fit.params.get('inertia') is not None and 'effort_offset' in fit.params
+    driven = fit.driven
     if driven:
         values = _values(fit)
         law = get_law(fit.model)

@@ -244,7 +244,7 @@ def test_compare_ranks_the_driven_laws_and_names_an_undetermined_torque_scale(
     assert f.reasons['inertia'] == (
         f'the torque scale is not determined: the effort (up to {np.abs(u).max():.3g} N m) does '
         'not move the joint measurably beside gravity and damping (in the fitted model it '
-        "moves the angle by less than 10 times the residual, or the inertia's 95 % interval "
+        "moves the angle by less than 10 times its noise, or the inertia's 95 % interval "
         'is wider than ±50% of it); check the effort and its unit, or drive the joint harder')
 
 
@@ -330,7 +330,7 @@ def test_bad_driven_input_exits_2_with_one_line_and_writes_nothing(
         ([csv('tiny.csv', t, tiny), *cols, '--models', 'viscous'],
          f'the torque scale is not determined: the effort (up to {np.abs(tiny).max():.3g} N m) '
          'does not move the joint measurably beside gravity and damping (in the fitted model it '
-         "moves the angle by less than 10 times the residual, or the inertia's 95 % interval "
+         "moves the angle by less than 10 times its noise, or the inertia's 95 % interval "
          'is wider than ±50% of it); check the effort and its unit, or drive the joint harder'),
     ]
     for i, (args, message) in enumerate(cases):

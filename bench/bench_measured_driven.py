@@ -1,0 +1,142 @@
+"""Fit each public driven run, validate it on the others, beside the lab's own identification.
+
+Run: ``.venv/bin/python bench/bench_measured_driven.py`` (``--laws``, ``--runs``). The five
+swing-up runs of the DFKI torque-limited pendulum shipped in
+``test/data/dfki_torque_limited_pendulum/`` (Wiebe et al., J. Open Source Softw. 7(74), 3884,
+2022; BSD 3-Clause), read as ``pendulum_identify`` reads them. For each run and law, the
+driven fit of that run alone (``fit([run], model=law)``: windows of half a period, the
+default) is validated on each of the four other runs (``validate``): the fit in % (MATLAB
+``compare``'s NRMSE) of the k-step-ahead prediction and of the simulation from the first
+state. The lab's published parameters (its inverse-dynamics least squares on the PD run,
+``system_identification.txt``, in this package's terms: ``power+coulomb`` with n = 1) are
+validated the same way, as :func:`pendulum_sim.identify.joint_fit`. The horizon is the same for
+every model on a run: ``--horizon`` seconds (0.15, about a tenth of the period) in that run's
+samples.
+
+Prints two Markdown tables, the ones in ``docs/reference/measured-driven-records.md``: the
+parameters of each fit, and the fit % of each model on each held-out run. Asserts nothing.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test' / 'support'))
+
+from driven_records import RUNS, published, read
+
+from pendulum_sim.identify import (
+    Fit,
+    IdentifyError,
+    driven_record,
+    fit,
+    joint_fit,
+    validate,
+)
+from pendulum_sim.identify.driven import DrivenRecord
+
+LAWS = {'viscous': ('viscous', {}), 'power+coulomb': ('power+coulomb', {}),
+        'power+coulomb, n = 1': ('power+coulomb', {'n': 1.0})}
+"""The laws fitted to each run: label, model, ``known``. The last is the lab's own law (a
+viscous and a Coulomb friction), fitted by this package's method."""
+HORIZON = 0.15
+"""The k-step prediction's horizon, s (about a tenth of the joint's period, 2π/4.3 s)."""
+LAB = 'lab (pd)'
+"""The lab's row: its parameters were identified on the PD run."""
+OWN = 'pd system identification'
+"""The run the lab identified its parameters on."""
+
+
+def record(name: str) -> DrivenRecord:
+    """Return run ``name`` as a driven record (its measured velocity beside the angle)."""
+    s = read(name)
+    return driven_record(s.t, s.position, s.effort, velocity=s.velocity, source=RUNS[name])
+
+
+def horizon(rec: DrivenRecord, seconds: float) -> int:
+    """Return ``seconds`` in samples of ``rec`` (at least 1)."""
+    return max(1, round(seconds / float(np.median(np.diff(rec.t)))))
+
+
+def lab_fit(window: float | None) -> Fit:
+    """Return the lab's published joint as a fit (``power+coulomb``, n = 1)."""
+    lab = published().in_package_terms()
+    return joint_fit('power+coulomb', inertia=lab['inertia'], mgl=lab['mgl'],
+                     gamma=lab['gamma'], n=lab['n'], friction=lab['friction'],
+                     effort_offset=lab['effort_offset'], window=window)
+
+
+def number(value: float | None, digits: int) -> str:
+    """Return ``value`` with ``digits`` significant digits, a Unicode minus, or a dash."""
+    if value is None:
+        return '—'
+    text = f'{value:.{digits}g}' if abs(value) >= 1e-3 or value == 0.0 else f'{value:.1e}'
+    return text.replace('-', '−')
+
+
+def percent(value: float) -> str:
+    """Return a fit in % with one decimal (−∞ where the simulation left the record)."""
+    if not math.isfinite(value):
+        return '−∞'
+    return f'{value:.1f}'.replace('-', '−')
+
+
+def cell(f: Fit, rec: DrivenRecord, seconds: float) -> str:
+    """Return 'k-step / simulation' fit % of ``f`` on ``rec``, or why it cannot predict."""
+    try:
+        v = validate(f, rec, k=horizon(rec, seconds))
+    except IdentifyError as exc:
+        return f'not determined ({str(exc).split("(")[0].strip()})'
+    return f'{percent(v.fit_prediction)} / {percent(v.fit_simulation)}'
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--laws', nargs='+', default=list(LAWS), choices=list(LAWS))
+    parser.add_argument('--runs', nargs='+', default=list(RUNS), choices=list(RUNS))
+    parser.add_argument('--horizon', type=float, default=HORIZON)
+    args = parser.parse_args()
+    recs = {name: record(name) for name in RUNS}
+    fits: list[tuple[str, str, Fit, float]] = []
+    for name in args.runs:
+        for label in args.laws:
+            model, known = LAWS[label]
+            start = time.perf_counter()
+            f = fit([recs[name]], model=model, known=known)
+            fits.append((name, label, f, time.perf_counter() - start))
+    print(f'# fit of each run alone, windows of half a period; k-step horizon {args.horizon:g} s')
+    print()
+    print('| fitted on | law | inertia, kg m² | m g l, N m | γ | n | friction, N m | '
+          'offset, N m | delay, s | RMS residual, rad | fit, s |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|')
+    lab = published().in_package_terms()
+    print(f'| {LAB} | power+coulomb, n = 1 | {number(lab["inertia"], 4)} | '
+          f'{number(lab["mgl"], 4)} | {number(lab["gamma"], 4)} | 1 | '
+          f'{number(lab["friction"], 4)} | {number(lab["effort_offset"], 4)} | 0 | — | — |')
+    for name, label, f, secs in fits:
+        p = f.params
+        print(f'| {name} | {label} | {number(p["inertia"], 4)} | {number(p["mgl"], 4)} | '
+              f'{number(p["gamma"], 3)} | {number(p["n"], 3)} | {number(p["friction"], 3)} | '
+              f'{number(p["effort_offset"], 3)} | {number(p["command_delay"], 2)} | '
+              f'{number(f.rms_residual, 2)} | {secs:.1f} |')
+    print()
+    print('| fitted on | law | ' + ' | '.join(RUNS) + ' |')
+    print('|---|---|' + '---|' * len(RUNS))
+    window = next((f.window for _, _, f, _ in fits if f.window is not None), None)
+    the_lab = lab_fit(window)
+    row = [cell(the_lab, recs[name], args.horizon) + (' (own run)' if name == OWN else '')
+           for name in RUNS]
+    print(f'| {LAB} | power+coulomb, n = 1 | ' + ' | '.join(row) + ' |')
+    for name, label, f, _ in fits:
+        row = ['own run' if other == name else cell(f, recs[other], args.horizon)
+               for other in RUNS]
+        print(f'| {name} | {label} | ' + ' | '.join(row) + ' |')
+
+
+if __name__ == '__main__':
+    main()
