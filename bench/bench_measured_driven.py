@@ -71,12 +71,13 @@ def horizon(rec: DrivenRecord, seconds: float) -> int:
     return max(1, round(seconds / float(np.median(np.diff(rec.t)))))
 
 
-def lab_fit(window: float | None) -> Fit:
-    """Return the lab's published joint as a fit (``power+coulomb``, n = 1)."""
+def lab_fit() -> Fit:
+    """Return the lab's published joint as a fit (``power+coulomb``, n = 1; its windows half
+    its period, as a fit's)."""
     lab = published().in_package_terms()
     return joint_fit('power+coulomb', inertia=lab['inertia'], mgl=lab['mgl'],
                      gamma=lab['gamma'], n=lab['n'], friction=lab['friction'],
-                     effort_offset=lab['effort_offset'], window=window)
+                     effort_offset=lab['effort_offset'])
 
 
 def number(value: float | None, digits: int) -> str:
@@ -146,8 +147,7 @@ def main() -> None:
     print()
     print('| fitted on | law | ' + ' | '.join(RUNS) + ' |')
     print('|---|---|' + '---|' * len(RUNS))
-    window = next((f.window for _, _, f, _ in fits if f.window is not None), None)
-    the_lab = lab_fit(window)
+    the_lab = lab_fit()
     labs = {name: figures(the_lab, recs[name], args.horizon) for name in RUNS}
     print(f'| {LAB} | power+coulomb, n = 1 | ' + ' | '.join(
         cell(labs[name]) + (' (own run)' if name == OWN else '') for name in RUNS) + ' |')

@@ -604,6 +604,7 @@ def check_same_joint(recs: Sequence[DrivenRecord]) -> None:
                                 f'joint; fit them apart, or pass --joint')
 
 
-__all__ = ['BOUNDS', 'KNOWN_DRIVEN', 'SHARED', 'DrivenRecord', 'DrivenSolution', 'Estimates',
-           'Smoothed', 'check_known', 'check_same_joint', 'check_window', 'estimates',
-           'first_guesses', 'inverse_dynamics', 'prepare_driven', 'smoothed', 'solve_law']
+__all__ = ['BOUNDS', 'KNOWN_DRIVEN', 'SHARED', 'WINDOW_PERIODS', 'DrivenRecord',
+           'DrivenSolution', 'Estimates', 'Smoothed', 'check_known', 'check_same_joint',
+           'check_window', 'estimates', 'first_guesses', 'inverse_dynamics', 'prepare_driven',
+           'smoothed', 'solve_law']

@@ -16,6 +16,7 @@ import numpy as np
 from .checks import MIN_SAMPLES, Progress, as_array, increasing, jit_choice
 from .driven import (
     BOUNDS,
+    WINDOW_PERIODS,
     DrivenRecord,
     DrivenSolution,
     check_known,
@@ -153,7 +154,8 @@ def joint_fit(model: str, *, inertia: float, mgl: float, gamma: float, n: float,
     a record with :func:`~pendulum_sim.identify.validate` as this package's own fits are. Every
     value is held (standard error 0, interval (v, v), all in ``fixed``); the fit has no record
     (``samples`` 0, an infinite BIC). ``window`` is the windows' length the validation's
-    residuals are taken over (None: one window of the whole record).
+    residuals and its simulation's first state are fitted over (None: a driven fit's default,
+    half the joint's period 2π/ω0).
 
     Parameters
     ----------
@@ -181,7 +183,10 @@ def joint_fit(model: str, *, inertia: float, mgl: float, gamma: float, n: float,
                             f'{friction!r}')
     span = check_window(window)
     params: dict[str, float | None] = {k: float(v) for k, v in values.items()}
-    params['omega0'] = math.sqrt(mgl / inertia)
+    omega0 = math.sqrt(mgl / inertia)
+    params['omega0'] = omega0
+    if span is None:
+        span = WINDOW_PERIODS * 2.0 * math.pi / max(omega0, 1e-3)
     params['friction_accel'] = friction / inertia
     names = tuple(params)
     empty = np.zeros(0)

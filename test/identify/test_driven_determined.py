@@ -76,6 +76,9 @@ def test_a_joint_given_by_its_parameters_is_validated_as_a_fit_of_them() -> None
     # encoder's noise.
     assert float(np.sqrt(np.mean(v.residual ** 2))) == pytest.approx(noise, rel=0.15)
     assert v.fit_prediction > 99.0
+    # Without a window, a driven fit's default: half the joint's period.
+    assert joint_fit('viscous', inertia=0.2, mgl=2.0, gamma=0.5, n=1.0).window == pytest.approx(
+        math.pi / math.sqrt(2.0 / 0.2))
     with pytest.raises(IdentifyError) as info:
         joint_fit('viscous', inertia=0.2, mgl=2.0, gamma=0.5, n=1.5)
     assert str(info.value) == 'the viscous law has n = 1, got n = 1.5'

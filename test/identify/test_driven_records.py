@@ -128,3 +128,59 @@ def test_the_labs_parameters_in_this_packages_terms_are_the_docs() -> None:
         assert text in page, text
     # The torque scale the docs question: identified m cx against the hardware's m l_COM.
     assert round(0.676 * 0.45, 3) == 0.304 and round(lab.m_cx / 0.304, 2) == 0.34
+
+
+
+def table_rows(page: str, first: str, law: str) -> list[list[str]]:
+    """Return the cells after the first two of each table row of ``page`` that starts with
+    ``first`` and ``law`` (its parameters' table, then its validation table)."""
+    start = f'| {first} | {law} | '
+    return [[c.strip() for c in line[len(start):].rstrip(' |').split(' | ')]
+            for line in page.splitlines() if line.startswith(start)]
+
+
+def shown(value: float, text: str) -> bool:
+    """Return whether ``text`` (significant digits, Unicode minus) is ``value`` rounded."""
+    printed = text.replace('−', '-')
+    mantissa = printed.split('e')[0].lstrip('-').replace('.', '').lstrip('0')
+    if value == 0.0:
+        return float(printed) == 0.0
+    last = math.floor(math.log10(abs(value))) - max(len(mantissa), 1) + 1
+    return abs(value - float(printed)) <= 0.5 * 10.0 ** last * (1 + 1e-9)
+
+
+def test_the_docs_row_of_a_fit_and_its_held_out_validation_is_what_the_fit_gives() -> None:
+    """The direct-collocation run's fit by the lab's law: its parameters and its fit % on ddp,
+    and the lab's fit % on ddp, as ``bench/bench_measured_driven.py`` wrote them in the docs.
+
+    Recomputed through the public API (the run's angle and torque, windows of half a period,
+    the k-step horizon 0.15 s); each figure as printed, to its last digit.
+    """
+    from pendulum_sim.identify import driven_record, fit, joint_fit, validate
+
+    def run(name: str):  # type: ignore[no-untyped-def]
+        s = read(name)
+        return driven_record(s.t, s.position, s.effort)
+
+    page = PAGE.read_text(encoding='utf-8')
+    [runs] = table_rows(page, 'fitted on', 'law')[1:]
+    assert runs == list(RUNS)
+    params, validation = table_rows(page, 'direct collocation', 'power+coulomb, n = 1')
+    joint = fit([run('direct collocation')], model='power+coulomb', known={'n': 1.0})
+    names = ('inertia', 'mgl', 'gamma', 'n', 'friction', 'effort_offset', 'command_delay')
+    for key, text in zip((*names, 'rms'), params, strict=True):
+        value = joint.rms_residual if key == 'rms' else joint.params[key]
+        assert value is not None and shown(value, text), (key, value, text)
+    ddp = run('ddp')
+    k = round(0.15 / float(np.median(np.diff(ddp.t))))
+    ours = validate(joint, ddp, k=k)
+    assert validation[runs.index('ddp')] == (
+        f'{ours.fit_prediction:.1f} / {ours.fit_simulation:.1f}'.replace('-', '−'))
+    lab = published().in_package_terms()
+    theirs = validate(joint_fit('power+coulomb', inertia=lab['inertia'], mgl=lab['mgl'],
+                                gamma=lab['gamma'], n=1.0, friction=lab['friction'],
+                                effort_offset=lab['effort_offset']), ddp, k=k)
+    lab_validation = table_rows(page, 'lab (pd)', 'power+coulomb, n = 1')[1]
+    assert lab_validation[runs.index('ddp')] == (
+        f'{theirs.fit_prediction:.1f} / {theirs.fit_simulation:.1f}'.replace('-', '−'))
+    assert theirs.fit_prediction < ours.fit_prediction
