@@ -586,12 +586,13 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
                      correlation=corr, fixed=fixed)
 
 
-def check_known(known: Mapping[str, float] | None) -> dict[str, float]:
-    """Return ``known`` checked for a driven fit (finite numbers of KNOWN_DRIVEN in BOUNDS)."""
+def check_known(known: Mapping[str, float] | None,
+                allowed: Sequence[str] = KNOWN_DRIVEN) -> dict[str, float]:
+    """Return ``known`` checked for a driven fit (finite numbers of ``allowed`` in BOUNDS)."""
     def limit(key: str, value: float) -> str | None:
         lo, hi = BOUNDS[key]
         return None if lo <= value <= hi else f'in [{lo:g}, {hi:g}]'
-    return known_values(known, KNOWN_DRIVEN, 'with effort, ', limit)
+    return known_values(known, allowed, 'with effort, ', limit)
 
 
 def check_same_joint(recs: Sequence[DrivenRecord]) -> None:

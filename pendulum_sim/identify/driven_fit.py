@@ -15,7 +15,7 @@ import numpy as np
 
 from .checks import MIN_SAMPLES, Progress, as_array, increasing, jit_choice
 from .driven import (
-    BOUNDS,
+    KNOWN_DRIVEN,
     WINDOW_PERIODS,
     DrivenRecord,
     DrivenSolution,
@@ -155,7 +155,8 @@ def joint_fit(model: str, *, inertia: float, mgl: float, gamma: float, n: float,
     value is held (standard error 0, interval (v, v), all in ``fixed``); the fit has no record
     (``samples`` 0, an infinite BIC). ``window`` is the windows' length the validation's
     residuals and its simulation's first state are fitted over (None: a driven fit's default,
-    half the joint's period 2π/ω0).
+    half the joint's period 2π/ω0). The values are checked as a fit's ``known`` are (in their
+    search ranges, ``driven.BOUNDS``), and the message names them so.
 
     Parameters
     ----------
@@ -166,28 +167,22 @@ def joint_fit(model: str, *, inertia: float, mgl: float, gamma: float, n: float,
         The joint in the units of a driven fit (kg m², N m, s^(n−2), -, N m, N m, s, rad).
     """
     law = get_law(model)
-    values = {'inertia': inertia, 'mgl': mgl, 'gamma': gamma, 'n': n, 'friction': friction,
-              'effort_offset': effort_offset, 'command_delay': command_delay,
-              'phi_offset': phi_offset}
-    for key, value in values.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
-                value):
-            raise IdentifyError(f'{key} must be a finite number, got {value!r}')
-        lo, hi = BOUNDS[key]
-        if not lo <= value <= hi or (key == 'inertia' and value <= 0.0):
-            raise IdentifyError(f'{key} must be in [{lo:g}, {hi:g}], got {value!r}')
+    values = check_known({'inertia': inertia, 'mgl': mgl, 'gamma': gamma, 'n': n,
+                          'friction': friction, 'effort_offset': effort_offset,
+                          'command_delay': command_delay, 'phi_offset': phi_offset},
+                         (*KNOWN_DRIVEN, 'gamma'))
     if law.n is not None and n != law.n:
         raise IdentifyError(f'the {model} law has n = {law.n:g}, got n = {n!r}')
     if not law.friction and law.n != 0.0 and friction != 0.0:
         raise IdentifyError(f'the {model} law has no Coulomb friction, got friction = '
                             f'{friction!r}')
     span = check_window(window)
-    params: dict[str, float | None] = {k: float(v) for k, v in values.items()}
-    omega0 = math.sqrt(mgl / inertia)
+    params: dict[str, float | None] = dict(values)
+    omega0 = math.sqrt(values['mgl'] / values['inertia'])
     params['omega0'] = omega0
     if span is None:
         span = WINDOW_PERIODS * 2.0 * math.pi / max(omega0, 1e-3)
-    params['friction_accel'] = friction / inertia
+    params['friction_accel'] = values['friction'] / values['inertia']
     names = tuple(params)
     empty = np.zeros(0)
     return Fit(params=params, stderr=dict.fromkeys(names, 0.0),

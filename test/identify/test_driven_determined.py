@@ -84,7 +84,7 @@ def test_a_joint_given_by_its_parameters_is_validated_as_a_fit_of_them() -> None
     assert str(info.value) == 'the viscous law has n = 1, got n = 1.5'
     with pytest.raises(IdentifyError) as info:
         joint_fit('power', inertia=0.0, mgl=2.0, gamma=0.5, n=1.5)
-    assert str(info.value) == 'inertia must be in [1e-06, 10000], got 0.0'
+    assert str(info.value) == "known['inertia'] must be in [1e-06, 10000], got 0.0"
     with pytest.raises(IdentifyError) as info:
         joint_fit('power', inertia=0.2, mgl=2.0, gamma=0.5, n=1.5, friction=0.1)
     assert str(info.value) == 'the power law has no Coulomb friction, got friction = 0.1'
