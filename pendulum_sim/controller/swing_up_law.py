@@ -26,14 +26,19 @@ Every function takes numpy arrays or floats (a campaign's batch or one state).
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from pendulum_sim.core import PendulumParams
+from pendulum_sim.core.jit_cache import cache_root, write_atomic
 from pendulum_sim.core.model import energy, wrap_pi
 
 from .errors import ControllerError
@@ -46,8 +51,68 @@ def lqr(a: FloatArray, b: FloatArray, q: FloatArray,
     """Return ``(K, S)`` of the continuous LQR problem (python-control's ``lqr``).
 
     Without python-control, SciPy's ``solve_continuous_are`` solves the same algebraic
-    Riccati equation and ``K = R⁻¹ Bᵀ S``.
+    Riccati equation and ``K = R⁻¹ Bᵀ S``. The answer is kept on disk (:func:`lqr_cache_file`)
+    and read back by later processes: importing python-control costs some 2 s of CPU (it
+    imports SciPy's signal and stats packages and Matplotlib), which every process of a
+    campaign would pay for the same gain.
     """
+    path = lqr_cache_file(a, b, q, r)
+    kept = _read_lqr(path, a.shape[0], b.shape[1]) if path is not None else None
+    if kept is not None:
+        return kept
+    k, s = _solve_lqr(a, b, q, r)
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_atomic(path, json.dumps({'gain': [float.hex(x) for x in k.reshape(-1)],
+                                           'riccati': [float.hex(x) for x in s.reshape(-1)]}))
+        except OSError:   # an unwritable cache: the next process solves it again
+            pass
+    return k, s
+
+
+def lqr_cache_file(a: FloatArray, b: FloatArray, q: FloatArray,
+                   r: FloatArray) -> Path | None:
+    """Return the file that keeps the LQR answer of ``(a, b, q, r)``, or None.
+
+    Under the package's cache directory (``core.jit_cache.cache_root``: deleting it is always
+    safe), named by a digest of the four matrices' exact floats and the versions of what
+    solves them (python-control, slycot, which python-control prefers where it is installed,
+    SciPy and numpy), so another solver or other matrices never read an answer not theirs.
+    None where a matrix is not finite (such a problem is solved, and refused, every time).
+    """
+    arrays = [np.asarray(x, dtype=float) for x in (a, b, q, r)]
+    if not all(np.isfinite(x).all() for x in arrays):
+        return None
+    sha = hashlib.sha256()
+    for x in arrays:
+        sha.update(repr(x.shape).encode() + b':' +
+                   ','.join(float.hex(v) for v in x.reshape(-1).tolist()).encode() + b';')
+    for name in ('control', 'slycot', 'scipy', 'numpy'):
+        try:
+            version = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            version = 'none'
+        sha.update(f'{name} {version};'.encode())
+    return cache_root() / 'lqr' / f'{sha.hexdigest()[:32]}.json'
+
+
+def _read_lqr(path: Path, states: int, inputs: int) -> tuple[FloatArray, FloatArray] | None:
+    """Return the ``(K, S)`` kept in ``path``, or None where it is missing or unreadable."""
+    try:
+        data = json.loads(path.read_text(encoding='utf-8'))
+        k = np.array([float.fromhex(x) for x in data['gain']]).reshape(inputs, states)
+        s = np.array([float.fromhex(x) for x in data['riccati']]).reshape(states, states)
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not (np.isfinite(k).all() and np.isfinite(s).all()):
+        return None
+    return k, s
+
+
+def _solve_lqr(a: FloatArray, b: FloatArray, q: FloatArray,
+               r: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Return ``(K, S)`` solved now: python-control's ``lqr``, else SciPy's Riccati solver."""
     try:
         import control  # type: ignore[import-untyped]
     except ImportError:

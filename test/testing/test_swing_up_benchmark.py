@@ -16,6 +16,7 @@ import yaml
 from dask_harness import dask_cluster as start_dask_cluster
 
 from pendulum_sim.controller import swing_up_law
+from pendulum_sim.core.jit_cache import ENV_VAR as JIT_CACHE
 from pendulum_sim.joint.parameters import joint_config
 from pendulum_sim.testing import BenchmarkResult, benchmark, closed_loop
 from pendulum_sim.testing.batch import batchable
@@ -71,9 +72,10 @@ def test_the_saturated_pd_cannot_lift_the_pendulum_from_hanging() -> None:
 
 
 def test_the_lqr_gain_solves_the_riccati_equation_with_or_without_python_control(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     a, b = SWING_UP.linearised()
     q, r = np.diag(SWING_UP.q), np.array([[SWING_UP.r]])
+    monkeypatch.setenv(JIT_CACHE, str(tmp_path / 'with'))   # solved here, not read back
     k, s = swing_up_law.lqr(a, b, q, r)
     # The continuous algebraic Riccati equation and K = R^-1 B^T S.
     residual = a.T @ s + s @ a - s @ b @ np.linalg.solve(r, b.T @ s) + q
@@ -81,9 +83,54 @@ def test_the_lqr_gain_solves_the_riccati_equation_with_or_without_python_control
     np.testing.assert_allclose(k, np.linalg.solve(r, b.T @ s), rtol=1e-12)
     assert np.all(np.linalg.eigvals(a - b @ k).real < 0)
     monkeypatch.setitem(sys.modules, 'control', None)   # python-control not installed
+    monkeypatch.setenv(JIT_CACHE, str(tmp_path / 'without'))
     k2, s2 = swing_up_law.lqr(a, b, q, r)
     np.testing.assert_allclose(k2, k, rtol=1e-9)
     np.testing.assert_allclose(s2, s, rtol=1e-9)
+
+
+LQR_IN_A_PROCESS = """
+import json, sys
+import numpy as np
+from pendulum_sim.controller import swing_up_law
+from pendulum_sim.testing.examples import SWING_UP
+a, b = SWING_UP.linearised()
+k, s = swing_up_law.lqr(a, b, np.diag(SWING_UP.q), np.array([[SWING_UP.r]]))
+print(json.dumps([[x.hex() for x in k.reshape(-1).tolist()],
+                  [x.hex() for x in s.reshape(-1).tolist()], 'control' in sys.modules]))
+"""
+
+
+def test_a_later_process_reads_the_lqr_gain_from_disk_without_python_control(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """The first process solves with python-control and keeps (K, S) on disk; the next reads
+    them, to the bit, and never imports python-control; a corrupt file is solved again."""
+    monkeypatch.setenv(JIT_CACHE, str(tmp_path))
+    env = dict(os.environ)
+
+    def solve() -> list[object]:
+        done = subprocess.run([sys.executable, '-c', LQR_IN_A_PROCESS], env=env, check=True,
+                              capture_output=True, text=True, timeout=120)
+        return list(yaml.safe_load(done.stdout))
+
+    a, b = SWING_UP.linearised()
+    q, r = np.diag(SWING_UP.q), np.array([[SWING_UP.r]])
+    # The oracle: python-control's lqr itself, in this process.
+    import control  # type: ignore[import-untyped]
+
+    gain, riccati, _ = control.lqr(a, b, q, r)
+    expected = [[x.hex() for x in np.asarray(gain).reshape(-1).tolist()],
+                [x.hex() for x in np.asarray(riccati).reshape(-1).tolist()]]
+    first = solve()
+    assert first == [*expected, True]
+    kept = swing_up_law.lqr_cache_file(a, b, q, r)
+    assert kept is not None and kept.parent.parent == tmp_path and kept.is_file()
+    assert solve() == [*expected, False]
+    kept.write_text('{"gain": ["0x1.0p+0"', encoding='utf-8')   # cut short
+    assert solve() == [*expected, True]
+    assert solve() == [*expected, False]
+    # Another problem (here R) is another file.
+    assert swing_up_law.lqr_cache_file(a, b, q, 2.0 * r) != kept
 
 
 def test_the_ellipse_is_the_largest_level_set_where_the_torque_does_not_saturate() -> None:
