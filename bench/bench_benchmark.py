@@ -14,6 +14,10 @@ time; print the figures side by side in one run.
     episodes of each criterion scaled to all of them (said so);
 (c) the ratio (b) / (a).
 
+It says first whether the reference LQR gain is on disk (``swing_up_law.lqr``: kept by the
+first process that solved it, so later ones need not import python-control): on a machine's
+first run each process of (a) pays that import, some 2 s of CPU.
+
 With ``--references`` the reference controllers' results are written to
 ``pendulum_sim/testing/swing_up/references.yaml`` (what ``benchmark.png`` compares with) and
 their ``benchmark.yaml`` and figures kept under ``bench/results/benchmark/``, with the LQR
@@ -50,6 +54,20 @@ ROOT = Path(__file__).resolve().parents[1]
 LAW = 'pendulum_sim.testing.examples:energy_lqr'
 REFERENCES = {'energy_lqr': 'pendulum_sim.testing.examples:energy_lqr',
               'saturated_pd': 'pendulum_sim.testing.examples:saturated_pd'}
+
+
+def lqr_kept() -> str:
+    """Return whether the reference LQR gain is on disk now (``swing_up_law.lqr_cache_file``)."""
+    import numpy as np
+
+    from pendulum_sim.controller.swing_up_law import lqr_cache_file
+    from pendulum_sim.testing.examples import SWING_UP
+
+    a, b = SWING_UP.linearised()
+    path = lqr_cache_file(a, b, np.diag(SWING_UP.q), np.array([[SWING_UP.r]]))
+    return ('on disk: every process reads it (no python-control import)'
+            if path is not None and path.is_file() else
+            'not on disk: the first processes import python-control and solve it')
 
 
 def one_at_a_time(settings: Settings, sample: int | None) -> tuple[float, int, int]:
@@ -134,6 +152,7 @@ def main() -> int:
           f'{args.episodes} episodes each, {args.limits} torque limits, a {args.roa_grid} x '
           f'{args.roa_grid} region of attraction, the nominal run; 10 s episodes, h = 1 ms, '
           f'200 Hz control')
+    print(f'the reference LQR gain: {lqr_kept()}')
     with tempfile.TemporaryDirectory() as tmp:
         began = time.perf_counter()
         result = benchmark(LAW, out=Path(tmp) / 'out', episodes=args.episodes,
