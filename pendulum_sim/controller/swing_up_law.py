@@ -76,15 +76,16 @@ def lqr_cache_file(a: FloatArray, b: FloatArray, q: FloatArray,
     """Return the file that keeps the LQR answer of ``(a, b, q, r)``, or None.
 
     Under the package's cache directory (``core.jit_cache.cache_root``: deleting it is always
-    safe), named by a digest of the four matrices' exact floats and the versions of what
-    solves them (python-control, slycot, which python-control prefers where it is installed,
-    SciPy and numpy), so another solver or other matrices never read an answer not theirs.
-    None where a matrix is not finite (such a problem is solved, and refused, every time).
+    safe), named by a digest of the four matrices' exact floats, this module's source and the
+    versions of what solves them (python-control, slycot, which python-control prefers where
+    it is installed, SciPy and numpy), so another solver, another way of calling it or other
+    matrices never read an answer not theirs. None where a matrix is not finite (such a
+    problem is solved, and refused, every time).
     """
     arrays = [np.asarray(x, dtype=float) for x in (a, b, q, r)]
     if not all(np.isfinite(x).all() for x in arrays):
         return None
-    sha = hashlib.sha256()
+    sha = hashlib.sha256(Path(__file__).read_bytes())
     for x in arrays:
         sha.update(repr(x.shape).encode() + b':' +
                    ','.join(float.hex(v) for v in x.reshape(-1).tolist()).encode() + b';')
