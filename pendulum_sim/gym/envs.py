@@ -87,6 +87,8 @@ class JointEnv(gym.Env[FloatArray, FloatArray]):
         and put its swing-up metrics in ``info`` at the step it terminates or truncates
         (default True).
 
+    Notes
+    -----
     Observations are float64, the joint's state unrounded (Pendulum-v1's are float32).
 
     At the step a ``DampedPendulum`` episode ends (terminated, or truncated by the
