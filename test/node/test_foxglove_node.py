@@ -169,9 +169,10 @@ def test_the_server_listens_on_loopback_unless_foxglove_host_says_otherwise(
         found = wait_listening(node, port)
         with FoxgloveClient(port, host=bound) as client:
             client.subscribe('/log')   # the lines logged before any client, sent again
-            lines = [m['message'] for _, _, m in client.messages(2, '/log')]
-    assert lines[1] == f'foxglove: serving the joint on ws://{bound}:{port}', lines
+            lines = [m['message'] for _, _, m in client.messages(3, '/log')]
+    assert lines[2] == f'foxglove: serving the joint on ws://{bound}:{port}', lines
     assert lines[0].startswith('real time: h = 0.001 s, rk4'), lines
+    assert lines[1].startswith('expected real-time factor '), lines   # the law's cost
     # The server's is the node's only listening socket, on that address alone.
     assert found == [(bound, port)]
 
