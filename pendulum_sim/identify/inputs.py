@@ -14,7 +14,7 @@ import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -202,6 +202,20 @@ COMMAND_TYPES = ('std_msgs/msg/Float64', JOINT_STATE)
 ``joint_commands``'s."""
 
 
+def _joint_at(msg: Any, joint: str, log_ns: int) -> tuple[float, int] | None:
+    """Return a JointState's stamp (s; its log time where the header has none) and the index
+    of ``joint`` in it, or None where the message does not name the joint."""
+    if joint not in msg.name:
+        return None
+    stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+    return (stamp if stamp else log_ns) * 1e-9, list(msg.name).index(joint)
+
+
+def _item(values: Any, i: int) -> float:
+    """Return ``values[i]``, or NaN where the message's field is shorter (not reported)."""
+    return values[i] if len(values) > i else math.nan
+
+
 def read_commands(rec: Recording, file: Path, topic: str, joint: str) -> tuple[FloatArray,
                                                                            FloatArray]:
     """Return the stamps (s) and values (N m) of the command stream ``topic`` for ``joint``.
@@ -222,12 +236,11 @@ def read_commands(rec: Recording, file: Path, topic: str, joint: str) -> tuple[F
     stamps, values = [], []
     for log_ns, msg in messages:
         if topics[topic].type == JOINT_STATE:
-            if joint not in msg.name:
+            at = _joint_at(msg, joint, log_ns)
+            if at is None:
                 continue
-            i = list(msg.name).index(joint)
-            stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
-            stamps.append((stamp if stamp else log_ns) * 1e-9)
-            values.append(msg.effort[i] if len(msg.effort) > i else math.nan)
+            stamps.append(at[0])
+            values.append(_item(msg.effort, at[1]))
         else:
             stamps.append(log_ns * 1e-9)
             values.append(float(msg.data))
@@ -288,14 +301,13 @@ def read_mcap(path: Path, topic: str | None, joint: str | None,
                             f'them')
     t, pos, vel, eff = [], [], [], []
     for log_ns, msg in messages:
-        if joint not in msg.name:
+        at = _joint_at(msg, joint, log_ns)
+        if at is None:
             continue
-        i = list(msg.name).index(joint)
-        stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
-        t.append((stamp if stamp else log_ns) * 1e-9)
-        pos.append(msg.position[i] if len(msg.position) > i else math.nan)
-        vel.append(msg.velocity[i] if len(msg.velocity) > i else math.nan)
-        eff.append(msg.effort[i] if len(msg.effort) > i else math.nan)
+        t.append(at[0])
+        pos.append(_item(msg.position, at[1]))
+        vel.append(_item(msg.velocity, at[1]))
+        eff.append(_item(msg.effort, at[1]))
     v, e = np.asarray(vel, dtype=np.float64), np.asarray(eff, dtype=np.float64)
     commands = None if effort_topic is None else read_commands(rec, file, effort_topic, joint)
     return Samples(t=np.asarray(t, dtype=np.float64), position=np.asarray(pos, dtype=np.float64),

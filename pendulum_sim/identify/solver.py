@@ -37,9 +37,21 @@ RELATIVE_STEP = 1e-6
 MAX_ITERATIONS = 80
 LAMBDA_MAX = 1e12
 """The damping λ past which a problem that finds no lower sum of squares stops."""
+LAMBDA_MIN = 1e-12
+"""The least damping λ an accepted step leaves."""
 TOLERANCE = 1e-8
 """Stop when an accepted step lowers the sum of squares by less than this fraction, or the next
 step is predicted to (far below what moves an estimate within its standard error)."""
+
+
+def relaxed(lam: float) -> float:
+    """Return the damping λ after an accepted step (a third, at least :data:`LAMBDA_MIN`)."""
+    return max(lam / 3.0, LAMBDA_MIN)
+
+
+def stiffened(lam: float) -> float:
+    """Return the damping λ after a refused or uphill step (four times)."""
+    return lam * 4.0
 
 
 @dataclass
@@ -228,7 +240,7 @@ def _lm_step(p: Problem) -> tuple[FloatArray, float]:
         predicted = -float(p.residual @ jd) - 0.5 * float(jd @ jd)
         if predicted > 0.0 or p.lam > LAMBDA_MAX:
             return candidate, predicted
-        p.lam *= 4.0
+        p.lam = stiffened(p.lam)
 
 
 def solve(problems: Sequence[Problem], *, jit: bool,
@@ -254,13 +266,13 @@ def solve(problems: Sequence[Problem], *, jit: bool,
                 assert pred is not None
                 p.theta, p.cost, p.residual = candidates[i], cost, res
                 p.jac = ((pred[1:] - pred[0]) / steps[:, None]).T
-                p.lam = max(p.lam / 3.0, 1e-12)
+                p.lam = relaxed(p.lam)
                 if gain < TOLERANCE:
                     p.done = True
             elif p.jac is None:
                 p.done = True          # the start itself cannot be simulated
             else:
-                p.lam *= 4.0
+                p.lam = stiffened(p.lam)
                 if p.lam > LAMBDA_MAX:
                     p.done = True
             if not p.done:

@@ -36,6 +36,7 @@ from pendulum_sim.core.model import MAX_INPUT_ACCEL
 from pendulum_sim.core.sweep import Sweep
 
 from .effort import Effort
+from .solver import LAMBDA_MAX, TOLERANCE, relaxed, stiffened
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -43,9 +44,6 @@ IntArray = npt.NDArray[np.int64]
 RELATIVE_STEP = 1e-6
 """Forward-difference step of the Jacobian, relative to the parameter's size."""
 MAX_ITERATIONS = 60
-TOLERANCE = 1e-8
-"""Stop when an accepted step lowers the sum of squares by less than this fraction, or the next
-step is predicted to."""
 LAMBDA_TRIES = 12
 """Times λ grows within one iteration while the step is predicted to raise the cost."""
 STATE_BOUNDS = ((-1e3, 1e3), (-100.0, 100.0))
@@ -395,9 +393,9 @@ def _lm_step(p: Problem, bounds: IntArray, row_window: IntArray
         step_g, step_s = theta - p.theta, states - p.states
         jd = p.jac @ step_g + np.sum(p.jac_states * step_s[row_window], axis=1)
         predicted = -float(p.residual @ jd) - 0.5 * float(jd @ jd)
-        if predicted > 0.0 or p.lam > 1e12:
+        if predicted > 0.0 or p.lam > LAMBDA_MAX:
             break
-        p.lam *= 4.0
+        p.lam = stiffened(p.lam)
     return theta, states, predicted
 
 
@@ -429,14 +427,14 @@ def solve(problems: Sequence[Problem], *, jit: bool,
                 p.jac = (pred[:, 1:nfree + 1] - pred[:, :1]) / steps[None, :]
                 per_row = sst[win.row_window]
                 p.jac_states = (pred[:, nfree + 1:nfree + 3] - pred[:, :1]) / per_row
-                p.lam = max(p.lam / 3.0, 1e-12)
+                p.lam = relaxed(p.lam)
                 if gain < TOLERANCE:
                     p.done = True
             elif p.jac is None:
                 p.done = True           # the start itself cannot be simulated
             else:
-                p.lam *= 4.0
-                if p.lam > 1e12:
+                p.lam = stiffened(p.lam)
+                if p.lam > LAMBDA_MAX:
                     p.done = True
             if not p.done:
                 theta, states, predicted = _lm_step(p, win.bounds, win.row_window)
