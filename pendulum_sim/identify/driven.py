@@ -39,6 +39,7 @@ from .effort import Effort, from_samples
 from .errors import IdentifyError
 from .guess import noise_level
 from .laws import Law
+from .result import exponent_undetermined
 from .starts import count_reached
 from .windows import Problem, Series, Windows, covariance, cut, schedule, simulate, solve
 
@@ -79,8 +80,9 @@ BLOCK = 0.2
 STEPS_PER_PERIOD = 64
 """Simulation steps per guessed period, at least (RK4; steps divide the sample period)."""
 WINDOW_PERIODS = 0.5
-"""The default window, in periods 2π/ω0 of the first guess: short against the divergence of a
-loop near the top (e^π ≈ 23 over it at the rate ω0), long against the sample period."""
+"""The default window, in periods 2π/ω0 of :func:`reference_omega0`: short against the
+divergence of a loop near the top (e^π ≈ 23 over it at the rate ω0), long against the sample
+period."""
 MIN_WINDOW_SAMPLES = 10
 FRICTION_SHARE = 0.1
 """A law beside a dry friction also starts with the friction at this share of the effort's RMS
@@ -103,8 +105,6 @@ determined where the inertia's 95 % interval is wider than ± this fraction of i
 that does not move the joint (a sensor's noise) still lowers the misfit by chance, as any added
 regressor does, with an input gain 1/I one or two standard errors from zero: an interval of
 ±50 % and more; an effort that drives the joint fixes the inertia within a few per cent."""
-N_UNDETERMINED = 1.0
-"""n is reported as not determined when its 95 % interval is wider than ± this."""
 
 
 @dataclass(frozen=True)
@@ -319,6 +319,19 @@ def reference_speed(recs: Sequence[DrivenRecord]) -> float:
     return max(math.sqrt(float(np.mean(speeds ** 2))), 0.1)
 
 
+def reference_omega0(recs: Sequence[DrivenRecord], known: Mapping[str, float]) -> float:
+    """Return ω0 = √(m g l / I) of the viscous inverse dynamics of ``recs`` (``known`` held).
+
+    It sets the default window and the simulation step of every law fitted to the records, so
+    that the laws a ``compare`` ranks are fitted to the same windows: their residuals, and so
+    their BIC, are of the same samples on the same grid.
+    """
+    guess, _ = inverse_dynamics(recs, [smoothed(r) for r in recs], 1.0, False,
+                                known.get('command_delay', 0.0), known.get('effort_offset'))
+    guess.update({k: known[k] for k in ('inertia', 'mgl') if k in known})
+    return math.sqrt(max(guess['mgl'], 1e-9) / guess['inertia'])
+
+
 def anchors(rec: DrivenRecord) -> FloatArray:
     """Return the velocity each window starts from: measured, else the local cubic's slope."""
     if rec.velocity is not None:
@@ -403,12 +416,14 @@ def solve_law(law: Law, recs: Sequence[DrivenRecord], known: Mapping[str, float]
 
 def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[str, float],
                window: float | None, jit: bool,
-               progress: Callable[[int, int], None] | None = None
+               progress: Callable[[int, int], None] | None = None,
+               seeds: Sequence[Sequence[NestedStart]] | None = None
                ) -> list[DrivenSolution | None]:
     """Fit ``law`` to each set of records (the records of a set together), all in lockstep.
 
     Every start of every set is one problem of one :func:`windows.solve`; the start of a set
-    that ends lowest is its fit.
+    that ends lowest is its fit. ``seeds[i]`` are further starts of set ``i`` beside its
+    first guesses (the optima of the laws ``law`` nests, :func:`nested_start`).
     """
     free = _free(law, known)
     problems: list[Problem] = []
@@ -416,8 +431,7 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
     made: list[tuple[Windows, float, float | None]] = []
     for i, recs in enumerate(sets):
         starts = first_guesses(law, recs, known)
-        g = starts[0]
-        omega0 = math.sqrt(max(g['mgl'], 1e-9) / g['inertia'])
+        omega0 = reference_omega0(recs, known)
         dt = float(np.median(np.concatenate([np.diff(r.t) for r in recs])))
         span = window_length(window, recs, omega0, dt)
         series = [Series(t=r.t, y=r.y, effort=r.effort, anchor=anchors(r)) for r in recs]
@@ -431,6 +445,13 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
             st = measured.copy()
             st[:, 0] -= s['phi_offset']
             problems.append(_problem(free, s, st, win, recs, omega0, law))
+            owner.append(i)
+        for seed in [] if seeds is None else seeds[i]:
+            st = measured.copy()
+            st[:, 0] -= seed.values['phi_offset']
+            if _same_windows(seed.windows, win):
+                st = seed.states
+            problems.append(_problem(free, seed.values, st, win, recs, omega0, law))
             owner.append(i)
     solve(problems, jit=jit, progress=progress)
     out: list[DrivenSolution | None] = []
@@ -451,6 +472,43 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
                                           [p.cost for p in ended], [1] * len(ended),
                                           best.win.y.size)))
     return out
+
+
+@dataclass(frozen=True)
+class NestedStart:
+    """The optimum of a nested law as a start: its shared parameters, windows and states."""
+
+    values: dict[str, float]
+    windows: Windows
+    states: FloatArray
+
+
+def nested_start(sol: DrivenSolution, law: Law) -> NestedStart:
+    """Return the optimum of a law that ``law`` nests (``starts.NESTED``) as a start of ``law``.
+
+    The nested fit's shared parameters and its windows' fitted states (used where ``law``'s
+    windows are the same, as they are on the same records: ``reference_omega0``). The
+    Coulomb law's level is its friction f: as a start of the power law it is the deceleration
+    f/I at n = 0 (``damping`` at n = 0 is γ itself), beside a power law it stays the friction,
+    the damping 0. Both laws share the records, so ``damping`` (at their RMS speed) carries
+    over as it is; ``n`` is clipped into ``law``'s range by the problem. Where the start is the
+    nested optimum itself (``viscous`` in ``power``), ``law``'s fit starts at that residual
+    and, its steps accepted only downhill, ends no worse.
+    """
+    p = sol.problem
+    values = p.full(p.theta)
+    if sol.law.n == 0.0 and law.n != 0.0:
+        if law.friction:
+            values['damping'] = 0.0
+        else:
+            values['damping'] = values['friction'] / values['inertia']
+            values['friction'] = 0.0
+    return NestedStart(values, sol.windows, p.states.copy())
+
+
+def _same_windows(a: Windows, b: Windows) -> bool:
+    return a.h == b.h and a.steps == b.steps and np.array_equal(a.record, b.record) and (
+        np.array_equal(a.start, b.start) and np.array_equal(a.stop, b.stop))
 
 
 def effort_motion(law: Law, recs: Sequence[DrivenRecord], p: Problem, jit: bool) -> float:
@@ -552,14 +610,9 @@ def estimates(sol: DrivenSolution, peak: float) -> Estimates:
         params['n'], stderr['n'], ci['n'] = None, None, None
         reasons['n'] = ('n is not determined: the damping is 0 (at its bound), where the '
                         'exponent does not act; the law predicts without it')
-    elif law.n is None and 'n' in p.free and stderr['n'] is not None and (
-            q * stderr['n'] > N_UNDETERMINED):
-        why = (f'n is not determined: its 95 % interval is ±{q * stderr["n"]:.2g} wide; drive '
-               f'the joint over a wider range of speeds, or fit a fixed law')
-        reasons['n'] = why
-        reasons['gamma'] = 'gamma is in s^(n-2) and n is not determined: ' + why
-        for k in ('n', 'gamma'):
-            params[k], stderr[k], ci[k] = None, None, None
+    elif law.n is None and 'n' in p.free and stderr['n'] is not None:
+        exponent_undetermined(q * stderr['n'], '; drive the joint over a wider range of speeds, '
+                              'or fit a fixed law', params, stderr, ci, reasons)
     se_i = stderr.get('inertia')
     assert p.residual is not None
     rms = math.sqrt(float(p.residual @ p.residual) / p.residual.size)
@@ -606,6 +659,7 @@ def check_same_joint(recs: Sequence[DrivenRecord]) -> None:
 
 
 __all__ = ['BOUNDS', 'KNOWN_DRIVEN', 'SHARED', 'WINDOW_PERIODS', 'DrivenRecord',
-           'DrivenSolution', 'Estimates', 'Smoothed', 'check_known', 'check_same_joint',
-           'check_window', 'estimates', 'first_guesses', 'inverse_dynamics', 'prepare_driven',
+           'DrivenSolution', 'Estimates', 'NestedStart', 'Smoothed', 'check_known',
+           'check_same_joint', 'check_window', 'estimates', 'first_guesses',
+           'inverse_dynamics', 'nested_start', 'prepare_driven', 'reference_omega0',
            'smoothed', 'solve_law']

@@ -22,7 +22,7 @@ from .errors import IdentifyError
 from .guess import Guess, best_exponent, envelope_gamma, first_look
 from .laws import COMPARED, MODELS, Law, get_law
 from .record import Record
-from .result import Fit, Value
+from .result import Fit, Value, exponent_undetermined
 from .solver import BOUNDS, Problem, simulate_columns, solve
 from .starts import EXPONENTS, FRICTION_EXPONENTS, NESTED, reached, search, seed
 
@@ -31,9 +31,6 @@ FloatArray = npt.NDArray[np.float64]
 STEPS_PER_PERIOD = 64
 """Simulation steps per guessed period, at least (RK4; the output is interpolated to the
 samples)."""
-N_UNDETERMINED = 1.0
-"""n is reported as not determined when its 95 % interval is wider than ± this (it then
-cannot tell viscous from quadratic damping)."""
 KNOWN = ('omega0', 'gamma', 'n', 'phi_offset', 'inertia')
 """What ``known`` may fix."""
 
@@ -212,17 +209,12 @@ def _result(law: Law, rec: Record, best: Problem, starts: int, known: dict[str, 
                                    min(float(v) + q * e, hi_b))   # type: ignore[arg-type]
         else:
             stderr[k], ci[k] = 0.0, (float(v), float(v))   # type: ignore[arg-type]
-    if law.n is None and 'n' in best.free and stderr['n'] is not None and (
-            q * stderr['n'] > N_UNDETERMINED):
+    if law.n is None and 'n' in best.free and stderr['n'] is not None:
         swing = rec.guess.peaks_a
         decay = (1.0 - swing[-1] / swing[0]) * 100.0 if swing.size >= 2 else 0.0
-        why = (f'n is not determined: its 95 % interval is ±{q * stderr["n"]:.2g} wide (the '
-               f'amplitude falls by only {decay:.1f} % over the record); record a longer or '
-               f'more damped swing, or fit a fixed law')
-        reasons['n'] = why
-        reasons['gamma'] = 'gamma is in s^(n-2) and n is not determined: ' + why
-        for k in ('n', 'gamma'):
-            params[k], stderr[k], ci[k] = None, None, None
+        exponent_undetermined(q * stderr['n'], f' (the amplitude falls by only {decay:.1f} % '
+                              f'over the record); record a longer or more damped swing, or fit '
+                              f'a fixed law', params, stderr, ci, reasons)
     _friction(law, known, params, stderr, ci, reasons)
     fixed = tuple(k for k in ('omega0', 'gamma', 'n', 'phi_offset') if k not in best.free)
     if law.name != 'coulomb' and not law.friction:
@@ -436,8 +428,9 @@ def fit(t: Any, position: Any = None, *, velocity: Any = None, effort: Any = Non
         for a driven fit any of ``inertia``, ``mgl``, ``n``, ``friction``,
         ``effort_offset``, ``command_delay``, ``phi_offset`` (``driven.KNOWN_DRIVEN``).
     window : float, optional
-        A driven fit's window in s (``windows.py``; default half a period of the first
-        guess; a window as long as the record is one simulation of it).
+        A driven fit's window in s (``windows.py``; default half a period of the records'
+        viscous inverse dynamics, ``driven.reference_omega0``, the same for every law; a
+        window as long as the record is one simulation of it).
     jit : bool or None
         Simulate with the core's compiled sweep (None: where numba is installed).
     progress : callable, optional

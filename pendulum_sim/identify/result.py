@@ -9,6 +9,10 @@ import numpy.typing as npt
 FloatArray = npt.NDArray[np.float64]
 Value = float | None
 
+N_UNDETERMINED = 1.0
+"""n is reported as not determined when its 95 % interval is wider than ± this (it then
+cannot tell viscous from quadratic damping)."""
+
 
 @dataclass(frozen=True)
 class Fit:
@@ -89,4 +93,24 @@ class Fit:
         return self.position - self.fitted
 
 
-__all__ = ['Fit', 'Value']
+def exponent_undetermined(half_width: float, advice: str, params: dict[str, Value],
+                          stderr: dict[str, Value],
+                          ci95: dict[str, tuple[float, float] | None],
+                          reasons: dict[str, str]) -> bool:
+    """Report n and γ as not determined where n's 95 % interval is ±``half_width`` wide.
+
+    Where ``half_width`` exceeds :data:`N_UNDETERMINED`, n and γ (whose unit s^(n−2) moves
+    with n) become None with the reason, which ends with ``advice`` (what would determine it);
+    return whether they did.
+    """
+    if not half_width > N_UNDETERMINED:
+        return False
+    why = f'n is not determined: its 95 % interval is ±{half_width:.2g} wide{advice}'
+    reasons['n'] = why
+    reasons['gamma'] = 'gamma is in s^(n-2) and ' + why
+    for k in ('n', 'gamma'):
+        params[k], stderr[k], ci95[k] = None, None, None
+    return True
+
+
+__all__ = ['N_UNDETERMINED', 'Fit', 'Value', 'exponent_undetermined']
