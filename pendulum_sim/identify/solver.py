@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -52,6 +53,38 @@ def relaxed(lam: float) -> float:
 def stiffened(lam: float) -> float:
     """Return the damping λ after a refused or uphill step (four times)."""
     return lam * 4.0
+
+
+class Iterate(Protocol):
+    """What :func:`verdict` reads and updates of a problem: its sum of squares (half), the
+    damping λ, its Jacobian (None until its start is simulated), and whether it is done."""
+
+    cost: float
+    lam: float
+    done: bool
+    jac: FloatArray | None
+
+
+def verdict(p: Iterate, cost: float) -> bool:
+    """Judge a candidate of sum of squares (half) ``cost`` against ``p``'s; return whether to
+    take it.
+
+    Levenberg-Marquardt's rule, one for every solver of the package: a lower cost is taken and
+    λ relaxed (``p`` is done where the gain is below :data:`TOLERANCE`); otherwise λ is
+    stiffened (``p`` is done past :data:`LAMBDA_MAX`, or at once where the start itself could
+    not be simulated).
+    """
+    if cost < p.cost:
+        gain = (p.cost - cost) / cost if math.isfinite(p.cost) and cost > 0 else math.inf
+        p.lam = relaxed(p.lam)
+        p.done = gain < TOLERANCE
+        return True
+    if p.jac is None:
+        p.done = True          # the start itself cannot be simulated
+    else:
+        p.lam = stiffened(p.lam)
+        p.done = p.lam > LAMBDA_MAX
+    return False
 
 
 @dataclass
@@ -261,20 +294,10 @@ def solve(problems: Sequence[Problem], *, jit: bool,
             if pred is not None:
                 res = pred[0] - p.y
                 cost = 0.5 * float(res @ res)
-            if cost < p.cost:
-                gain = (p.cost - cost) / cost if math.isfinite(p.cost) and cost > 0 else math.inf
+            if verdict(p, cost):
                 assert pred is not None
                 p.theta, p.cost, p.residual = candidates[i], cost, res
                 p.jac = ((pred[1:] - pred[0]) / steps[:, None]).T
-                p.lam = relaxed(p.lam)
-                if gain < TOLERANCE:
-                    p.done = True
-            elif p.jac is None:
-                p.done = True          # the start itself cannot be simulated
-            else:
-                p.lam = stiffened(p.lam)
-                if p.lam > LAMBDA_MAX:
-                    p.done = True
             if not p.done:
                 candidates[i], predicted = _lm_step(p)
                 if np.array_equal(candidates[i], p.theta) or predicted < TOLERANCE * p.cost:

@@ -36,7 +36,7 @@ from pendulum_sim.core.model import MAX_INPUT_ACCEL
 from pendulum_sim.core.sweep import Sweep
 
 from .effort import Effort
-from .solver import LAMBDA_MAX, TOLERANCE, relaxed, stiffened
+from .solver import LAMBDA_MAX, TOLERANCE, stiffened, verdict
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -419,23 +419,13 @@ def solve(problems: Sequence[Problem], *, jit: bool,
                 res = pred[:, 0] - win.y
                 cost = 0.5 * float(res @ res)
             nfree = p.theta.size
-            if cost < p.cost:
-                gain = (p.cost - cost) / cost if math.isfinite(p.cost) and cost > 0 else math.inf
+            if verdict(p, cost):
                 assert pred is not None
                 p.theta, p.states = cands[i]
                 p.cost, p.residual = cost, res
                 p.jac = (pred[:, 1:nfree + 1] - pred[:, :1]) / steps[None, :]
                 per_row = sst[win.row_window]
                 p.jac_states = (pred[:, nfree + 1:nfree + 3] - pred[:, :1]) / per_row
-                p.lam = relaxed(p.lam)
-                if gain < TOLERANCE:
-                    p.done = True
-            elif p.jac is None:
-                p.done = True           # the start itself cannot be simulated
-            else:
-                p.lam = stiffened(p.lam)
-                if p.lam > LAMBDA_MAX:
-                    p.done = True
             if not p.done:
                 theta, states, predicted = _lm_step(p, win.bounds, win.row_window)
                 cands[i] = (theta, states)
