@@ -89,12 +89,13 @@ def parameters_markdown() -> str:
 
 def controller_markdown() -> str:
     """Return the table of the example controller's parameters (all live)."""
+    from pendulum_sim.controller import node_base
     from pendulum_sim.controller import pd_controller as pd
 
     rows = [[code(name), code(default_text(default)), 'double', f'[{low:g}, {high:g}]',
              cell(text)] for name, default, text, (low, high) in pd._FLOATS]
-    rows.append([code('joint_name'), code(default_text(pd._DEFAULT_JOINT)), 'string', 'any',
-                 'The joint to control: its index in JointState.name is used.'])
+    rows.append([code('joint_name'), code(default_text(node_base.DEFAULT_JOINT)), 'string',
+                 'any', node_base.JOINT_NAME_TEXT])
     return table(['name', 'default', 'type', 'range', 'meaning'], rows)
 
 

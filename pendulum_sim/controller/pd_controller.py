@@ -21,36 +21,15 @@ Run it as::
 from __future__ import annotations
 
 import argparse
-import os
-import signal
 import sys
-from collections.abc import Callable
-from typing import Any, NoReturn, Protocol
+from typing import Any, NoReturn
 
-import rclpy
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
-from rclpy.duration import Duration
-from rclpy.event_handler import PublisherEventCallbacks, QoSPublisherMatchedInfo
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import Executor, ExternalShutdownException
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
-from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
 
-from pendulum_sim.dds import (
-    add_executor_option,
-    exit_with,
-    make_executor,
-    release,
-    shut_down,
-    use_loopback_profile,
-)
+from pendulum_sim.dds import exit_with
 
 from .errors import ControllerError
+from .node_base import BIG, ControllerNode, FloatTable, controller_parser, serve
 from .pd_law import (
     PDGains,
     SettleDetector,
@@ -62,15 +41,9 @@ from .pd_law import (
 )
 
 NODE_NAME = 'pendulum_pd_controller'
-# Reliable and in order both ways: in synchronous mode the joint waits for the answer to every
-# state, so neither a state nor an answer may be lost.
-RELIABLE_QOS = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
-BIG = 1e9  # upper end of the ranges: a FloatingPointRange needs a finite bound
 
 # name, default, description, (low, high)
-_FLOATS: tuple[tuple[str, float, str, tuple[float, float]], ...] = (
+_FLOATS: FloatTable = (
     ('kp', PDGains.kp, 'Proportional gain Kp in N m/rad (>= 0).', (0.0, BIG)),
     ('kd', PDGains.kd, 'Derivative gain Kd in N m s/rad (>= 0).', (0.0, BIG)),
     ('target', PDGains.target, 'Reference angle in rad (0 hangs straight down; the error is '
@@ -86,7 +59,6 @@ _FLOATS: tuple[tuple[str, float, str, tuple[float, float]], ...] = (
     ('settle_hold', SettleLimits.hold, '... for this long in simulated time (s, >= 0, read from '
      "the states' stamps).", (0.0, BIG)),
 )
-_DEFAULT_JOINT = 'pendulum_joint'
 
 
 def _law(values: dict[str, Any]) -> tuple[PDGains, SettleLimits]:
@@ -99,7 +71,7 @@ def _law(values: dict[str, Any]) -> tuple[PDGains, SettleLimits]:
     return gains, limits
 
 
-class PDControllerNode(Node):
+class PDControllerNode(ControllerNode[tuple[PDGains, SettleLimits]]):
     """Answer each joint state with one PD + gravity-compensation effort command.
 
     Parameters
@@ -109,95 +81,33 @@ class PDControllerNode(Node):
     """
 
     def __init__(self, *, count: int = 0) -> None:
-        super().__init__(NODE_NAME)
-        for name, default, text, (low, high) in _FLOATS:
-            self.declare_parameter(name, default, ParameterDescriptor(
-                description=text, floating_point_range=[
-                    FloatingPointRange(from_value=low, to_value=high, step=0.0)]))
-        self.declare_parameter('joint_name', _DEFAULT_JOINT, ParameterDescriptor(
-            description='The joint to control: its index in JointState.name is used.'))
-        self._values: dict[str, Any] = {
-            name: self.get_parameter(name).value for name, *_ in _FLOATS}
-        self._values['joint_name'] = self.get_parameter('joint_name').value
-        # Values given at start-up are checked here (rclpy has already checked the ranges).
-        self._gains, limits = _law(self._values)
+        super().__init__(NODE_NAME, _FLOATS, _law, count=count)
+        gains, limits = self._law
         self._settle = SettleDetector(limits)
         self._step = StepSettling()
-        self._joint = str(self._values['joint_name'])
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.add_post_set_parameters_callback(self._on_parameters_set)
-
-        self.count = count
-        self.answers = 0
-        self.skipped = 0
-        self.done = False
-        self._warned: set[str] = set()
-        self._pub = self.create_publisher(
-            Float64, 'effort_command', RELIABLE_QOS,
-            event_callbacks=PublisherEventCallbacks(matched=self._on_matched))
-        self._sub = self.create_subscription(JointState, 'joint_states', self._on_state,
-                                             RELIABLE_QOS)
-        g = self._gains
         self.get_logger().info(
-            f'PD + gravity compensation on joint {self._joint!r}: kp = {g.kp:g}, '
-            f'kd = {g.kd:g}, target = {g.target:g} rad, mgl = {g.mgl:g} N m, '
-            f'max_effort = {g.max_effort:g} N m; one effort_command per joint_states message')
+            f'PD + gravity compensation on joint {self.joint!r}: kp = {gains.kp:g}, '
+            f'kd = {gains.kd:g}, target = {gains.target:g} rad, mgl = {gains.mgl:g} N m, '
+            f'max_effort = {gains.max_effort:g} N m; one effort_command per joint_states '
+            'message')
 
-    def _on_matched(self, info: QoSPublisherMatchedInfo) -> None:
-        """Log each change in the subscribers the answers reach: the loop's connection."""
-        self.get_logger().info(f'effort_command reaches {info.current_count} subscriber(s)')
-
-    # ------------------------------------------------------------------ parameters
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        proposed = dict(self._values)
-        for p in params:
-            if p.name in proposed:
-                proposed[p.name] = p.value
-        try:
-            _law(proposed)
-        except ControllerError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
-        return SetParametersResult(successful=True)
-
-    def _on_parameters_set(self, params: list[Parameter]) -> None:
-        for p in params:
-            if p.name in self._values:
-                self._values[p.name] = p.value
-        target = self._gains.target
-        self._gains, limits = _law(self._values)
-        if self._gains.target != target:
+    def _law_changed(self, old: tuple[PDGains, SettleLimits]) -> None:
+        gains, limits = self._law
+        if gains.target != old[0].target:
             self._step.restart()   # a new target: a new step, from the next state
         if limits != self._settle.limits:
             self._settle = SettleDetector(limits)
-        self._joint = str(self._values['joint_name'])
 
-    # ------------------------------------------------------------------ the loop
-    def _error_once(self, key: str, text: str) -> None:
-        if key not in self._warned:
-            self._warned.add(key)
-            self.get_logger().error(text)
-
-    def _on_state(self, msg: JointState) -> None:
+    def _torque(self, msg: JointState, phi: float, dphi: float) -> float | None:
+        gains = self._law[0]
         try:
-            i = list(msg.name).index(self._joint)
-            phi, dphi = float(msg.position[i]), float(msg.velocity[i])
-        except (ValueError, IndexError):
-            self.skipped += 1
-            self._error_once(f'joint {self._joint} in {list(msg.name)}',
-                            f'joint_states has no position and velocity for joint '
-                            f'{self._joint!r} (names {list(msg.name)}, {len(msg.position)} '
-                            f'positions, {len(msg.velocity)} velocities): not answered; set '
-                            f'the parameter joint_name')
-            return
-        try:
-            tau = pd_torque(self._gains, phi, dphi)
+            tau = pd_torque(gains, phi, dphi)
         except ControllerError as exc:
-            self.skipped += 1
             self._error_once('nonfinite', f'{exc}: not answered (reported once)')
-            return
+            return None
         stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        error = wrap_angle(phi - self._gains.target)
-        self._step.update(stamp_ns, phi, self._gains.target)
+        error = wrap_angle(phi - gains.target)
+        self._step.update(stamp_ns, phi, gains.target)
         event = self._settle.update(stamp_ns, error, dphi)
         if event is SettleEvent.SETTLED:
             since = self._settle.inside_since_ns or stamp_ns
@@ -206,7 +116,7 @@ class PDControllerNode(Node):
                 f"settled at t = {stamp_ns / 1e9:.3f} s (state stamp) by the controller's "
                 f'rule: |angle - target| < {lim.position:g} rad and |velocity| < '
                 f'{lim.velocity:g} rad/s since t = {since / 1e9:.3f} s (settle_hold '
-                f'{lim.hold:g} s); angle {phi:.6f} rad, target {self._gains.target:g} rad; '
+                f'{lim.hold:g} s); angle {phi:.6f} rad, target {gains.target:g} rad; '
                 f'{self._step.text()}')
         elif event is SettleEvent.LEFT:
             self.get_logger().info(
@@ -216,94 +126,14 @@ class PDControllerNode(Node):
             self.get_logger().info(
                 f'simulated time went back to t = {stamp_ns / 1e9:.3f} s (a reset): '
                 'settle detection starts over')
-        self._pub.publish(Float64(data=tau))
-        self.answers += 1
-        if self.count and self.answers >= self.count:
-            self.done = True
-
-    def flush(self, timeout: float = 2.0) -> bool:
-        """Wait until every answer is acknowledged by the subscribers (up to ``timeout``)."""
-        return bool(self._pub.wait_for_all_acked(Duration(seconds=timeout)))
+        return tau
 
 
-def _parser(prog: str = NODE_NAME, description: str = (
-        'Example controller for pendulum_node: PD with gravity compensation, one '
-        'effort_command per joint_states message.'),
-        example: str = '-p target:=0.5 -p kp:=4.0') -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog=prog, description=description,
-        epilog=f'ROS arguments follow --ros-args, e.g. --ros-args {example} '
-               '-p use_sim_time:=true -r __ns:=/my_ns')
-    parser.add_argument('--count', type=int, default=0, metavar='N',
-                        help='exit (code 0) after answering N states; 0 (default) runs until '
-                        'Ctrl-C / SIGTERM')
-    add_executor_option(parser)
-    return parser
-
-
-class AnsweringNode(Protocol):
-    """What :func:`serve` runs: a node that answers states and counts its answers."""
-
-    answers: int
-    skipped: int
-    done: bool
-
-    def flush(self, timeout: float = 2.0) -> bool:
-        """Wait until every answer is acknowledged."""
-
-
-def serve(argv: list[str], parser: argparse.ArgumentParser,
-          make_node: Callable[[int], Any]) -> int:
-    """Run a controller node until Ctrl-C, SIGTERM or ``--count`` answers; return the code.
-
-    The one ``main`` of the package's controller nodes: ``make_node(count)`` builds the node
-    (an :class:`AnsweringNode`); bad parameters end it with code 2 and one line.
-    """
-    prog = parser.prog
-    opts = parser.parse_args(remove_ros_args(argv)[1:])
-    if opts.count < 0:
-        print(f'{prog}: --count must be >= 0, got {opts.count}', file=sys.stderr)
-        return 2
-    # Ctrl-C and SIGTERM only ask the loop to stop. rclpy's own handlers would shut the context
-    # down at once, in the middle of a callback that is still publishing (a FATAL log and a
-    # traceback); a flag stops the loop between callbacks, and the finally clause shuts down.
-    use_loopback_profile(os.environ)   # DDS on 127.0.0.1, as pendulum_node
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    stop: list[int] = []
-
-    def request_stop(signum: int, frame: object) -> None:
-        stop.append(signum)
-
-    signal.signal(signal.SIGINT, request_stop)
-    signal.signal(signal.SIGTERM, request_stop)
-    node: Any = None
-    executor: Executor | None = None
-    code = 0
-    try:
-        executor = make_executor(opts.executor)
-        node = make_node(opts.count)
-        executor.add_node(node)
-        # spin_once in a loop: the EventsExecutor's spin() would not return to Python, and the
-        # stop flag and --count are checked between callbacks.
-        while rclpy.ok() and not stop and not node.done:
-            executor.spin_once(timeout_sec=0.1)
-        if node.done:
-            node.flush()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ControllerError, InvalidParameterValueException,
-            InvalidParameterTypeException) as exc:
-        hint = ' (write doubles with a decimal point, e.g. 4.0)' if isinstance(
-            exc, InvalidParameterTypeException) else ''
-        print(f'{prog}: {exc}{hint}', file=sys.stderr)
-        code = 2
-    finally:
-        if node is not None:
-            print(f'{prog}: answered {node.answers} states, skipped {node.skipped}',
-                  file=sys.stderr, flush=True)
-        release(executor, node)
-        shut_down(node, code)
-    return code
+def _parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``pendulum_pd_controller``."""
+    return controller_parser(
+        NODE_NAME, 'Example controller for pendulum_node: PD with gravity compensation, one '
+        'effort_command per joint_states message.', '-p target:=0.5 -p kp:=4.0')
 
 
 def main(args: list[str] | None = None) -> int:

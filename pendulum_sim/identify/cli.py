@@ -11,14 +11,14 @@ Exit status 0 when the fit is written, 2 on bad input (one line on stderr, nothi
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from pendulum_sim import arguments
 
 from .errors import IdentifyError
 from .laws import COMPARED, LAWS
@@ -37,12 +37,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('recording', metavar='RECORDING', nargs='+',
                         help='a rosbag2 MCAP file (or its folder) or a .csv file; several '
                              'records of one joint are fitted together with their effort')
-    parser.add_argument('--out', required=True, metavar='DIR',
-                        help='output folder (created; must be empty unless --force)')
-    parser.add_argument('--topic', default=None,
-                        help='JointState topic (default: the only one, or */joint_states)')
-    parser.add_argument('--joint', default=None,
-                        help='joint name in the messages (default: the only one)')
+    arguments.add_out_folder(parser)
+    arguments.add_record_options(
+        parser, 'CSV columns: their roles in order, t,position[,velocity,effort] with _ to '
+        'skip one (default t,position; a header row, whatever it says, is skipped), or header '
+        'names mapped to roles, e.g. time=t,angle=position')
     parser.add_argument('--effort-topic', default=None, metavar='TOPIC',
                         help='read the effort from this command stream (std_msgs/Float64 '
                              'like effort_command, or sensor_msgs/JointState like '
@@ -59,13 +58,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--k', type=int, default=None, metavar='K',
                         help='with --validate: the prediction horizon in samples (default: a '
                              'tenth of a period)')
-    parser.add_argument('--columns', default='t,position',
-                        help='CSV columns: their roles in order, t,position[,velocity,effort] '
-                             'with _ to skip one (default t,position; a header row, whatever '
-                             'it says, is skipped), or header names mapped to roles, e.g. '
-                             'time=t,angle=position')
-    parser.add_argument('--units', choices=('deg', 'rad'), default='rad',
-                        help='unit of the CSV angle and velocity (default rad)')
     parser.add_argument('--models', default=','.join(COMPARED),
                         help=f'laws to compare, of {",".join(LAWS)} (default '
                              f'{",".join(COMPARED)})')
@@ -80,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--no-jit', action='store_true',
                         help="simulate with numpy instead of the core's compiled sweep (no "
                              'compile time: quicker on short records)')
-    parser.add_argument('--force', action='store_true', help='write into a non-empty --out')
+    arguments.add_force(parser)
     parser.add_argument('--no-progress', action='store_true',
                         help='do not show the progress bar on stderr')
     return parser
@@ -135,10 +127,7 @@ def _check_args(args: argparse.Namespace) -> list[str]:
             raise IdentifyError(f'{name} must be > 0, got {value!r}')
     if args.k is not None and args.validate is None:
         raise IdentifyError('--k is the horizon of --validate; pass --validate OTHER')
-    out = Path(args.out)
-    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not args.force)):
-        raise IdentifyError(f'--out {out} exists and is not an empty folder; pass a new or '
-                            f'empty folder, or --force')
+    arguments.check_out_folder(Path(args.out), args.force, IdentifyError)
     return models
 
 
@@ -241,10 +230,7 @@ def _write(args: argparse.Namespace, fits: list[Any], source: str) -> str:
             other = {'t': other.t, 'position': other.position, 'velocity': other.velocity}
         checked = validate(best, other, k=args.k, jit=False if args.no_jit else None)
     out = Path(args.out)
-    # Written to a temporary folder beside --out and moved there whole: nothing on failure.
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=out.parent, prefix='.identify-') as tmp:
-        folder = Path(tmp)
+    with arguments.written_whole(out, '.identify-') as folder:
         write_scene(folder / 'fit.yaml', best, body, source)
         write_models(folder / 'models.csv', fits)
         write_campaign(folder / 'campaign_parameters.yaml', best, body)
@@ -254,9 +240,6 @@ def _write(args: argparse.Namespace, fits: list[Any], source: str) -> str:
             write_validation_figure(folder / 'validate.png', checked,
                                     f'{best.model} fitted to {source}, validated on '
                                     f'{args.validate}')
-        out.mkdir(exist_ok=True)
-        for item in folder.iterdir():
-            shutil.move(str(item), out / item.name)
     text = summary(fits) + f'\n\nbest determined law: {best.model}; wrote {out}/'
     if checked is not None:
         text += (f'\nvalidated on {args.validate}: fit {checked.fit_simulation:.1f} % '
@@ -271,8 +254,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         table = run(args)
     except (IdentifyError, OSError) as exc:
-        print(f'{PROG}: error: {exc}', file=sys.stderr)
-        return 2
+        return arguments.error_exit(PROG, exc)
     print(table)
     return 0
 

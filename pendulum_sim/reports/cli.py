@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from pendulum_sim.arguments import positive_int
+from pendulum_sim.arguments import add_force, add_out_folder, error_exit, positive_int
 
 from .errors import ReportError
 from .report import WHATS, run_report
@@ -28,12 +28,10 @@ def build_parser() -> argparse.ArgumentParser:
                     'pendulum_report animate RECORDING.mcap --out run.gif: its animation.)')
     parser.add_argument('what', choices=WHATS,
                         help='which report: work-precision, stability, paper, or all')
-    parser.add_argument('--out', required=True, metavar='DIR',
-                        help='output folder (created; must be empty unless --force)')
+    add_out_folder(parser)
     parser.add_argument('--quick', action='store_true',
                         help='a small grid that runs in seconds (for tests)')
-    parser.add_argument('--force', action='store_true',
-                        help='write into an existing non-empty --out')
+    add_force(parser)
     parser.add_argument('--repeats', type=positive_int, default=None, metavar='N',
                         help='timed repeats per work-precision configuration (default 3, '
                              'quick 1); the minimum is kept')
@@ -49,12 +47,10 @@ def build_closed_loop_parser() -> argparse.ArgumentParser:
         description='The verdict and figure of one closed-loop run: summary.md with the step '
                     'metrics, metrics.csv and closed_loop.png in --out.')
     parser.add_argument('mcap', metavar='RUN.mcap', help='the recorded run')
-    parser.add_argument('--out', required=True, metavar='DIR',
-                        help='output folder (created; must be empty unless --force)')
+    add_out_folder(parser)
     parser.add_argument('--target', type=float, default=None, metavar='RAD',
                         help="the reference angle (default: the recording's own)")
-    parser.add_argument('--force', action='store_true',
-                        help='write into an existing non-empty --out')
+    add_force(parser)
     return parser
 
 
@@ -116,8 +112,7 @@ def animate_main(argv: Sequence[str]) -> int:
             raise TestingError(f'{args.mcap} holds no answered state to draw')
         write_gif(run, out, goal=args.goal, fps=float(args.fps), size=args.size)
     except TestingError as exc:
-        print(f'pendulum_report animate: error: {str(exc).splitlines()[0]}', file=sys.stderr)
-        return 2
+        return error_exit('pendulum_report animate', exc)
     print(f'wrote {out} ({run.t[-1] - run.t[0]:.3f} s of the run)', file=sys.stderr)
     return 0
 

@@ -7,11 +7,11 @@ report is written, 2 on bad input (one line on stderr, nothing written to ``--ou
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+
+from pendulum_sim import arguments
 
 from .errors import TestingError
 
@@ -41,24 +41,17 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--target', type=float, default=None, metavar='RAD',
                         help='the reference: compare the step metrics (a law with a keyword '
                              'target gets it)')
-    parser.add_argument('--out', required=True, metavar='DIR',
-                        help='output folder (created; must be empty unless --force)')
+    arguments.add_out_folder(parser)
     parser.add_argument('--campaign', default=None, metavar='FILE',
                         help='the parameter spaces of the spread (default: '
                              'campaign_parameters.yaml beside the scene, when there is one)')
     parser.add_argument('--episodes', type=int, default=EPISODES, metavar='N',
                         help=f'campaign episodes (default {EPISODES}; 0: no spread)')
     parser.add_argument('--seed', type=int, default=0, help="the campaign's seed (default 0)")
-    parser.add_argument('--topic', default=None,
-                        help='JointState topic (default: the only one, or */joint_states)')
-    parser.add_argument('--joint', default=None,
-                        help='joint name in the messages (default: the only one)')
-    parser.add_argument('--columns', default='t,position',
-                        help='CSV columns in order: t,position[,velocity,effort], _ to skip one '
-                             '(default t,position); the header row must name them')
-    parser.add_argument('--units', choices=('deg', 'rad'), default='rad',
-                        help='unit of the CSV angle and velocity (default rad)')
-    parser.add_argument('--force', action='store_true', help='write into a non-empty --out')
+    arguments.add_record_options(
+        parser, 'CSV columns in order: t,position[,velocity,effort], _ to skip one (default '
+        't,position); the header row must name them')
+    arguments.add_force(parser)
     return parser
 
 
@@ -67,19 +60,12 @@ def run(args: argparse.Namespace) -> str:
     from .twin_report import twin
 
     out = Path(args.out)
-    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not args.force)):
-        raise TestingError(f'--out {out} exists and is not an empty folder; pass a new or '
-                           f'empty folder, or --force')
+    arguments.check_out_folder(out, args.force, TestingError)
     report = twin(args.record, args.scene, args.controller, target=args.target,
                   campaign=args.campaign, episodes=args.episodes, seed=args.seed,
                   topic=args.topic, joint=args.joint, columns=args.columns, units=args.units)
-    # Written to a temporary folder beside --out and moved there whole: nothing on failure.
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=out.parent, prefix='.twin-') as tmp:
-        report.write(tmp)
-        out.mkdir(exist_ok=True)
-        for item in Path(tmp).iterdir():
-            shutil.move(str(item), out / item.name)
+    with arguments.written_whole(out, '.twin-') as folder:
+        report.write(folder)
     return report.text() + f'\nwrote {out}/'
 
 
@@ -89,10 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         text = run(args)
     except (TestingError, OSError) as exc:
-        line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        print(f'{PROG}: error: ' + (line if len(line) <= MAX_LINE else
-                                    line[:MAX_LINE - 3] + '...'), file=sys.stderr)
-        return 2
+        return arguments.error_exit(PROG, exc, MAX_LINE)
     print(text)
     return 0
 

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from pendulum_sim.arguments import positive_int
+from pendulum_sim.arguments import add_cluster_options, error_exit, interrupted
 from pendulum_sim.joint.foxglove import check_port
 
 from ..errors import CampaignError
@@ -37,11 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('campaign', nargs='?', metavar='CAMPAIGN.yaml',
                         help='the campaign file')
     parser.add_argument('--out', metavar='DIR', help='output folder (new, or with --resume)')
-    parser.add_argument('--scheduler', metavar='ADDRESS',
-                        help='run on this Dask scheduler, e.g. tcp://host:8786 (default: a '
-                        'local cluster)')
-    parser.add_argument('--workers', type=positive_int, metavar='N',
-                        help='local cluster: worker processes (default: the core count)')
+    add_cluster_options(parser)
     parser.add_argument('--resume', action='store_true',
                         help='continue the interrupted campaign in --out')
     parser.add_argument('--rerun', nargs=2, metavar=('DIR', 'EPISODE'),
@@ -138,14 +134,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             thread.join()
         write_results(spec, rows, out)
     except CampaignError as exc:
-        line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        print(f'{PROG}: error: ' + (line if len(line) <= MAX_LINE else line[:MAX_LINE - 3]
-                                    + '...'), file=sys.stderr)
-        return 2
+        return error_exit(PROG, exc, MAX_LINE)
     except KeyboardInterrupt:
-        print(f'\n{PROG}: interrupted; the finished episodes are kept, --resume continues',
-              file=sys.stderr)
-        return 130
+        return interrupted(PROG)
     failed = sum(1 for r in rows if not r['passed'])
     print(f'{len(rows)} episodes, {len(rows) - failed} passed; wrote {out / "summary.md"}',
           file=sys.stderr)

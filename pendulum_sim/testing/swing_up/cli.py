@@ -20,7 +20,12 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from pendulum_sim.arguments import positive_int
+from pendulum_sim.arguments import (
+    add_cluster_options,
+    error_exit,
+    interrupted,
+    positive_int,
+)
 
 from ..errors import CampaignError
 from .criteria import CRITERIA, LIMITS, ROA_GRID
@@ -61,11 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
                         f'{ROA_GRID})')
     parser.add_argument('--limits', type=positive_int, default=LIMITS, metavar='N',
                         help=f'torque limits tried for the smallest one (default {LIMITS})')
-    parser.add_argument('--scheduler', metavar='ADDRESS',
-                        help='run on this Dask scheduler, e.g. tcp://host:8786 (default: a '
-                        'local cluster)')
-    parser.add_argument('--workers', type=positive_int, metavar='N',
-                        help='local cluster: worker processes (default: the core count)')
+    add_cluster_options(parser)
     parser.add_argument('--resume', action='store_true',
                         help='continue the interrupted benchmark in --out')
     parser.add_argument('--jit', action='store_true',
@@ -88,14 +89,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                            scheduler=args.scheduler, workers=args.workers,
                            resume=args.resume, progress=not args.no_progress, jit=args.jit)
     except CampaignError as exc:
-        line = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        print(f'{PROG}: error: ' + (line if len(line) <= MAX_LINE else line[:MAX_LINE - 3]
-                                    + '...'), file=sys.stderr)
-        return 2
+        return error_exit(PROG, exc, MAX_LINE)
     except KeyboardInterrupt:
-        print(f'\n{PROG}: interrupted; the finished episodes are kept, --resume continues',
-              file=sys.stderr)
-        return 130
+        return interrupted(PROG)
     print(result.table())
     print(f'wrote {result.out / "benchmark.yaml"}', file=sys.stderr)
     return 0
