@@ -319,19 +319,10 @@ class LiveClient:
         self._thread.start()
 
     def _run(self) -> None:
-        from foxglove_client import FoxgloveClient
+        from foxglove_client import connect_when_up
 
         try:
-            deadline = time.monotonic() + 30.0
-            while True:
-                try:
-                    client = FoxgloveClient(self.port)
-                    break
-                except OSError:
-                    if time.monotonic() > deadline:
-                        raise
-                    time.sleep(0.05)
-            with client:
+            with connect_when_up(self.port, 30.0) as client:
                 client.wait_channels('/tf', '/log')
                 client.subscribe(*client.channels)
                 while not self._stop.is_set():

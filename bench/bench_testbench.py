@@ -55,7 +55,7 @@ from pendulum_sim.testing.scene import scene_values
 
 EPISODE_PERIODS = 1000   # 10 s at 100 Hz
 CAMPAIGN = """
-controller: pendulum_sim.testing.examples:pd
+controller: pendulum_sim.testing.examples:{controller}
 episodes: {episodes}
 seed: 1
 periods: {periods}
@@ -143,7 +143,7 @@ def dask_overhead(episodes: int, periods: int,
     from pendulum_sim.testing.campaign.spec import parse_spec
     from pendulum_sim.testing.campaign.store import EpisodeStore
 
-    text = CAMPAIGN.format(episodes=episodes, periods=periods)
+    text = CAMPAIGN.format(controller='pd', episodes=episodes, periods=periods)
     spec = parse_spec(text)
     run_episode(text, 0, None)                              # warm-up
     times: dict[str, list[tuple[float, float]]] = {'loop': [], 'campaign': [], 'defaults': []}
@@ -195,7 +195,7 @@ def plain_loop(episodes: int, periods: int, out: str) -> tuple[float, float]:
     """Run a campaign's episodes one after the other here; return the wall and CPU time."""
     from pendulum_sim.testing.campaign.store import EpisodeStore
 
-    text = CAMPAIGN.format(episodes=episodes, periods=periods)
+    text = CAMPAIGN.format(controller='pd', episodes=episodes, periods=periods)
     run_episode(text, 0, None)                              # warm-up, as the worker's
     store = EpisodeStore(Path(out))
     store.create(text, False)
@@ -203,19 +203,6 @@ def plain_loop(episodes: int, periods: int, out: str) -> tuple[float, float]:
     for i in range(episodes):
         store.write([run_episode(text, i, out)])
     return time.perf_counter() - start, time.process_time() - cpu
-
-
-VECTOR_CAMPAIGN = """
-controller: pendulum_sim.testing.examples:pd_batch
-episodes: {episodes}
-seed: 1
-periods: 1000
-target: 0.5
-parameters:
-  gamma: {{distribution: loguniform, low: 0.02, high: 1.0}}
-  phi0: {{distribution: uniform, low: 0.6, high: 1.4}}
-requirements: ['settling_time < 3.0']
-"""
 
 
 def vector_campaign(episodes: int, with_n: bool, jit: bool = False) -> tuple[float, float]:
@@ -229,7 +216,7 @@ def vector_campaign(episodes: int, with_n: bool, jit: bool = False) -> tuple[flo
     from pendulum_sim.testing.campaign.scenarios import episode_scenario
     from pendulum_sim.testing.campaign.spec import parse_spec
 
-    text = VECTOR_CAMPAIGN.format(episodes=episodes)
+    text = CAMPAIGN.format(controller='pd_batch', episodes=episodes, periods=EPISODE_PERIODS)
     if with_n:
         text = text.replace('requirements:', '  n: {distribution: uniform, low: 1.2, '
                             'high: 1.6}\nrequirements:')

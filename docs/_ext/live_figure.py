@@ -1,7 +1,7 @@
 """Draw what a Foxglove client receives from the live view: docs/_static/foxglove_live.png.
 
 This is not a screenshot of the Foxglove app (there is none on the build machine). A closed
-loop runs with ``foxglove_port`` set; a plain ``foxglove.websocket`` client (test/
+loop runs with ``foxglove_port`` set; a plain ``foxglove.websocket`` client (test/support/
 foxglove_client.py, on the ``websockets`` package) subscribes to the channels the shipped
 layout shows, and matplotlib draws what arrived over the socket, panel by panel as the layout
 arranges them: angle against the target, velocity, effort applied and commanded, the energy
@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 import sys
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +25,7 @@ import matplotlib  # noqa: E402
 
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
-from foxglove_client import FoxgloveClient, free_port  # noqa: E402
+from foxglove_client import connect_when_up, free_port  # noqa: E402
 
 from pendulum_sim.controller.pd_law import PDGains, pd_torque  # noqa: E402
 from pendulum_sim.testing import closed_loop  # noqa: E402
@@ -38,16 +37,7 @@ TOPICS = ('/joint_states', '/target', '/command', '/energy_terms', '/tf', '/phys
 
 def receive(port: int, watched: threading.Event) -> list[tuple[str, int, Any]]:
     """Connect, subscribe to the layout's channels, return every message of the run."""
-    deadline = time.monotonic() + 30.0
-    while True:
-        try:
-            client = FoxgloveClient(port)
-            break
-        except OSError:
-            if time.monotonic() > deadline:
-                raise
-            time.sleep(0.02)
-    with client:
+    with connect_when_up(port, 30.0) as client:
         client.subscribe(*TOPICS)
         client.messages(1, '/robot_description')   # the server has the subscriptions
         watched.set()
@@ -82,24 +72,27 @@ def main() -> int:
 
     fig = plt.figure(figsize=(12, 6.5), layout='constrained')
     grid = fig.add_gridspec(2, 3)
-    ax = fig.add_subplot(grid[0, 0])
-    ax.plot(*xy('/joint_states', lambda m: m['position'][0]), label='angle')
-    ax.plot(*xy('/target', lambda m: m['data']), '--', label='target')
-    ax.set(title='angle against the target (rad)', xlabel='t (s)')
-    ax.legend()
-    ax = fig.add_subplot(grid[0, 1])
-    ax.plot(*xy('/joint_states', lambda m: m['velocity'][0]), color='C2')
-    ax.set(title='angular velocity (rad/s)', xlabel='t (s)')
-    ax = fig.add_subplot(grid[1, 0])
-    ax.plot(*xy('/joint_states', lambda m: m['effort'][0]), label='applied')
-    ax.plot(*xy('/command', lambda m: m['commanded']), '--', label='commanded')
-    ax.set(title='effort (N m)', xlabel='t (s)')
-    ax.legend()
-    ax = fig.add_subplot(grid[1, 1])
-    for key in ('kinetic', 'potential', 'dissipated', 'residual'):
-        ax.plot(*xy('/energy_terms', lambda m, k=key: m[k]), label=key)
-    ax.set(title='energy (J)', xlabel='t (s)')
-    ax.legend()
+    # The layout's plot panels: (cell, title, [(topic, field of a message, line style)]).
+    panels: list[tuple[Any, str, list[tuple[str, Any, dict[str, str]]]]] = [
+        (grid[0, 0], 'angle against the target (rad)',
+         [('/joint_states', lambda m: m['position'][0], {'label': 'angle'}),
+          ('/target', lambda m: m['data'], {'linestyle': '--', 'label': 'target'})]),
+        (grid[0, 1], 'angular velocity (rad/s)',
+         [('/joint_states', lambda m: m['velocity'][0], {'color': 'C2'})]),
+        (grid[1, 0], 'effort (N m)',
+         [('/joint_states', lambda m: m['effort'][0], {'label': 'applied'}),
+          ('/command', lambda m: m['commanded'], {'linestyle': '--', 'label': 'commanded'})]),
+        (grid[1, 1], 'energy (J)',
+         [('/energy_terms', lambda m, k=key: m[k], {'label': key})
+          for key in ('kinetic', 'potential', 'dissipated', 'residual')]),
+    ]
+    for cell, title, lines in panels:
+        ax = fig.add_subplot(cell)
+        for topic, pick, style in lines:
+            ax.plot(*xy(topic, pick), **style)
+        ax.set(title=title, xlabel='t (s)')
+        if any('label' in style for _, _, style in lines):
+            ax.legend()
     ax = fig.add_subplot(grid[:, 2])
     frames = [m['transforms'][0] for _, m in series.get('/tf', [])]
     for i, frame in enumerate(frames[::30]):

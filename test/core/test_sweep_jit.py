@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from sweep_population import mixed_population
 
 from pendulum_sim.core import IntegratorError, PendulumParams, Stepper, codegen, jit
 from pendulum_sim.core.careful import COUNTERS as CAREFUL_COUNTERS
@@ -85,15 +86,7 @@ def test_the_compiled_sweep_is_the_stepper_to_the_last_bit(h: float) -> None:
 
 
 def test_the_compiled_and_numpy_sweeps_decide_alike() -> None:
-    rng = np.random.default_rng(18)
-    size = 400
-    n = rng.choice(np.array([0.0, 0.01, 0.3, 0.5, 1.0, 1.5, 2.0, 3.0, 3.7, 5.0]), size)
-    gamma = rng.choice(np.array([0.0, 0.1, 1.0, 30.0, 1000.0]), size)
-    w2 = rng.choice(np.array([0.0, 9.8, 40.0]), size)
-    p0 = rng.uniform(-3.0, 3.0, size)
-    v0 = rng.uniform(-4.0, 4.0, size)
-    v0[::5] = 0.0
-    tau = np.where(rng.uniform(size=size) < 0.3, rng.uniform(-20.0, 20.0, size), 0.0)
+    w2, gamma, n, p0, v0, tau = mixed_population()
     whole = (n == np.round(n)) & (n >= 1.0) | (n == 0.0)
     for method in ('rk4',):  # one method: each compiles a kernel per law text
         for torque in (0.0, tau):

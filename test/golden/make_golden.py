@@ -17,6 +17,9 @@ import numpy as np
 from pendulum_sim.core import METHODS, PendulumParams, Stepper, simulate
 from pendulum_sim.core.sweep import sweep
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'support'))
+from sweep_population import mixed_population
+
 GOLDEN = Path(__file__).resolve().parent / 'core.npz'
 N_VALUES = (0.0, 0.01, 0.5, 1.0, 2.0, 3.7)
 GAMMAS = (0.3, 10.0, 1000.0)
@@ -65,18 +68,10 @@ def stepper_cases() -> Iterator[tuple[str, dict[str, np.ndarray]]]:
 
 def sweep_cases() -> Iterator[tuple[str, dict[str, np.ndarray]]]:
     """Yield sweeps over mixed n, γ, states and torques, with and without recording."""
-    rng = np.random.default_rng(18)
-    size = 400
-    n = rng.choice(np.array([0.0, 0.01, 0.3, 0.5, 1.0, 1.5, 2.0, 3.0, 3.7, 5.0]), size)
-    gamma = rng.choice(np.array([0.0, 0.1, 1.0, 30.0, 1000.0]), size)
-    w2 = rng.choice(np.array([0.0, 9.8, 40.0]), size)
-    phi0 = rng.uniform(-3.0, 3.0, size)
-    dphi0 = rng.uniform(-4.0, 4.0, size)
-    dphi0[::5] = 0.0
-    tau = np.where(rng.uniform(size=size) < 0.3, rng.uniform(-20.0, 20.0, size), 0.0)
+    w2, gamma, n, phi0, dphi0, tau = mixed_population()
     for method in ('rk4', 'midpoint', 'euler'):
         # The lower-order methods on a subset: their careful path runs per pendulum.
-        k = size if method == 'rk4' else 60
+        k = n.size if method == 'rk4' else 60
         for torque in (0.0, tau[:k]):
             res = sweep(w2[:k], gamma[:k], n[:k], phi0[:k], dphi0[:k], 1.005, 0.01,
                         method=method, torque=torque, record_every=25)

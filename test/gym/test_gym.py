@@ -13,6 +13,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 import pytest
+from gym_parity import scalar_run
 from gymnasium.envs.classic_control.pendulum import PendulumEnv, angle_normalize
 from gymnasium.utils.env_checker import check_env
 
@@ -161,19 +162,9 @@ def test_the_vector_env_is_n_scalar_envs_bit_for_bit_with_next_step_autoreset() 
     done = np.array(ends)
     assert done[length - 1].all() and done.sum() == 2 * n   # truncated at 30 and 60 steps
     for i in range(n):
-        env = gymnasium.make(SWING, parameters=MIXED, max_episode_steps=length)
-        obs, _ = env.reset(seed=11 + i)
-        mine, mine_r, ended = [obs], [], False
-        for a in actions:
-            if ended:   # next-step autoreset: the action is ignored, the reward is 0
-                obs, reward, ended = env.reset()[0], 0.0, False
-            else:
-                obs, reward, terminated, truncated, _ = env.step(a[i])
-                ended = terminated or truncated
-            mine.append(obs)
-            mine_r.append(reward)
-        assert np.array(mine).tobytes() == got[:, i].tobytes(), i
-        assert np.array(mine_r).tobytes() == got_r[:, i].tobytes(), i
+        mine, mine_r = scalar_run(SWING, MIXED, length, 11 + i, actions[:, i])
+        assert mine.tobytes() == got[:, i].tobytes(), i
+        assert mine_r.tobytes() == got_r[:, i].tobytes(), i
     # The episodes drew the fractional, the Coulomb and the quadratic damping law in turn.
     assert laws == {1.5, 0.0, 2.0}
     # Gymnasium's own SyncVectorEnv of the scalar envs (its autoreset, its seeding) agrees.

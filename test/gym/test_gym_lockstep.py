@@ -7,6 +7,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 import pytest
+from gym_parity import scalar_run
 
 import pendulum_sim.gym as pg
 from pendulum_sim.gym import GymError
@@ -20,11 +21,13 @@ MIXED = {'gamma': {'distribution': 'uniform', 'low': 0.05, 'high': 0.5},
          'friction': {'distribution': 'loguniform', 'low': 1e-3, 'high': 0.1}}
 
 
-def run_vector(env_id: str, n: int, steps: int, length: int, spaces: dict[str, Any] | None,
+def run_vector(env_id: str, actions: np.ndarray, length: int, spaces: dict[str, Any] | None,
                seed: int) -> tuple[np.ndarray, np.ndarray, Any]:
-    vec = gymnasium.make_vec(env_id, num_envs=n, vectorization_mode='vector_entry_point',
-                             parameters=spaces, max_episode_steps=length)
-    actions = np.random.default_rng(seed).uniform(-1.5, 1.5, (steps, n, 1))
+    """Run a vector env of ``actions.shape[1]`` environments; return observations, rewards and
+    its lockstep's counters."""
+    vec = gymnasium.make_vec(env_id, num_envs=actions.shape[1],
+                             vectorization_mode='vector_entry_point', parameters=spaces,
+                             max_episode_steps=length)
     obs, _ = vec.reset(seed=seed)
     seen, rewards = [obs], []
     for a in actions:
@@ -34,33 +37,16 @@ def run_vector(env_id: str, n: int, steps: int, length: int, spaces: dict[str, A
     return np.array(seen), np.array(rewards), vec.unwrapped.runner.pendulums.stats
 
 
-def run_scalar(env_id: str, i: int, steps: int, length: int, spaces: dict[str, Any] | None,
-               seed: int, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Environment ``i`` of a vector env as its own scalar env, next-step autoreset."""
-    env = gymnasium.make(env_id, parameters=spaces, max_episode_steps=length)
-    actions = np.random.default_rng(seed).uniform(-1.5, 1.5, (steps, n, 1))
-    obs, _ = env.reset(seed=seed + i)
-    seen, rewards, ended = [obs], [], False
-    for a in actions:
-        if ended:
-            obs, reward, ended = env.reset()[0], 0.0, False
-        else:
-            obs, reward, terminated, truncated, _ = env.step(a[i])
-            ended = terminated or truncated
-        seen.append(obs)
-        rewards.append(reward)
-    return np.array(seen), np.array(rewards)
-
-
 @pytest.mark.parametrize(('env_id', 'spaces'), [(SWING, None), (SWING, MIXED), (STEP, None)])
 def test_short_episodes_of_many_envs_reset_together_as_each_scalar_env(
         env_id: str, spaces: dict[str, Any] | None) -> None:
     """Episodes of 4 steps, so most steps autoreset: drawn over arrays (N >= STREAMS_FROM),
     one joint configuration for the task's start draws, one per episode for MIXED."""
     n, steps, length = STREAMS_FROM + 4, 14, 4
-    got, got_r, stats = run_vector(env_id, n, steps, length, spaces, 31)
+    actions = np.random.default_rng(31).uniform(-1.5, 1.5, (steps, n, 1))
+    got, got_r, stats = run_vector(env_id, actions, length, spaces, 31)
     for i in range(n):
-        mine, mine_r = run_scalar(env_id, i, steps, length, spaces, 31, n)
+        mine, mine_r = scalar_run(env_id, spaces, length, 31 + i, actions[:, i])
         assert mine.tobytes() == got[:, i].tobytes(), i
         assert mine_r.tobytes() == got_r[:, i].tobytes(), i
     # Every period of every environment in the sweep: steps 1-4, 6-9 and 11-14 step all N

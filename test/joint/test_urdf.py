@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from doc_pages import TUTORIALS, blocks
 
 from pendulum_sim.core import ModelError, PendulumParams, simulate
 from pendulum_sim.joint.errors import ParameterError
@@ -24,6 +25,14 @@ from pendulum_sim.joint.urdf import PLUGIN, default_urdf, pendulum_urdf
 REPO_URDF = Path(__file__).resolve().parents[2] / 'urdf' / 'pendulum.urdf'
 # A body with I > m l² (MuJoCo needs a positive inertia tensor about the centre of mass).
 BODY = PendulumParams(m=0.37, l=0.83, inertia=0.31, g=9.81, gamma=0.7, n=1.0)
+# The same pendulum with 1 % more damping: the comparisons with an engine must see it.
+MORE_DAMPED = BODY.with_changes(gamma=BODY.gamma * 1.01)
+# The bodies whose inertia, gravity torque and damping Pinocchio and Drake are asked for.
+MEASURED_BODIES = pytest.mark.parametrize('params', [
+    BODY,
+    PendulumParams(m=2.0, l=0.25, inertia=0.2, gamma=0.1),
+    PendulumParams(m=0.2, l=1.0, inertia=0.2, gamma=1.0),
+], ids=['body', 'short-heavy', 'point-mass'])
 TEXT_ATTRIBUTES = ('a&b', 'x" type="fixed', "q'<j>", 'spaced name')
 
 
@@ -231,22 +240,9 @@ def test_mujoco_joint_inertia_is_i(params: PendulumParams) -> None:
 
 
 def mujoco_swing(model: Any, g: float, phi0: float, t_end: float, h: float) -> np.ndarray:
-    """Integrate the loaded model with MuJoCo's RK4 and return φ at every step (from t = 0)."""
-    import mujoco
-
-    model.opt.gravity[:] = (0.0, 0.0, -g)
-    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
-    model.opt.timestep = h
+    """Swing the loaded frictionless model from rest (``mujoco_run``); return φ at every step."""
     assert model.dof_armature[0] == 0.0 and model.dof_frictionloss[0] == 0.0
-    data = mujoco.MjData(model)
-    data.qpos[0] = phi0
-    steps = round(t_end / h)
-    out = np.empty(steps + 1)
-    out[0] = data.qpos[0]
-    for k in range(steps):
-        mujoco.mj_step(model, data)
-        out[k + 1] = data.qpos[0]
-    return out
+    return mujoco_run(model, g, phi0, t_end, h)[0]
 
 
 def test_mujoco_swing_matches_simulate() -> None:
@@ -265,18 +261,18 @@ def test_mujoco_swing_matches_simulate() -> None:
 def test_mujoco_notices_a_different_pendulum() -> None:
     """The comparison can fail: 1% more damping in the URDF moves the swing far beyond 1e-6."""
     h, t_end, phi0 = 1e-4, 3.0, 0.5
-    other = PendulumParams(m=BODY.m, l=BODY.l, inertia=BODY.inertia, g=BODY.g,
-                           gamma=BODY.gamma * 1.01, n=1.0)
-    theirs = mujoco_swing(mujoco_model(pendulum_urdf(other)), BODY.g, phi0, t_end, h)
+    theirs = mujoco_swing(mujoco_model(pendulum_urdf(MORE_DAMPED)), BODY.g, phi0, t_end, h)
     ours = simulate(BODY, phi0, 0.0, t_end, h, 'rk4')
     assert np.max(np.abs(ours.phi - theirs)) > 1e-4
 
 
-def mujoco_run(model: Any, phi0: float, t_end: float, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Swing the loaded model freely with MuJoCo's RK4; return (φ, φ') at every step."""
+def mujoco_run(model: Any, g: float, phi0: float, t_end: float,
+               h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Swing the loaded model freely from rest under gravity ``g`` with MuJoCo's RK4; return
+    (φ, φ') at every step (from t = 0)."""
     import mujoco
 
-    model.opt.gravity[:] = (0.0, 0.0, -BODY.g)
+    model.opt.gravity[:] = (0.0, 0.0, -g)
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
     model.opt.timestep = h
     data = mujoco.MjData(model)
@@ -307,7 +303,7 @@ def test_mujoco_frictionloss_shows_the_same_stick_slip() -> None:
     params = BODY.with_changes(friction=0.1)
     model = mujoco_model(pendulum_urdf(params))
     assert model.dof_frictionloss[0] == 0.1 and model.dof_damping[0] == BODY.gamma * 0.31
-    phi_mj, dphi_mj = mujoco_run(model, phi0, t_end, h)
+    phi_mj, dphi_mj = mujoco_run(model, BODY.g, phi0, t_end, h)
     ours = simulate(params, phi0, 0.0, t_end, h, 'rk4')
     first = round(0.9 / h)  # before the first reversal (half a period of 2.0 s)
     assert np.all(ours.dphi[1:first] < 0.0)
@@ -323,7 +319,7 @@ def test_mujoco_frictionloss_shows_the_same_stick_slip() -> None:
     assert abs(ours.phi[-1]) <= band and abs(phi_mj[-1]) <= band
     assert abs(ours.phi[-1] - phi_mj[-1]) < 2e-3
     # The comparison can fail: without the friction MuJoCo still swings where ours rests.
-    free, _ = mujoco_run(mujoco_model(pendulum_urdf(BODY)), phi0, t_end, h)
+    free, _ = mujoco_run(mujoco_model(pendulum_urdf(BODY)), BODY.g, phi0, t_end, h)
     assert np.max(np.abs(free[-round(2.0 / h):])) > 3 * abs(ours.phi[-1])
 
 
@@ -421,8 +417,8 @@ def test_pybullet_needs_the_inertia_flag_and_no_link_damping(tmp_path: Path) -> 
 
 def test_the_tutorial_shows_the_shipped_ros2_control_block() -> None:
     """docs/tutorials/ros2-control.md's <ros2_control> example is the shipped URDF's block."""
-    doc = (REPO_URDF.parents[1] / 'docs' / 'tutorials' / 'ros2-control.md').read_text()
-    (example,) = [b for b in re.findall(r'```xml\n(.*?)```', doc, re.S) if '<ros2_control' in b]
+    (example,) = [b for b in blocks(TUTORIALS / 'ros2-control.md', 'xml')
+                  if '<ros2_control' in b]
 
     def summary(block: ET.Element) -> object:
         joint = one(block, 'joint')
@@ -454,11 +450,7 @@ def configuration(phi: float) -> np.ndarray:
     return np.array([math.cos(phi), math.sin(phi)])
 
 
-@pytest.mark.parametrize('params', [
-    BODY,
-    PendulumParams(m=2.0, l=0.25, inertia=0.2, gamma=0.1),
-    PendulumParams(m=0.2, l=1.0, inertia=0.2, gamma=1.0),
-], ids=['body', 'short-heavy', 'point-mass'])
+@MEASURED_BODIES
 def test_pinocchio_inertia_gravity_and_damping(params: PendulumParams) -> None:
     """Pinocchio: crba is I (1e-12), the gravity torque m g l sin φ, model.damping γ I."""
     import pinocchio as pin
@@ -533,11 +525,7 @@ def drake_plant(urdf: str, g: float) -> tuple[Any, Any, Any]:
     return plant, plant.CreateDefaultContext(), joint
 
 
-@pytest.mark.parametrize('params', [
-    BODY,
-    PendulumParams(m=2.0, l=0.25, inertia=0.2, gamma=0.1),
-    PendulumParams(m=0.2, l=1.0, inertia=0.2, gamma=1.0),
-], ids=['body', 'short-heavy', 'point-mass'])
+@MEASURED_BODIES
 def test_drake_inertia_gravity_and_damping(params: PendulumParams) -> None:
     """Drake: mass matrix I (1e-12), gravity force -m g l sin φ, joint damping γ I."""
     plant, context, joint = drake_plant(pendulum_urdf(params, 'hinge'), params.g)
@@ -585,7 +573,5 @@ def test_engine_swing_matches_simulate(engine: str) -> None:
     assert len(ours) == len(theirs)
     assert np.max(np.abs(ours - theirs)) < 1e-12
     assert np.count_nonzero(np.diff(np.sign(theirs)) != 0) >= 2
-    other = PendulumParams(m=BODY.m, l=BODY.l, inertia=BODY.inertia, g=BODY.g,
-                           gamma=BODY.gamma * 1.01, n=1.0)
-    moved = rk4_swing(make_field(pendulum_urdf(other), BODY.g), phi0, t_end, h)
+    moved = rk4_swing(make_field(pendulum_urdf(MORE_DAMPED), BODY.g), phi0, t_end, h)
     assert np.max(np.abs(ours - moved)) > 1e-4

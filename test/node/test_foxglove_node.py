@@ -6,17 +6,15 @@ with what a DDS probe receives; the listening socket is read from /proc.
 """
 from __future__ import annotations
 
-import os
-import re
 import socket
 import sys
 import time
-from pathlib import Path
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from foxglove_client import FoxgloveClient, free_port
 from node_harness import NodeProcess, Probe, stamp_ns
+from procfs import TCP_LISTEN, rss_kib, sockets
 from sensor_msgs.msg import JointState
 
 from pendulum_sim.node.diagnostics import values_of
@@ -31,28 +29,7 @@ WARM_UP = 50
 
 def listening(pid: int) -> list[tuple[str, int]]:
     """Return (address, port) of every TCP socket process ``pid`` listens on (IPv4 and 6)."""
-    inodes = set()
-    for fd in os.listdir(f'/proc/{pid}/fd'):
-        try:
-            target = os.readlink(f'/proc/{pid}/fd/{fd}')
-        except OSError:  # closed meanwhile
-            continue
-        if target.startswith('socket:['):
-            inodes.add(target[8:-1])
-    found = []
-    for table in ('tcp', 'tcp6'):
-        for line in Path(f'/proc/{pid}/net/{table}').read_text().splitlines()[1:]:
-            fields = line.split()
-            if fields[3] != '0A' or fields[9] not in inodes:   # 0A: TCP_LISTEN
-                continue
-            hex_addr, hex_port = fields[1].split(':')
-            raw = bytes.fromhex(hex_addr)
-            # The kernel prints addresses as 32-bit words in host (little-endian) order.
-            addr = b''.join(raw[i:i + 4][::-1] for i in range(0, len(raw), 4))
-            text = (socket.inet_ntop(socket.AF_INET, addr) if table == 'tcp'
-                    else socket.inet_ntop(socket.AF_INET6, addr))
-            found.append((text, int(hex_port, 16)))
-    return found
+    return [(addr, port) for addr, port, state in sockets(pid, 'tcp') if state == TCP_LISTEN]
 
 
 def wait_listening(node: NodeProcess, port: int, timeout: float = 30.0) -> list[tuple[str, int]]:
@@ -68,12 +45,6 @@ def wait_listening(node: NodeProcess, port: int, timeout: float = 30.0) -> list[
             raise AssertionError(f'not listening on {port} after {timeout} s: {found}\n'
                                  f'{node.output()}')
         time.sleep(0.05)
-
-
-def rss_kib(pid: int) -> int:
-    """Return the resident set size of process ``pid`` in KiB."""
-    text = Path(f'/proc/{pid}/status').read_text()
-    return int(re.search(r'^VmRSS:\s+(\d+) kB', text, re.M).group(1))  # type: ignore[union-attr]
 
 
 def test_the_joint_states_a_client_receives_are_those_on_dds_with_the_same_stamps() -> None:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 from node_harness import NodeProcess, Probe
+from procfs import sockets
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -27,39 +28,12 @@ PROFILE = Path(__file__).resolve().parents[2] / 'config' / 'fastdds_localhost.xm
 
 def udp_sockets(pid: int) -> list[tuple[str, int]]:
     """Return (local address, port) of every UDP socket process ``pid`` holds."""
-    inodes = set()
-    for fd in os.listdir(f'/proc/{pid}/fd'):
-        try:
-            target = os.readlink(f'/proc/{pid}/fd/{fd}')
-        except OSError:  # closed meanwhile
-            continue
-        if target.startswith('socket:['):
-            inodes.add(target[8:-1])
-    found = []
-    for table in ('udp', 'udp6'):
-        with open(f'/proc/{pid}/net/{table}') as fh:
-            next(fh)
-            for line in fh:
-                fields = line.split()
-                if fields[9] not in inodes:
-                    continue
-                hex_addr, hex_port = fields[1].split(':')
-                raw = bytes.fromhex(hex_addr)
-                # The kernel prints addresses as 32-bit words in host (little-endian) order.
-                addr = b''.join(raw[i:i + 4][::-1] for i in range(0, len(raw), 4))
-                if table == 'udp':
-                    text = '.'.join(str(b) for b in addr)
-                elif addr[:12] == b'\0' * 10 + b'\xff\xff':
-                    text = '::ffff:' + '.'.join(str(b) for b in addr[12:])
-                else:
-                    text = addr.hex(':', 2)
-                found.append((text, int(hex_port, 16)))
-    return found
+    return [(addr, port) for addr, port, _ in sockets(pid, 'udp')]
 
 
 def is_loopback(addr: str) -> bool:
     """Return True for 127.0.0.1 (or its IPv6 forms)."""
-    return addr in ('127.0.0.1', '::ffff:127.0.0.1', '0000:0000:0000:0000:0000:0000:0000:0001')
+    return addr in ('127.0.0.1', '::ffff:127.0.0.1', '::1')
 
 
 def rtps_ports(domain: int) -> range:
@@ -67,23 +41,25 @@ def rtps_ports(domain: int) -> range:
     return range(7400 + 250 * domain, 7400 + 250 * (domain + 1))
 
 
-def start_and_read(env: dict[str, str | None]) -> tuple[list[tuple[str, int]], str]:
-    """Start the node with ``env`` changes; once a probe hears it, return its sockets and log."""
+def set_environ(env: dict[str, str | None]) -> dict[str, str | None]:
+    """Set the variables of ``env`` (remove those it maps to None); return what they were."""
     saved = {k: os.environ.get(k) for k in env}
     for key, value in env.items():
         if value is None:
             os.environ.pop(key, None)
         else:
             os.environ[key] = value
+    return saved
+
+
+def start_and_read(env: dict[str, str | None]) -> tuple[list[tuple[str, int]], str]:
+    """Start the node with ``env`` changes; once a probe hears it, return its sockets and log."""
+    saved = set_environ(env)
     node = NodeProcess('minimal')
     try:
         node.start()
     finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
+        set_environ(saved)
     try:
         with Probe() as probe:
             got = probe.subscribe(JointState, f'{node.namespace}/joint_states',

@@ -16,6 +16,7 @@ import pytest
 from controller_probe import Controller
 from diagnostic_msgs.msg import DiagnosticArray
 from node_harness import NodeProcess, Probe, diagnostics_of, ready_to_answer
+from procfs import rss_kib
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, UInt32
@@ -34,10 +35,7 @@ MIB = 1 << 20
 def rss(node: NodeProcess) -> int:
     """Return the node process's resident memory in bytes."""
     assert node.proc is not None
-    for line in Path(f'/proc/{node.proc.pid}/status').read_text().splitlines():
-        if line.startswith('VmRSS:'):
-            return int(line.split()[1]) * 1024
-    raise AssertionError('no VmRSS')
+    return rss_kib(node.proc.pid) * 1024
 
 
 def answers_within(probe: Probe, srv_type: type, name: str, request: object,

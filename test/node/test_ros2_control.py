@@ -12,6 +12,8 @@ from __future__ import annotations
 import re
 import signal
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -92,46 +94,47 @@ def run_until(cm: ControlManager, tracker: Tracker, done: Any, timeout: float = 
 
 
 # ---------------------------------------------------------------------- real time
-def test_effort_interface() -> None:
-    with NodeProcess('default', {'joint_commands_input': True}) as node:
+@contextmanager
+def real_time(params: dict[str, Any]) -> Iterator[tuple[ControlManager, Probe, Tracker]]:
+    """Run the default scene with ``params`` under a manager on wall time; yield the manager,
+    a probe and a tracker of the manager's states. The node must be alive at the end."""
+    with NodeProcess('default', params) as node:
         with manager(node, use_sim_time=False) as cm, Probe() as probe:
-            tracker = Tracker(cm)
-            # Before any controller command, the plugin sends the URDF's initial effort, 0.
-            run_until(cm, tracker, lambda: len(tracker.seen) >= 20)
-            assert cm.hardware.initial['effort'] == cm.commands['effort'] == 0.0
-            assert {u.sent_value for u in cm.log} == {0.0}
-            forward(cm, 0.7, probe)
-            # The node reports the torque it applies: exactly the command (below max_effort).
-            run_until(cm, tracker, lambda: tracker.settled(3, 0.7, 0.0, 20))
+            yield cm, probe, Tracker(cm)
             assert node.alive(), node.output()
+
+
+def test_effort_interface() -> None:
+    with real_time({'joint_commands_input': True}) as (cm, probe, tracker):
+        # Before any controller command, the plugin sends the URDF's initial effort, 0.
+        run_until(cm, tracker, lambda: len(tracker.seen) >= 20)
+        assert cm.hardware.initial['effort'] == cm.commands['effort'] == 0.0
+        assert {u.sent_value for u in cm.log} == {0.0}
+        forward(cm, 0.7, probe)
+        # The node reports the torque it applies: exactly the command (below max_effort).
+        run_until(cm, tracker, lambda: tracker.settled(3, 0.7, 0.0, 20))
 
 
 def test_velocity_interface_starts_and_tracks() -> None:
     """`-p command_interface:=velocity -p joint_commands_input:=true` on the default scene."""
     params = {'command_interface': 'velocity', 'joint_commands_input': True}
-    with NodeProcess('default', params) as node:
-        with manager(node, use_sim_time=False) as cm, Probe() as probe:
-            assert cm.hardware.command_interface == 'velocity'
-            tracker = Tracker(cm)
-            forward(cm, 1.0, probe)
-            # 1 rad/s held within 1 % under gravity, for a whole second of states.
-            run_until(cm, tracker, lambda: tracker.settled(2, 1.0, 0.01, 100))
-            assert node.alive(), node.output()
+    with real_time(params) as (cm, probe, tracker):
+        assert cm.hardware.command_interface == 'velocity'
+        forward(cm, 1.0, probe)
+        # 1 rad/s held within 1 % under gravity, for a whole second of states.
+        run_until(cm, tracker, lambda: tracker.settled(2, 1.0, 0.01, 100))
 
 
 def test_position_interface_holds_the_initial_state_then_tracks() -> None:
     params = {'command_interface': 'position', 'joint_commands_input': True}
-    with NodeProcess('default', params) as node:
-        with manager(node, use_sim_time=False) as cm, Probe() as probe:
-            # initial_value of the position state interface is φ0: the plugin commands 0.3
-            # before any controller does, and the joint stays there (it does not fall to 0).
-            assert cm.hardware.initial['position'] == 0.3
-            tracker = Tracker(cm)
-            run_until(cm, tracker, lambda: len(tracker.seen) >= 100)
-            assert all(abs(s[1] - 0.3) <= 1e-3 for s in tracker.seen), tracker.seen[-1]
-            forward(cm, 1.0, probe)
-            run_until(cm, tracker, lambda: tracker.settled(1, 1.0, 1e-3, 100))
-            assert node.alive(), node.output()
+    with real_time(params) as (cm, probe, tracker):
+        # initial_value of the position state interface is φ0: the plugin commands 0.3
+        # before any controller does, and the joint stays there (it does not fall to 0).
+        assert cm.hardware.initial['position'] == 0.3
+        run_until(cm, tracker, lambda: len(tracker.seen) >= 100)
+        assert all(abs(s[1] - 0.3) <= 1e-3 for s in tracker.seen), tracker.seen[-1]
+        forward(cm, 1.0, probe)
+        run_until(cm, tracker, lambda: tracker.settled(1, 1.0, 1e-3, 100))
 
 
 # ---------------------------------------------------------------------- synchronous

@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -24,49 +25,67 @@ def _faulty(t: float, target: float) -> bool:
     return target == FAULTY and t > 0.1
 
 
-def overflow(t: float, position: float, velocity: float, *, target: float) -> object:
+def misbehaving(fault: Callable[[], object]) -> Callable[..., object]:
+    """Return the law that calls ``fault`` where it is faulty and answers with what ``fault``
+    returns (when not None), and answers the example PD torque otherwise.
+
+    The law keeps ``fault``'s name and docstring (a campaign names it ``campaign_faulty:<name>``)
+    and has the signature of a law that takes the target.
+    """
+    def law(t: float, position: float, velocity: float, *, target: float) -> object:
+        if _faulty(t, target):
+            answer = fault()
+            if answer is not None:
+                return answer
+        return pd(t, position, velocity, target=target)
+
+    law.__name__ = law.__qualname__ = fault.__name__
+    law.__doc__ = fault.__doc__
+    return law
+
+
+@misbehaving
+def overflow() -> object:
     """Return an int too large for a float."""
-    return 10**400 if _faulty(t, target) else pd(t, position, velocity, target=target)
+    return 10**400
 
 
-def exits(t: float, position: float, velocity: float, *, target: float) -> float:
+@misbehaving
+def exits() -> None:
     """Call sys.exit(3)."""
-    if _faulty(t, target):
-        sys.exit(3)
-    return pd(t, position, velocity, target=target)
+    sys.exit(3)
 
 
-def hard_exit(t: float, position: float, velocity: float, *, target: float) -> float:
+@misbehaving
+def hard_exit() -> None:
     """Call os._exit(4)."""
-    if _faulty(t, target):
-        os._exit(4)
-    return pd(t, position, velocity, target=target)
+    os._exit(4)
 
 
-def leaks(t: float, position: float, velocity: float, *, target: float) -> float:
+@misbehaving
+def leaks() -> None:
     """Take memory, 10 MB at a time, and never give it back."""
-    while _faulty(t, target):
+    while True:
         HOARD.append(b'x' * 10_000_000)
-    return pd(t, position, velocity, target=target)
 
 
-def hangs(t: float, position: float, velocity: float, *, target: float) -> float:
+@misbehaving
+def hangs() -> None:
     """Never answer."""
-    while _faulty(t, target):
+    while True:
         time.sleep(1.0)
-    return pd(t, position, velocity, target=target)
 
 
-def slow(t: float, position: float, velocity: float, *, target: float) -> float:
+@misbehaving
+def slow() -> None:
     """Answer every call, each after SLOW_S (well within the episode's limit)."""
-    if _faulty(t, target):
-        time.sleep(SLOW_S)
-    return pd(t, position, velocity, target=target)
+    time.sleep(SLOW_S)
 
 
-def text(t: float, position: float, velocity: float, *, target: float) -> object:
+@misbehaving
+def text() -> object:
     """Return the torque as a string ('0.5' reads as a number, but a command is a number)."""
-    return '0.5' if _faulty(t, target) else pd(t, position, velocity, target=target)
+    return '0.5'
 
 
 @vectorised

@@ -9,43 +9,34 @@ cannot name an episode that passes, or a recording that does not exist, without 
 """
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from doc_pages import TUTORIALS, blocks, run_shell, run_steps
 
 from pendulum_sim.testing.campaign.store import EpisodeStore
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]   # pendulum_replay publishes over DDS
 
-ROOT = Path(__file__).resolve().parents[2]
-PAGE = ROOT / 'docs' / 'tutorials' / 'campaign.md'
-
-
-def blocks(kind: str) -> list[str]:
-    """Return the page's fenced blocks of ``kind`` (``yaml``, ``bash``), in order."""
-    return re.findall(rf'^```{kind}\n(.*?)^```', PAGE.read_text(encoding='utf-8'),
-                      re.S | re.M)
+PAGE = TUTORIALS / 'campaign.md'
 
 
 def test_the_failing_episode_the_tutorial_names_fails_and_its_commands_run(
         tmp_path: Path) -> None:
     text = PAGE.read_text(encoding='utf-8')
-    (campaign,) = [b for b in blocks('yaml') if b.startswith('# campaign.yaml\n')]
+    (campaign,) = [b for b in blocks(PAGE, 'yaml') if b.startswith('# campaign.yaml\n')]
     named = re.search(r'episode (\d+) is the first that fails: .*? with the reason `([^`]+)`',
                       text, re.S)
     assert named is not None, 'the page names no failing episode'
     episode, reason = int(named[1]), named[2]
-    (look,) = [b for b in blocks('bash') if 'failures/episode-' in b]
+    (look,) = [b for b in blocks(PAGE, 'bash') if 'failures/episode-' in b]
     # Every command of the block names that episode, and nothing else does.
     assert set(re.findall(r'episode-(\d{6})\.mcap', look)) == {f'{episode:06d}'}
     assert re.findall(r'--rerun results (\d+)', look) == [str(episode)]
     printed = re.search(r'The last command prints\s+`([^`]+)`', text)
     assert printed is not None
-    run = next(line for b in blocks('bash') for line in b.splitlines()
+    run = next(line for b in blocks(PAGE, 'bash') for line in b.splitlines()
                if line.startswith('pendulum_campaign campaign.yaml --out results'))
     assert run == 'pendulum_campaign campaign.yaml --out results'
 
@@ -53,15 +44,7 @@ def test_the_failing_episode_the_tutorial_names_fails_and_its_commands_run(
     assert episode < total
     (tmp_path / 'campaign.yaml').write_text(
         re.sub(r'^episodes: \d+', f'episodes: {episode + 1}', campaign, flags=re.M))
-    env = dict(os.environ)
-    env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env["PATH"]}'
-
-    def bash(script: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run(['bash', '-euo', 'pipefail', '-c', script], cwd=tmp_path,
-                              env=env, capture_output=True, text=True, timeout=600,
-                              check=False)
-
-    done = bash(run)
+    done = run_shell(run, tmp_path)
     assert done.returncode == 1, done.stderr          # some episode failed
     rows = EpisodeStore(tmp_path / 'results').rows()
     assert [r['episode'] for r in rows] == list(range(episode + 1))
@@ -70,7 +53,6 @@ def test_the_failing_episode_the_tutorial_names_fails_and_its_commands_run(
     summary = (tmp_path / 'results' / 'summary.md').read_text()
     assert f'| {reason} | failures/episode-{episode:06d}.mcap |' in summary
 
-    looked = bash(look)
-    assert looked.returncode == 0, f'{look}\n{looked.stdout}\n{looked.stderr}'
-    assert looked.stdout.splitlines()[-1] == printed[1]
+    (looked,) = run_steps([look], tmp_path)
+    assert looked.splitlines()[-1] == printed[1]
     assert (tmp_path / f'ep{episode}' / 'summary.md').is_file()

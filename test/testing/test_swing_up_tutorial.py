@@ -2,34 +2,19 @@
 animate."""
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import yaml
+from doc_pages import ROOT, TUTORIALS, blocks, run_steps
 
-ROOT = Path(__file__).resolve().parents[2]
-PAGE = ROOT / 'docs' / 'tutorials' / 'swing-up-benchmark.md'
-
-
-def bash_blocks() -> list[str]:
-    """Return the page's ```bash blocks, in order."""
-    return re.findall(r'^```bash\n(.*?)^```', PAGE.read_text(encoding='utf-8'), re.S | re.M)
+PAGE = TUTORIALS / 'swing-up-benchmark.md'
 
 
 def test_the_tutorial_benchmarks_reads_and_animates(tmp_path: Path) -> None:
-    blocks = bash_blocks()
-    assert len(blocks) == 4
-    env = dict(os.environ)
-    env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env["PATH"]}'
-    outputs = []
-    for block in blocks:
-        res = subprocess.run(['bash', '-euo', 'pipefail', '-c', block], cwd=tmp_path, env=env,
-                             capture_output=True, text=True, timeout=900, check=False)
-        assert res.returncode == 0, f'{block}\n{res.stdout}\n{res.stderr}'
-        outputs.append(res.stdout)
+    steps = blocks(PAGE, 'bash')
+    assert len(steps) == 4
+    outputs = run_steps(steps, tmp_path, timeout=900)
     # The table the page shows is the start of the one printed.
     shown = re.search(r'```text\n(.*?)\.\.\.\n```', PAGE.read_text(encoding='utf-8'), re.S)
     assert shown is not None and outputs[0].startswith(shown.group(1))

@@ -5,21 +5,12 @@ verdicts (inside the spread or not) and the fit in % as the page prints them.
 """
 from __future__ import annotations
 
-import os
-import re
-import subprocess
-import sys
 from pathlib import Path
 
 import yaml
+from doc_pages import TUTORIALS, blocks, run_steps
 
-ROOT = Path(__file__).resolve().parents[2]
-PAGE = ROOT / 'docs' / 'tutorials' / 'twin.md'
-
-
-def blocks(kind: str) -> list[str]:
-    """Return the page's fenced blocks of ``kind`` (bash, text), in order."""
-    return re.findall(rf'^```{kind}\n(.*?)^```', PAGE.read_text(encoding='utf-8'), re.S | re.M)
+PAGE = TUTORIALS / 'twin.md'
 
 
 def verdicts(text: str) -> tuple[str, list[tuple[str, str]]]:
@@ -31,17 +22,10 @@ def verdicts(text: str) -> tuple[str, list[tuple[str, str]]]:
 
 
 def test_the_tutorial_records_identifies_and_checks_the_twin(tmp_path: Path) -> None:
-    steps, shown = blocks('bash'), blocks('text')
+    steps, shown = blocks(PAGE, 'bash'), blocks(PAGE, 'text')
     assert (len(steps), len(shown)) == (4, 2)
-    env = dict(os.environ)
-    env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env["PATH"]}'
-    printed = []
-    for step in steps:
-        res = subprocess.run(['bash', '-euo', 'pipefail', '-c', step], cwd=tmp_path, env=env,
-                             capture_output=True, text=True, timeout=600, check=False)
-        assert res.returncode == 0, f'{step}\n{res.stdout}\n{res.stderr}'
-        if 'pendulum_twin' in step:
-            printed.append(res.stdout)
+    printed = [out for step, out in zip(steps, run_steps(steps, tmp_path), strict=True)
+               if 'pendulum_twin' in step]
     assert len(printed) == 2
     for out, page in zip(printed, shown, strict=True):
         assert verdicts(out) == verdicts(page), out
