@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -23,6 +24,7 @@ import yaml
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, QoSReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 
 from pendulum_sim.dds import shut_down, use_loopback_profile
 from pendulum_sim.recording.errors import RecorderError
@@ -240,9 +242,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     # DDS on 127.0.0.1 unless the user chose a profile or a wider discovery range.
     use_loopback_profile(os.environ)
-    rclpy.init()
-    node = rclpy.create_node('pendulum_replay')
+    # Ctrl-C and SIGTERM end the replay between two messages (Python raises KeyboardInterrupt
+    # between bytecodes); rclpy's own handlers would shut the context down at once, in the
+    # middle of a publish, which then fails (as pendulum_node, which also declines them).
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    node = None
     try:
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node('pendulum_replay')
         replay(node, the_plan, args.rate, args.loop, args.clock, args.wait_for_subscribers,
                sys.stderr)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -257,16 +257,19 @@ def test_argument_errors(recording: tuple[Path, list[Any]], args: list[str],
 
 
 @pytest.mark.ros
-def test_ctrl_c_stops_a_looping_replay_cleanly(recording: tuple[Path, list[Any]]) -> None:
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_or_sigterm_stops_a_looping_replay_cleanly(recording: tuple[Path, list[Any]],
+                                                          signum: int) -> None:
     path, _ = recording
     proc = subprocess.Popen(replay_command(str(path), '--loop'), stderr=subprocess.PIPE,
                             text=True, env=os.environ)
     assert proc.stderr is not None
     seen = ''
-    while 'messages' not in seen:
-        seen += proc.stderr.read(1)
-    time.sleep(0.3)
-    proc.send_signal(signal.SIGINT)
+    while not re.search(r' (\d+)/\1 messages', seen):   # a whole pass, then more
+        char = proc.stderr.read(1)
+        assert char, seen
+        seen += char
+    proc.send_signal(signum)
     _, err = proc.communicate(timeout=10)
     assert proc.returncode == 0
     assert 'Traceback' not in seen + err

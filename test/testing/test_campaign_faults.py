@@ -139,7 +139,9 @@ def _held_port() -> socket.socket:
 
 def test_ctrl_c_prints_one_line_and_the_cluster_starts_no_http_server(tmp_path: Path) -> None:
     path = tmp_path / 'campaign.yaml'
-    path.write_text(f'controller: {HEALTHY}\nepisodes: 200\nperiods: 3000\ntarget: 0.5\n')
+    # Minutes of episodes: the campaign is still running when the signal lands, however
+    # loaded the machine (with 200 it had once finished between the first chunk and Ctrl-C).
+    path.write_text(f'controller: {HEALTHY}\nepisodes: 5000\nperiods: 3000\ntarget: 0.5\n')
     out = tmp_path / 'out'
     with _held_port():
         proc = subprocess.Popen([str(BIN / 'pendulum_campaign'), str(path), '--out', str(out),
