@@ -57,6 +57,7 @@ FloatTable = tuple[tuple[str, float, str, tuple[float, float]], ...]
 """A law's float parameters: name, default, description, (low, high) each."""
 
 LawT = TypeVar('LawT')
+"""The law a controller node answers with: its gains, and what it derives from them."""
 
 
 class ControllerNode(Node, Generic[LawT]):
@@ -100,8 +101,13 @@ class ControllerNode(Node, Generic[LawT]):
         self.skipped = 0
         self.done = False
         self._warned: set[str] = set()
+        self._held: float | None = None
         # The states' subscription first: a synchronous joint steps once it sees a publisher
-        # of commands, and the first state must find the subscription there.
+        # of commands, and the first state must find the subscription there. DDS matches the
+        # two sides of each topic on its own, in no set order: the joint can see this
+        # publisher, and send a state, before the publisher reaches the joint's subscription;
+        # an answer published then would reach no one (volatile), so it is held until the
+        # publisher reaches a subscriber (:meth:`_on_matched`).
         self._sub = self.create_subscription(JointState, 'joint_states', self._on_state,
                                              RELIABLE_QOS)
         self._pub = self.create_publisher(
@@ -114,8 +120,12 @@ class ControllerNode(Node, Generic[LawT]):
         return str(self._values['joint_name'])
 
     def _on_matched(self, info: QoSPublisherMatchedInfo) -> None:
-        """Log each change in the subscribers the answers reach: the loop's connection."""
+        """Log each change in the subscribers the answers reach: the loop's connection; send
+        an answer held for want of one."""
         self.get_logger().info(f'effort_command reaches {info.current_count} subscriber(s)')
+        if info.current_count > 0 and self._held is not None:
+            tau, self._held = self._held, None
+            self._answer(tau)
 
     # ------------------------------------------------------------------ parameters
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
@@ -166,7 +176,12 @@ class ControllerNode(Node, Generic[LawT]):
         tau = self._torque(msg, phi, dphi)
         if tau is None:
             self.skipped += 1
-            return
+        elif self._pub.get_subscription_count() == 0:
+            self._held = tau   # the latest state's answer, sent once the publisher connects
+        else:
+            self._answer(tau)
+
+    def _answer(self, tau: float) -> None:
         self._pub.publish(Float64(data=tau))
         self.answers += 1
         if self.count and self.answers >= self.count:

@@ -245,7 +245,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     # Ctrl-C and SIGTERM end the replay between two messages (Python raises KeyboardInterrupt
     # between bytecodes); rclpy's own handlers would shut the context down at once, in the
     # middle of a publish, which then fails (as pendulum_node, which also declines them).
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.default_int_handler)
     node = None
     try:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)

@@ -133,7 +133,10 @@ def test_pause_true_stops_a_step_budget() -> None:
 
 
 def test_stop_goes_on_when_a_new_controller_connects() -> None:
-    params = {'sync_timeout': 0.2, 'sync_timeout_action': 'stop'}
+    # A timeout of 1 s: the node sees the new controller's endpoints, and publishes the awaited
+    # state, before that controller's publisher reaches the node's subscription; on a loaded
+    # machine that took 0.4 s, and at 0.2 s the answer (held until then) came too late.
+    params = {'sync_timeout': 1.0, 'sync_timeout_action': 'stop'}
     with NodeProcess('controller_test', params) as node:
         with Controller(args=['--count', '30'], namespace=node.namespace) as first:
             assert first.wait(60.0) == 0, first.output()

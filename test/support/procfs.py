@@ -51,3 +51,23 @@ def rss_kib(pid: int) -> int:
     found = re.search(r'^VmRSS:\s+(\d+) kB', text, re.M)
     assert found is not None, 'no VmRSS'
     return int(found.group(1))
+
+
+def descendants(pid: int) -> set[int]:
+    """Return the processes below process ``pid`` (children, theirs, ...), read from /proc."""
+    parent_of: dict[int, int] = {}
+    for entry in os.listdir('/proc'):
+        if not entry.isdigit():
+            continue
+        try:
+            stat = Path(f'/proc/{entry}/stat').read_text()
+        except OSError:   # ended meanwhile
+            continue
+        # The command name, in parentheses, may hold spaces: the fields after it are plain.
+        parent_of[int(entry)] = int(stat[stat.rindex(')') + 2:].split()[1])
+    found: set[int] = set()
+    frontier = {pid}
+    while frontier:
+        frontier = {child for child, parent in parent_of.items() if parent in frontier} - found
+        found |= frontier
+    return found
