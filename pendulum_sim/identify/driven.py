@@ -423,12 +423,17 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
 
     Every start of every set is one problem of one :func:`windows.solve`; the start of a set
     that ends lowest is its fit. ``seeds[i]`` are further starts of set ``i`` beside its
-    first guesses (the optima of the laws ``law`` nests, :func:`nested_start`).
+    first guesses (the optima of the laws ``law`` nests, :func:`nested_start`), solved in a
+    second round where they are below what the first guesses reached (each starts at its
+    nested optimum's cost, on the same windows, and a step is only taken downhill): so that
+    ``law`` never ends above a law it nests, at the cost of a second round only where its own
+    starts fell short of one.
     """
     free = _free(law, known)
     problems: list[Problem] = []
     owner: list[int] = []
     made: list[tuple[Windows, float, float | None]] = []
+    waiting: list[tuple[int, bool, float, Problem]] = []   # set, same windows, cost, start
     for i, recs in enumerate(sets):
         starts = first_guesses(law, recs, known)
         omega0 = reference_omega0(recs, known)
@@ -449,11 +454,19 @@ def solve_sets(law: Law, sets: Sequence[Sequence[DrivenRecord]], known: Mapping[
         for seed in [] if seeds is None else seeds[i]:
             st = measured.copy()
             st[:, 0] -= seed.values['phi_offset']
-            if _same_windows(seed.windows, win):
+            same = _same_windows(seed.windows, win)
+            if same:
                 st = seed.states
-            problems.append(_problem(free, seed.values, st, win, recs, omega0, law))
-            owner.append(i)
+            waiting.append((i, same, seed.cost,
+                            _problem(free, seed.values, st, win, recs, omega0, law)))
     solve(problems, jit=jit, progress=progress)
+    reached = [min((p.cost for p, o in zip(problems, owner, strict=True) if o == i),
+                   default=math.inf) for i in range(len(sets))]
+    second = [(i, p) for i, same, cost, p in waiting if not same or cost < reached[i]]
+    if second:
+        solve([p for _, p in second], jit=jit, progress=progress)
+        problems += [p for _, p in second]
+        owner += [i for i, _ in second]
     out: list[DrivenSolution | None] = []
     for i in range(len(sets)):
         mine = [p for p, o in zip(problems, owner, strict=True) if o == i]
@@ -481,6 +494,8 @@ class NestedStart:
     values: dict[str, float]
     windows: Windows
     states: FloatArray
+    cost: float
+    """The nested fit's cost (half its sum of squares) on ``windows``."""
 
 
 def nested_start(sol: DrivenSolution, law: Law) -> NestedStart:
@@ -503,7 +518,7 @@ def nested_start(sol: DrivenSolution, law: Law) -> NestedStart:
         else:
             values['damping'] = values['friction'] / values['inertia']
             values['friction'] = 0.0
-    return NestedStart(values, sol.windows, p.states.copy())
+    return NestedStart(values, sol.windows, p.states.copy(), p.cost)
 
 
 def _same_windows(a: Windows, b: Windows) -> bool:
